@@ -1,0 +1,6 @@
+//! probmot: probabilistic 3D multi-object tracking (Chiu et al. 2019) for MCAP recordings.
+//!
+//! [`tracker`] is the pure tracker core; the other modules read and write MCAP, simulate drives,
+//! and drive the command-line tool.
+
+pub mod tracker;

@@ -1,0 +1,20 @@
+//! The tracker core: pure, no I/O. Boxes, the Kalman filter, distances, matching, the track life
+//! cycle and the configuration with its presets.
+//!
+//! The entry point is [`Tracker`]: create it from a [`TrackerConfig`], map labels to class ids
+//! with [`Tracker::class_id`], and call [`Tracker::step`] once per frame.
+
+pub mod angle;
+pub mod boxes;
+pub mod config;
+pub mod geometry;
+pub mod kalman;
+pub mod matching;
+pub mod track;
+#[allow(clippy::module_inception)]
+pub mod tracker;
+
+pub use boxes::{Box3, ClassId, Detection};
+pub use config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
+pub use track::TrackReport;
+pub use tracker::{StepError, Tracker, TrackerStats};

@@ -1,0 +1,80 @@
+//! One track: its filter, its life-cycle counters and what the tracker reports of it.
+
+use super::boxes::{Box3, ClassId};
+use super::kalman::{Innovation, KalmanState};
+
+/// A live track inside the tracker.
+#[derive(Debug, Clone)]
+pub struct Track {
+    /// Unique id within a run (one counter over all classes, starting at 1).
+    pub id: u64,
+    /// Class index.
+    pub class: ClassId,
+    /// Filter state.
+    pub kf: KalmanState,
+    /// Total number of matched detections, the birth included.
+    pub hits: u32,
+    /// Frames since birth.
+    pub age: u32,
+    /// Frames since the last matched detection (0 when matched this frame).
+    pub time_since_update: u32,
+    /// Score of the last matched detection.
+    pub score: f64,
+    /// Number of frames in which this track was reported.
+    pub reported_frames: u32,
+    /// Whether `hits` ever reached `min_hits`.
+    pub confirmed: bool,
+    /// Association cache of the current frame.
+    pub(crate) innovation: Option<Innovation>,
+}
+
+/// What the tracker reports for one track in one frame.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TrackReport {
+    /// Track id.
+    pub id: u64,
+    /// Class index.
+    pub class: ClassId,
+    /// Posterior box, or the prediction when the track was not matched this frame.
+    pub bbox: Box3,
+    /// Velocity in m/s.
+    pub velocity: [f64; 3],
+    /// Yaw rate in rad/s (0 without angular velocity).
+    pub yaw_rate: f64,
+    /// Score of the last matched detection.
+    pub score: f64,
+    /// Variances of x, y, z (m^2).
+    pub position_variance: [f64; 3],
+    /// Variance of yaw (rad^2).
+    pub yaw_variance: f64,
+    /// Frames since birth.
+    pub age: u32,
+    /// Total hits.
+    pub hits: u32,
+    /// Frames since the last matched detection.
+    pub frames_since_update: u32,
+    /// Index (into the detections passed to this step) of the detection matched this frame.
+    pub detection: Option<u32>,
+}
+
+impl Track {
+    /// The report of this track, with velocities converted from per-nominal-frame to per-second.
+    pub fn report(&self, dt_nominal: f64, detection: Option<u32>) -> TrackReport {
+        let x = &self.kf.x;
+        let p = &self.kf.p;
+        TrackReport {
+            id: self.id,
+            class: self.class,
+            bbox: Box3::from_slice(x.as_slice()),
+            velocity: [x[7] / dt_nominal, x[8] / dt_nominal, x[9] / dt_nominal],
+            yaw_rate: x[10] / dt_nominal,
+            score: self.score,
+            position_variance: [p[(0, 0)], p[(1, 1)], p[(2, 2)]],
+            yaw_variance: p[(3, 3)],
+            age: self.age,
+            hits: self.hits,
+            frames_since_update: self.time_since_update,
+            detection,
+        }
+    }
+}

@@ -1,0 +1,454 @@
+//! The tracker state machine: feed it one frame at a time, get the reported tracks back.
+
+use std::collections::HashMap;
+
+use super::boxes::{Box3, ClassId, Detection};
+use super::config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
+use super::geometry::{giou3d, iou3d};
+use super::kalman::{mahalanobis, KalmanState, Noise};
+use super::matching::{greedy, hungarian, Pair, NOT_A_CANDIDATE};
+use super::track::{Track, TrackReport};
+
+/// Why a frame was refused. The tracker state is unchanged when an error is returned.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum StepError {
+    /// Frames must come with strictly increasing stamps.
+    #[error("frame stamp {stamp} ns is not after the previous frame's stamp {previous} ns")]
+    NonIncreasingStamp {
+        /// The refused stamp.
+        stamp: u64,
+        /// The last accepted stamp.
+        previous: u64,
+    },
+    /// A detection refers to a class id the tracker never handed out.
+    #[error("detection {index} has unknown class id {class}")]
+    UnknownClass {
+        /// Index of the detection in the frame.
+        index: usize,
+        /// The class id.
+        class: ClassId,
+    },
+    /// A detection with a non-finite field or a non-positive size.
+    #[error("detection {index} has a non-finite value or a non-positive size: {bbox:?}")]
+    InvalidDetection {
+        /// Index of the detection in the frame.
+        index: usize,
+        /// The box.
+        bbox: Box3,
+    },
+}
+
+/// Counters over a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct TrackerStats {
+    /// Frames processed.
+    pub frames: u64,
+    /// Detections given to the tracker (after the score floor).
+    pub detections: u64,
+    /// Detections dropped by a class's score floor.
+    pub below_score_floor: u64,
+    /// Tracks started (one per unmatched detection).
+    pub born: u64,
+    /// Tracks that reached `min_hits`.
+    pub confirmed: u64,
+    /// Sum of reported frames over confirmed tracks that have died.
+    pub confirmed_reported_frames_of_dead: u64,
+    /// Confirmed tracks that have died.
+    pub confirmed_dead: u64,
+}
+
+struct ClassState {
+    label: String,
+    cfg: ClassConfig,
+    noise: Noise,
+    tracks: Vec<Track>,
+    dets: Vec<u32>,
+}
+
+#[derive(Default)]
+struct Scratch {
+    pairs: Vec<Pair>,
+    cost: Vec<f64>,
+    det_taken: Vec<bool>,
+    trk_taken: Vec<bool>,
+    matches: Vec<(u32, u32)>,
+    matched_det: Vec<bool>,
+    track_match: Vec<Option<u32>>,
+    pred: Vec<Box3>,
+}
+
+/// The probabilistic 3D multi-object tracker of Chiu et al. (2019), as a sans-I/O state machine.
+///
+/// ```
+/// use probmot::tracker::{Box3, Detection, Tracker, TrackerConfig};
+///
+/// let mut tracker = Tracker::new(TrackerConfig::preset("nuscenes-chiu2019").unwrap()).unwrap();
+/// let car = tracker.class_id("car").unwrap();
+/// let mut reported = 0;
+/// for frame in 0..5u64 {
+///     let det = Detection {
+///         bbox: Box3 { center: [frame as f64, 0.0, 0.0], yaw: 0.0, size: [4.0, 2.0, 1.5] },
+///         class: car,
+///         score: 0.9,
+///     };
+///     // nuScenes keyframes: 0.5 s apart.
+///     let tracks = tracker.step(frame * 500_000_000, &[det]).unwrap();
+///     reported = tracks.len();
+///     assert!(tracks.iter().all(|t| t.id == 1));
+/// }
+/// assert_eq!(reported, 1);
+/// ```
+pub struct Tracker {
+    config: TrackerConfig,
+    classes: Vec<ClassState>,
+    by_label: HashMap<String, ClassId>,
+    frame_count: u64,
+    last_stamp: Option<u64>,
+    next_id: u64,
+    reports: Vec<TrackReport>,
+    deleted: Vec<u64>,
+    stats: TrackerStats,
+    scratch: Scratch,
+}
+
+impl Tracker {
+    /// A tracker for a validated configuration.
+    pub fn new(config: TrackerConfig) -> Result<Self, ConfigError> {
+        config.validate()?;
+        let mut t = Tracker {
+            config,
+            classes: Vec::new(),
+            by_label: HashMap::new(),
+            frame_count: 0,
+            last_stamp: None,
+            next_id: 1,
+            reports: Vec::new(),
+            deleted: Vec::new(),
+            stats: TrackerStats::default(),
+            scratch: Scratch::default(),
+        };
+        // Listed classes get ids in config order so that output order is stable.
+        let labels: Vec<String> = t.config.classes.keys().cloned().collect();
+        for l in labels {
+            t.class_id(&l);
+        }
+        Ok(t)
+    }
+
+    /// The configuration in use.
+    pub fn config(&self) -> &TrackerConfig {
+        &self.config
+    }
+
+    /// The class id of a label, registering it on first use. `None` when the label is not in the
+    /// config and the config has no `default` entry.
+    pub fn class_id(&mut self, label: &str) -> Option<ClassId> {
+        if let Some(&id) = self.by_label.get(label) {
+            return Some(id);
+        }
+        let cfg = self.config.class(label)?.clone();
+        let id = self.classes.len() as ClassId;
+        self.classes.push(ClassState {
+            label: label.to_string(),
+            noise: Noise::from_diagonals(&cfg.q, &cfg.r, &cfg.p0, cfg.angular_velocity),
+            cfg,
+            tracks: Vec::new(),
+            dets: Vec::new(),
+        });
+        self.by_label.insert(label.to_string(), id);
+        Some(id)
+    }
+
+    /// The label of a class id.
+    pub fn label(&self, class: ClassId) -> &str {
+        &self.classes[class as usize].label
+    }
+
+    /// Ids of the tracks deleted during the last [`Tracker::step`].
+    pub fn deleted(&self) -> &[u64] {
+        &self.deleted
+    }
+
+    /// Run counters.
+    pub fn stats(&self) -> TrackerStats {
+        self.stats
+    }
+
+    /// Mean number of reported frames per confirmed track, counting live tracks too.
+    pub fn mean_confirmed_track_length(&self) -> Option<f64> {
+        let (mut n, mut sum) = (
+            self.stats.confirmed_dead,
+            self.stats.confirmed_reported_frames_of_dead,
+        );
+        for c in &self.classes {
+            for t in c.tracks.iter().filter(|t| t.confirmed) {
+                n += 1;
+                sum += t.reported_frames as u64;
+            }
+        }
+        (n > 0).then(|| sum as f64 / n as f64)
+    }
+
+    /// Number of live tracks (tentative, confirmed and coasting).
+    pub fn live_tracks(&self) -> usize {
+        self.classes.iter().map(|c| c.tracks.len()).sum()
+    }
+
+    /// Processes one frame: predicts every class to `stamp_ns`, associates each class's
+    /// detections with its tracks, updates, starts and deletes tracks, and returns the reported
+    /// tracks in a stable order (class id, then track age). `detections[i].class` must come from
+    /// [`Tracker::class_id`].
+    pub fn step(
+        &mut self,
+        stamp_ns: u64,
+        detections: &[Detection],
+    ) -> Result<&[TrackReport], StepError> {
+        let k = match self.last_stamp {
+            Some(prev) if stamp_ns <= prev => {
+                return Err(StepError::NonIncreasingStamp {
+                    stamp: stamp_ns,
+                    previous: prev,
+                })
+            }
+            Some(prev) => Some((stamp_ns - prev) as f64 * 1e-9 / self.config.dt_nominal),
+            None => None,
+        };
+        for (index, d) in detections.iter().enumerate() {
+            if d.class as usize >= self.classes.len() {
+                return Err(StepError::UnknownClass {
+                    index,
+                    class: d.class,
+                });
+            }
+            if !d.bbox.is_valid() || !d.score.is_finite() {
+                return Err(StepError::InvalidDetection { index, bbox: d.bbox });
+            }
+        }
+        self.last_stamp = Some(stamp_ns);
+        self.frame_count += 1;
+        self.stats.frames += 1;
+        self.reports.clear();
+        self.deleted.clear();
+
+        for c in &mut self.classes {
+            c.dets.clear();
+        }
+        for (i, d) in detections.iter().enumerate() {
+            let c = &mut self.classes[d.class as usize];
+            if c.cfg.score_floor.is_some_and(|f| d.score < f) {
+                self.stats.below_score_floor += 1;
+                continue;
+            }
+            c.dets.push(i as u32);
+            self.stats.detections += 1;
+        }
+
+        for c in &mut self.classes {
+            step_class(
+                c,
+                k,
+                detections,
+                self.frame_count,
+                self.config.dt_nominal,
+                &mut self.next_id,
+                &mut self.scratch,
+                &mut self.reports,
+                &mut self.deleted,
+                &mut self.stats,
+            );
+        }
+        Ok(&self.reports)
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn step_class(
+    c: &mut ClassState,
+    k: Option<f64>,
+    all_dets: &[Detection],
+    frame_count: u64,
+    dt_nominal: f64,
+    next_id: &mut u64,
+    s: &mut Scratch,
+    reports: &mut Vec<TrackReport>,
+    deleted: &mut Vec<u64>,
+    stats: &mut TrackerStats,
+) {
+    // Predict every track of the class, also when the class has no detection this frame.
+    if let Some(k) = k {
+        for t in &mut c.tracks {
+            t.kf.predict(k, &c.noise);
+            t.age += 1;
+            t.time_since_update += 1;
+        }
+    }
+
+    let n_det = c.dets.len();
+    let n_trk = c.tracks.len();
+    s.matches.clear();
+    if n_det > 0 && n_trk > 0 {
+        candidate_pairs(c, all_dets, s);
+        let max_cost = if c.cfg.distance.is_similarity() {
+            -c.cfg.threshold
+        } else {
+            c.cfg.threshold
+        };
+        match c.cfg.matcher {
+            MatcherKind::Greedy => greedy(
+                &mut s.pairs,
+                max_cost,
+                &mut s.det_taken,
+                &mut s.trk_taken,
+                n_det,
+                n_trk,
+                &mut s.matches,
+            ),
+            MatcherKind::Hungarian => {
+                s.cost.clear();
+                s.cost.resize(n_det * n_trk, NOT_A_CANDIDATE);
+                for p in &s.pairs {
+                    s.cost[p.det as usize * n_trk + p.trk as usize] = p.cost;
+                }
+                hungarian(&s.cost, n_det, n_trk, max_cost, &mut s.matches);
+            }
+        }
+    }
+
+    // Update matched tracks.
+    s.matched_det.clear();
+    s.matched_det.resize(n_det, false);
+    s.track_match.clear();
+    s.track_match.resize(n_trk, None);
+    for &(d, t) in &s.matches {
+        let det = &all_dets[c.dets[d as usize] as usize];
+        let trk = &mut c.tracks[t as usize];
+        trk.kf.update(&det.bbox, &c.noise);
+        trk.hits += 1;
+        trk.time_since_update = 0;
+        trk.score = det.score;
+        s.matched_det[d as usize] = true;
+        s.track_match[t as usize] = Some(c.dets[d as usize]);
+    }
+
+    // Birth: every unmatched detection starts a track.
+    for (d, &det_index) in c.dets.iter().enumerate() {
+        if s.matched_det[d] {
+            continue;
+        }
+        let det = &all_dets[det_index as usize];
+        c.tracks.push(Track {
+            id: *next_id,
+            class: det.class,
+            kf: KalmanState::new(&det.bbox, &c.noise),
+            hits: 1,
+            age: 0,
+            time_since_update: 0,
+            score: det.score,
+            reported_frames: 0,
+            confirmed: false,
+            innovation: None,
+        });
+        s.track_match.push(Some(det_index));
+        *next_id += 1;
+        stats.born += 1;
+    }
+
+    // Report, then delete.
+    let min_hits = c.cfg.min_hits;
+    let max_age = c.cfg.max_age;
+    for (t, m) in c.tracks.iter_mut().zip(&s.track_match) {
+        if !t.confirmed && t.hits >= min_hits {
+            t.confirmed = true;
+            stats.confirmed += 1;
+        }
+        if t.time_since_update < max_age && (t.hits >= min_hits || frame_count <= min_hits as u64)
+        {
+            t.reported_frames += 1;
+            reports.push(t.report(dt_nominal, *m));
+        }
+    }
+    c.tracks.retain(|t| {
+        let keep = t.time_since_update < max_age;
+        if !keep {
+            deleted.push(t.id);
+            if t.confirmed {
+                stats.confirmed_dead += 1;
+                stats.confirmed_reported_frames_of_dead += t.reported_frames as u64;
+            }
+        }
+        keep
+    });
+}
+
+/// Fills `s.pairs` with the candidate pairs of a class: each pair that passes the cheap pre-gate,
+/// with its full cost. Pairs cut by the pre-gate could never be matched.
+fn candidate_pairs(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) {
+    s.pairs.clear();
+    let cfg = &c.cfg;
+    let thr = cfg.threshold;
+    match cfg.distance {
+        DistanceKind::Mahalanobis => {
+            for t in &mut c.tracks {
+                t.innovation = Some(t.kf.innovation(&c.noise));
+            }
+            let g2 = thr * thr;
+            for (d, &di) in c.dets.iter().enumerate() {
+                let b = &all_dets[di as usize].bbox;
+                for (ti, t) in c.tracks.iter().enumerate() {
+                    let inn = t.innovation.as_ref().expect("computed above");
+                    let dx = b.center[0] - inn.z_pred[0];
+                    let dy = b.center[1] - inn.z_pred[1];
+                    // The xy marginal's distance bounds the full one from below, and
+                    // |y_xy|^2 / trace(S_xy) bounds that from below.
+                    if dx * dx + dy * dy > g2 * inn.trace_xy {
+                        continue;
+                    }
+                    s.pairs.push(Pair {
+                        cost: mahalanobis(inn, b),
+                        det: d as u32,
+                        trk: ti as u32,
+                    });
+                }
+            }
+        }
+        DistanceKind::Center => {
+            for (d, &di) in c.dets.iter().enumerate() {
+                let b = &all_dets[di as usize].bbox;
+                for (ti, t) in c.tracks.iter().enumerate() {
+                    let dist = (b.center[0] - t.kf.x[0]).hypot(b.center[1] - t.kf.x[1]);
+                    if dist <= thr {
+                        s.pairs.push(Pair {
+                            cost: dist,
+                            det: d as u32,
+                            trk: ti as u32,
+                        });
+                    }
+                }
+            }
+        }
+        DistanceKind::Iou3d | DistanceKind::Giou3d => {
+            s.pred.clear();
+            s.pred
+                .extend(c.tracks.iter().map(|t| Box3::from_slice(t.kf.x.as_slice())));
+            let giou = cfg.distance == DistanceKind::Giou3d;
+            for (d, &di) in c.dets.iter().enumerate() {
+                let b = &all_dets[di as usize].bbox;
+                for (ti, p) in s.pred.iter().enumerate() {
+                    let sim = if giou {
+                        giou3d(b, p)
+                    } else {
+                        // iou3d itself skips pairs whose footprints cannot touch.
+                        iou3d(b, p)
+                    };
+                    if sim >= thr {
+                        s.pairs.push(Pair {
+                            cost: -sim,
+                            det: d as u32,
+                            trk: ti as u32,
+                        });
+                    }
+                }
+            }
+        }
+    }
+}
