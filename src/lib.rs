@@ -3,4 +3,8 @@
 //! [`tracker`] is the pure tracker core; the other modules read and write MCAP, simulate drives,
 //! and drive the command-line tool.
 
+pub mod mcapio;
+pub mod msgs;
+pub mod pipeline;
+pub mod sim;
 pub mod tracker;

@@ -164,6 +164,11 @@ impl Tracker {
         &self.classes[class as usize].label
     }
 
+    /// The tracks reported by the last [`Tracker::step`].
+    pub fn reports(&self) -> &[TrackReport] {
+        &self.reports
+    }
+
     /// Ids of the tracks deleted during the last [`Tracker::step`].
     pub fn deleted(&self) -> &[u64] {
         &self.deleted

@@ -1,0 +1,182 @@
+//! `probmot config`: print a preset or check a config file; the tracker-setting flags shared by
+//! the commands that run the tracker.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use probmot::tracker::config::{ab3dmot_covariances, PRESETS};
+use probmot::tracker::{DistanceKind, MatcherKind, TrackerConfig};
+
+/// Print a built-in preset as JSON, or load, validate and print a config file.
+///
+/// Examples:
+///   probmot config --preset nuscenes-chiu2019 > my.json
+///   probmot config --check my.json
+///   probmot config --list
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+pub struct ConfigArgs {
+    #[command(flatten)]
+    tracker: TrackerArgs,
+    /// List the built-in presets.
+    #[arg(long)]
+    list: bool,
+}
+
+/// Distance choices on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum DistanceArg {
+    /// Mahalanobis distance with the innovation covariance (the paper).
+    Mahalanobis,
+    /// Oriented 3D IoU (AB3DMOT).
+    Iou3d,
+    /// Generalized 3D IoU.
+    Giou3d,
+    /// BEV centre distance, metres.
+    Center,
+}
+
+/// Matcher choices on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MatcherArg {
+    /// Greedy, Algorithm 1 of the paper.
+    Greedy,
+    /// Optimal assignment.
+    Hungarian,
+}
+
+/// Covariance choices on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum CovarianceArg {
+    /// The covariances of the config or preset.
+    Config,
+    /// AB3DMOT's hand-set defaults (the paper's "default covariance" ablation).
+    Default,
+}
+
+/// Tracker settings: a config file or preset, and the ablation switches that override it
+/// (the rows of the paper's Table 1).
+#[derive(Debug, Clone, Args)]
+pub struct TrackerArgs {
+    /// Tracker config file (JSON, as printed by `probmot config`).
+    #[arg(long, value_name = "FILE", conflicts_with = "preset", help_heading = "Tracker")]
+    pub config: Option<PathBuf>,
+    /// Built-in preset: nuscenes-chiu2019 (default) or ab3dmot.
+    #[arg(long, value_name = "NAME", help_heading = "Tracker")]
+    pub preset: Option<String>,
+    /// Override the distance of every class.
+    #[arg(long, value_enum, help_heading = "Ablations")]
+    pub distance: Option<DistanceArg>,
+    /// Override the gate of every class (max distance, or min IoU for IoU kinds).
+    #[arg(long, help_heading = "Ablations")]
+    pub threshold: Option<f64>,
+    /// Override the matcher of every class.
+    #[arg(long, value_enum, help_heading = "Ablations")]
+    pub matcher: Option<MatcherArg>,
+    /// Turn off the angular velocity in the motion model.
+    #[arg(long, help_heading = "Ablations")]
+    pub no_angular_velocity: bool,
+    /// Use the covariances of the config, or AB3DMOT's defaults.
+    #[arg(long, value_enum, help_heading = "Ablations")]
+    pub covariance: Option<CovarianceArg>,
+    /// Override the nominal frame period, seconds (nuScenes 0.5, KITTI 0.1).
+    #[arg(long, value_name = "S", help_heading = "Tracker")]
+    pub dt_nominal: Option<f64>,
+    /// Override min_hits of every class.
+    #[arg(long, help_heading = "Tracker")]
+    pub min_hits: Option<u32>,
+    /// Override max_age of every class.
+    #[arg(long, help_heading = "Tracker")]
+    pub max_age: Option<u32>,
+    /// Ignore detections scoring below this.
+    #[arg(long, help_heading = "Tracker")]
+    pub score_floor: Option<f64>,
+}
+
+impl TrackerArgs {
+    /// The configuration these flags describe, validated.
+    pub fn resolve(&self) -> Result<TrackerConfig> {
+        let mut cfg = match &self.config {
+            Some(path) => {
+                let text = std::fs::read_to_string(path)
+                    .with_context(|| format!("cannot read config {}", path.display()))?;
+                TrackerConfig::from_json(&text)
+                    .with_context(|| format!("config {}", path.display()))?
+            }
+            None => TrackerConfig::preset(self.preset.as_deref().unwrap_or("nuscenes-chiu2019"))?,
+        };
+        if let Some(d) = self.dt_nominal {
+            cfg.dt_nominal = d;
+        }
+        let distance = self.distance.map(|d| match d {
+            DistanceArg::Mahalanobis => DistanceKind::Mahalanobis,
+            DistanceArg::Iou3d => DistanceKind::Iou3d,
+            DistanceArg::Giou3d => DistanceKind::Giou3d,
+            DistanceArg::Center => DistanceKind::Center,
+        });
+        let matcher = self.matcher.map(|m| match m {
+            MatcherArg::Greedy => MatcherKind::Greedy,
+            MatcherArg::Hungarian => MatcherKind::Hungarian,
+        });
+        let (p0, q, r) = ab3dmot_covariances();
+        cfg.for_each_class(|c| {
+            if let Some(d) = distance {
+                if d != c.distance && self.threshold.is_none() {
+                    // A gate of another distance means nothing: use that distance's usual gate.
+                    c.threshold = default_threshold(d);
+                }
+                c.distance = d;
+            }
+            if let Some(t) = self.threshold {
+                c.threshold = t;
+            }
+            if let Some(m) = matcher {
+                c.matcher = m;
+            }
+            if self.no_angular_velocity {
+                c.angular_velocity = false;
+            }
+            if let Some(CovarianceArg::Default) = self.covariance {
+                c.p0 = p0;
+                c.q = q;
+                c.r = r;
+            }
+            if let Some(h) = self.min_hits {
+                c.min_hits = h;
+            }
+            if let Some(a) = self.max_age {
+                c.max_age = a;
+            }
+            if let Some(f) = self.score_floor {
+                c.score_floor = Some(f);
+            }
+        });
+        cfg.validate()?;
+        Ok(cfg)
+    }
+}
+
+/// The usual gate of a distance: 11 for Mahalanobis (the paper), 0.1 IoU and -0.5 GIoU
+/// (AB3DMOT), 2 m for centre distance (the nuScenes matching radius).
+pub fn default_threshold(d: DistanceKind) -> f64 {
+    match d {
+        DistanceKind::Mahalanobis => 11.0,
+        DistanceKind::Iou3d => 0.1,
+        DistanceKind::Giou3d => -0.5,
+        DistanceKind::Center => 2.0,
+    }
+}
+
+pub fn run(a: ConfigArgs) -> Result<ExitCode> {
+    if a.list {
+        for p in PRESETS {
+            println!("{p}");
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    let cfg = a.tracker.resolve()?;
+    println!("{}", cfg.to_json());
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,66 @@
+//! `probmot info`.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::Args;
+use probmot::pipeline::info::file_info;
+
+/// Show the channels of an MCAP file: schema, encodings, message counts, time range, and for
+/// detection and track channels the boxes per class.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// MCAP file.
+    file: PathBuf,
+    /// Print as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn secs(ns: u64) -> String {
+    format!("{}.{:09}", ns / 1_000_000_000, ns % 1_000_000_000)
+}
+
+pub fn run(a: InfoArgs) -> Result<ExitCode> {
+    let info = file_info(&a.file)?;
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&info)?);
+        return Ok(ExitCode::SUCCESS);
+    }
+    println!("file:        {}", info.path);
+    println!("library:     {}", info.library);
+    println!("profile:     {}", info.profile);
+    println!(
+        "messages:    {}   attachments: {}   metadata: {}",
+        info.messages, info.attachments, info.metadata
+    );
+    println!("channels:");
+    let w = info.channels.iter().map(|c| c.topic.len()).max().unwrap_or(5).max(5);
+    for c in &info.channels {
+        let range = c
+            .log_time_range
+            .map(|(a, b)| format!("{} .. {}", secs(a), secs(b)))
+            .unwrap_or_else(|| "-".into());
+        let schema = if c.schema.is_empty() { "(no schema)" } else { &c.schema };
+        println!(
+            "  ({:>3}) {:<w$}  {:>7} msgs  {} [{}/{}]  {}{}",
+            c.id,
+            c.topic,
+            c.messages,
+            schema,
+            c.schema_encoding,
+            c.message_encoding,
+            range,
+            if c.role.is_empty() { String::new() } else { format!("  <- usable as {}", c.role) },
+        );
+        if !c.per_label.is_empty() {
+            let parts: Vec<String> = c.per_label.iter().map(|(l, n)| format!("{l} {n}")).collect();
+            println!("        boxes per class: {}", parts.join(", "));
+        }
+        if c.undecodable > 0 {
+            println!("        {} messages could not be decoded", c.undecodable);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}

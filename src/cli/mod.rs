@@ -1,0 +1,47 @@
+//! Command-line parsing and the subcommands' front ends.
+
+mod config_cmd;
+mod info_cmd;
+mod simulate_cmd;
+mod track_cmd;
+
+use std::process::ExitCode;
+
+use anyhow::Result;
+use clap::{Parser, Subcommand};
+
+/// probmot: probabilistic 3D multi-object tracking for MCAP drive recordings.
+///
+/// Reads 3D detections from an MCAP file, tracks them with the method of Chiu et al. (2019)
+/// (Kalman filter, Mahalanobis distance, greedy matching, noise from data) and writes the
+/// recording back with a tracks channel added.
+#[derive(Debug, Parser)]
+#[command(name = "probmot", version, about, long_about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    Track(track_cmd::TrackArgs),
+    Info(info_cmd::InfoArgs),
+    Simulate(simulate_cmd::SimulateArgs),
+    Config(config_cmd::ConfigArgs),
+}
+
+/// Runs a parsed command line; the exit code on success.
+pub fn run(cli: Cli) -> Result<ExitCode> {
+    match cli.command {
+        Command::Track(a) => track_cmd::run(a),
+        Command::Info(a) => info_cmd::run(a),
+        Command::Simulate(a) => simulate_cmd::run(a),
+        Command::Config(a) => config_cmd::run(a),
+    }
+}
+
+/// Whether progress bars should be drawn: stderr is a terminal and not `--quiet`.
+pub fn show_progress(quiet: bool) -> bool {
+    use std::io::IsTerminal;
+    !quiet && std::io::stderr().is_terminal()
+}

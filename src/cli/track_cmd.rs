@@ -1,0 +1,233 @@
+//! `probmot track`.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary};
+use rayon::prelude::*;
+
+use super::config_cmd::TrackerArgs;
+use super::show_progress;
+
+/// Track the detections of MCAP recordings and write each back with a tracks channel added.
+///
+/// Every input record (schemas, channels, messages with their times and sequence numbers,
+/// attachments, metadata) is copied unchanged; the tracks are written as `probmot.Tracks3D`
+/// messages, one per frame, with log_time = the frame's stamp. Frames are the distinct
+/// detection stamps, replayed in stamp order. The output is written to a temporary file and
+/// renamed at the end; the input is never modified.
+///
+/// Examples:
+///   probmot track drive.mcap -o drive.tracked.mcap
+///   probmot track drive.mcap -o out.mcap --preset ab3dmot
+///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
+///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+pub struct TrackArgs {
+    /// Input MCAP file(s).
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Output file (one input).
+    #[arg(short, long, conflicts_with = "out_dir")]
+    output: Option<PathBuf>,
+    /// Output directory (any number of inputs; each output keeps its input's file name).
+    #[arg(long, value_name = "DIR")]
+    out_dir: Option<PathBuf>,
+    /// Files processed in parallel with --out-dir (default: number of cores).
+    #[arg(long, value_name = "N")]
+    jobs: Option<usize>,
+    /// Detection topic(s); default: every channel with schema probmot.Detections3D.
+    #[arg(long = "detections-topic", value_name = "TOPIC")]
+    detections_topics: Vec<String>,
+    /// Topic of the tracks channel to write.
+    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
+    tracks_topic: String,
+    #[command(flatten)]
+    tracker: TrackerArgs,
+    /// Copy the log without tracking (measures the cost of plain I/O).
+    #[arg(long)]
+    no_track: bool,
+    /// Fail on any detection box that would otherwise be skipped with a warning.
+    #[arg(long)]
+    strict: bool,
+    /// Also write a Rerun recording of the run (needs the `rerun` cargo feature).
+    #[arg(long, value_name = "OUT.rrd")]
+    rerun: Option<PathBuf>,
+    /// No progress bar and no summary line (errors and warnings still go to stderr).
+    #[arg(short, long)]
+    quiet: bool,
+    /// Print the summary as JSON on stdout.
+    #[arg(long)]
+    json: bool,
+}
+
+fn bar_style() -> ProgressStyle {
+    ProgressStyle::with_template(
+        "{spinner} {msg:<24} [{bar:30}] {binary_bytes}/{binary_total_bytes} {binary_bytes_per_sec} ETA {eta}",
+    )
+    .expect("valid template")
+    .progress_chars("=> ")
+}
+
+fn print_summary(s: &TrackSummary) {
+    let classes: Vec<String> = s
+        .detections
+        .per_label
+        .iter()
+        .map(|(l, n)| format!("{l} {n}"))
+        .collect();
+    let total: u64 = s.detections.per_label.values().sum();
+    println!(
+        "{}: {} frames, {} detections ({}), {} tracks born, {} confirmed, mean track length {} frames, {} boxes skipped, {} messages copied, {:.2} s",
+        s.output,
+        s.frames,
+        total,
+        if classes.is_empty() { "none".to_string() } else { classes.join(", ") },
+        s.tracks_born,
+        s.tracks_confirmed,
+        s.mean_track_length.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
+        s.detections.total_skipped(),
+        s.messages_copied,
+        s.wall_time_s
+    );
+}
+
+pub fn run(a: TrackArgs) -> Result<ExitCode> {
+    if a.rerun.is_some() {
+        bail!(
+            "--rerun needs probmot built with the `rerun` cargo feature \
+             (cargo build --release --features rerun); without it, convert the output with \
+             scripts/to_rerun.py"
+        );
+    }
+    let config = a.tracker.resolve()?;
+    let opts = TrackOptions {
+        detection_topics: a.detections_topics.clone(),
+        tracks_topic: a.tracks_topic.clone(),
+        config,
+        no_track: a.no_track,
+        strict: a.strict,
+    };
+    let progress = show_progress(a.quiet || a.json);
+    match (&a.output, &a.out_dir) {
+        (Some(out), None) => {
+            if a.inputs.len() != 1 {
+                bail!("-o takes one input; use --out-dir DIR for several inputs");
+            }
+            let bar = if progress {
+                ProgressBar::new(0).with_style(bar_style())
+            } else {
+                ProgressBar::hidden()
+            };
+            let s = track_file(&a.inputs[0], out, &opts, &bar)?;
+            bar.finish_and_clear();
+            for w in &s.warnings {
+                eprintln!("warning: {w}");
+            }
+            if a.json {
+                println!("{}", serde_json::to_string_pretty(&s)?);
+            } else if !a.quiet {
+                print_summary(&s);
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        (None, Some(dir)) => run_many(&a, dir, &opts, progress),
+        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
+    }
+}
+
+fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
+    let name = input
+        .file_name()
+        .with_context(|| format!("{} has no file name", input.display()))?;
+    Ok(dir.join(name))
+}
+
+fn run_many(a: &TrackArgs, dir: &Path, opts: &TrackOptions, progress: bool) -> Result<ExitCode> {
+    if !dir.is_dir() {
+        bail!("output directory {} does not exist", dir.display());
+    }
+    let mut outputs = Vec::new();
+    for i in &a.inputs {
+        let o = output_in(dir, i)?;
+        if outputs.contains(&o) {
+            bail!("two inputs would both be written to {}", o.display());
+        }
+        outputs.push(o);
+    }
+    let jobs = a.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs.max(1))
+        .build()
+        .context("starting the worker threads")?;
+    let bar = if progress {
+        ProgressBar::new(a.inputs.len() as u64).with_style(
+            ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} files {msg} ETA {eta}")
+                .expect("valid template")
+                .progress_chars("=> "),
+        )
+    } else {
+        ProgressBar::hidden()
+    };
+    let failed = AtomicUsize::new(0);
+    let results: Vec<Result<TrackSummary>> = pool.install(|| {
+        a.inputs
+            .par_iter()
+            .zip(&outputs)
+            .map(|(input, output)| {
+                let r = track_file(input, output, opts, &ProgressBar::hidden());
+                if r.is_err() {
+                    failed.fetch_add(1, Ordering::Relaxed);
+                }
+                bar.inc(1);
+                bar.set_message(format!("({} failed)", failed.load(Ordering::Relaxed)));
+                r
+            })
+            .collect()
+    });
+    bar.finish_and_clear();
+    let mut json = Vec::new();
+    for (input, r) in a.inputs.iter().zip(&results) {
+        match r {
+            Ok(s) => {
+                for w in &s.warnings {
+                    eprintln!("warning: {w}");
+                }
+                if a.json {
+                    json.push(serde_json::json!({"input": input, "ok": true, "summary": s}));
+                } else if !a.quiet {
+                    print_summary(s);
+                }
+            }
+            Err(e) => {
+                eprintln!("error: {}: {e:#}", input.display());
+                json.push(serde_json::json!({"input": input, "ok": false, "error": format!("{e:#}")}));
+            }
+        }
+    }
+    let n_failed = failed.load(Ordering::Relaxed);
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&json)?);
+    } else if !a.quiet {
+        println!(
+            "{} files: {} tracked, {} failed",
+            a.inputs.len(),
+            a.inputs.len() - n_failed,
+            n_failed
+        );
+    }
+    Ok(if n_failed > 0 {
+        ExitCode::from(2)
+    } else {
+        ExitCode::SUCCESS
+    })
+}

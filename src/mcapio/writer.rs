@@ -1,0 +1,122 @@
+//! Atomic MCAP output: written to a temporary file in the destination directory, renamed over
+//! the destination only when complete. A crash or an error leaves no output file behind.
+
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use mcap::{WriteOptions, Writer};
+use tempfile::NamedTempFile;
+
+/// Options of the output file.
+#[derive(Debug, Clone)]
+pub struct OutputOptions {
+    /// Profile of the header record (kept from the input).
+    pub profile: String,
+    /// Chunk size in bytes before compression.
+    pub chunk_size: u64,
+}
+
+impl Default for OutputOptions {
+    fn default() -> Self {
+        OutputOptions {
+            profile: String::new(),
+            chunk_size: 1 << 20,
+        }
+    }
+}
+
+/// An MCAP writer on a temporary file that becomes `dest` on [`AtomicOutput::commit`].
+pub struct AtomicOutput {
+    /// The MCAP writer.
+    pub writer: Writer<BufWriter<File>>,
+    temp_path: tempfile::TempPath,
+    dest: PathBuf,
+}
+
+/// Library string written into the header of every file probmot writes.
+pub fn library_string() -> String {
+    format!("probmot {}", env!("CARGO_PKG_VERSION"))
+}
+
+/// Checks an output path before any work: its directory exists and it is not the input.
+pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {
+    let dir = parent_dir(dest);
+    if !dir.is_dir() {
+        bail!(
+            "output directory {} does not exist (for output {})",
+            dir.display(),
+            dest.display()
+        );
+    }
+    if let Some(input) = input {
+        let same = match (input.canonicalize(), dest.canonicalize()) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        };
+        if same {
+            bail!(
+                "output {} is the input file; probmot never modifies its input, choose another path",
+                dest.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn parent_dir(p: &Path) -> PathBuf {
+    match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
+}
+
+impl AtomicOutput {
+    /// Creates the temporary file beside `dest` and an MCAP writer on it: zstd chunks, message
+    /// and chunk indexes, and a summary section, so viewers can seek.
+    pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
+        let dir = parent_dir(dest);
+        let tmp = NamedTempFile::with_prefix_in(".probmot-", &dir)
+            .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
+        let (file, temp_path) = tmp.into_parts();
+        // Temporary files are created private (0600); the output is an ordinary file.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            file.set_permissions(std::fs::Permissions::from_mode(0o644))
+                .with_context(|| format!("setting permissions of {}", dest.display()))?;
+        }
+        let writer = WriteOptions::new()
+            .profile(opts.profile.clone())
+            .library(library_string())
+            .compression(Some(mcap::Compression::Zstd))
+            .compression_threads(0)
+            .chunk_size(Some(opts.chunk_size))
+            .create(BufWriter::with_capacity(1 << 16, file))
+            .with_context(|| format!("cannot start MCAP output {}", dest.display()))?;
+        Ok(AtomicOutput {
+            writer,
+            temp_path,
+            dest: dest.to_path_buf(),
+        })
+    }
+
+    /// Finishes the MCAP (summary, footer), flushes, syncs and renames over the destination.
+    pub fn commit(mut self) -> Result<()> {
+        self.writer
+            .finish()
+            .with_context(|| format!("finishing {}", self.dest.display()))?;
+        let buf = self.writer.into_inner();
+        let file = buf
+            .into_inner()
+            .map_err(|e| e.into_error())
+            .with_context(|| format!("flushing {}", self.dest.display()))?;
+        file.sync_all()
+            .with_context(|| format!("syncing {}", self.dest.display()))?;
+        self.temp_path
+            .persist(&self.dest)
+            .with_context(|| format!("renaming the output to {}", self.dest.display()))?;
+        Ok(())
+    }
+}

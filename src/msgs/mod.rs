@@ -1,0 +1,130 @@
+//! probmot's message schemas (`schemas/probmot/*.proto`): the generated Rust types, the
+//! serialized `FileDescriptorSet` for MCAP schema records, and decoding from protobuf or JSON.
+
+#[allow(missing_docs, clippy::all)]
+mod generated {
+    include!(concat!(env!("OUT_DIR"), "/probmot.rs"));
+}
+
+pub use generated::*;
+
+/// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
+/// the data of each MCAP schema record (schema encoding `protobuf`).
+pub const DESCRIPTOR_SET: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probmot_descriptor.bin"));
+
+/// Schema name of a detections channel.
+pub const DETECTIONS_SCHEMA: &str = "probmot.Detections3D";
+/// Schema name of a tracks (or ground truth) channel.
+pub const TRACKS_SCHEMA: &str = "probmot.Tracks3D";
+
+/// How a message is encoded, from the MCAP channel's `message_encoding`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoding {
+    /// Protobuf binary.
+    Protobuf,
+    /// JSON (serde field names = proto field names).
+    Json,
+}
+
+impl Encoding {
+    /// The encoding of a channel, if it is one probmot reads.
+    pub fn from_message_encoding(s: &str) -> Option<Encoding> {
+        match s {
+            "protobuf" => Some(Encoding::Protobuf),
+            "json" => Some(Encoding::Json),
+            _ => None,
+        }
+    }
+}
+
+/// A message that could not be decoded.
+#[derive(Debug, thiserror::Error)]
+pub enum DecodeError {
+    /// Bad protobuf bytes.
+    #[error("protobuf: {0}")]
+    Protobuf(#[from] prost::DecodeError),
+    /// Bad JSON.
+    #[error("json: {0}")]
+    Json(#[from] serde_json::Error),
+}
+
+/// Decodes a message of either encoding.
+pub fn decode<M>(bytes: &[u8], encoding: Encoding) -> Result<M, DecodeError>
+where
+    M: prost::Message + Default + serde::de::DeserializeOwned,
+{
+    Ok(match encoding {
+        Encoding::Protobuf => M::decode(bytes)?,
+        Encoding::Json => serde_json::from_slice(bytes)?,
+    })
+}
+
+/// Encodes a message to protobuf bytes into `buf` (cleared first).
+pub fn encode_into<M: prost::Message>(msg: &M, buf: &mut Vec<u8>) {
+    buf.clear();
+    msg.encode(buf).expect("Vec grows as needed");
+}
+
+/// Builds a [`Vector3`].
+pub fn v3(v: [f64; 3]) -> Vector3 {
+    Vector3 {
+        x: v[0],
+        y: v[1],
+        z: v[2],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use prost::Message;
+
+    #[test]
+    fn descriptor_set_names_our_messages() {
+        let fds = prost_types::FileDescriptorSet::decode(DESCRIPTOR_SET).unwrap();
+        let names: Vec<String> = fds
+            .file
+            .iter()
+            .flat_map(|f| {
+                let pkg = f.package().to_string();
+                f.message_type
+                    .iter()
+                    .map(move |m| format!("{pkg}.{}", m.name()))
+            })
+            .collect();
+        assert!(names.contains(&DETECTIONS_SCHEMA.to_string()));
+        assert!(names.contains(&TRACKS_SCHEMA.to_string()));
+    }
+
+    #[test]
+    fn json_and_protobuf_decode_the_same_message() {
+        let msg = Detections3D {
+            stamp: Some(42),
+            frame_id: "map".into(),
+            detections: vec![Detection3D {
+                center: Some(v3([1.0, 2.0, 3.0])),
+                size: Some(Size3 {
+                    length: 4.0,
+                    width: 2.0,
+                    height: 1.5,
+                }),
+                yaw: 0.5,
+                label: "car".into(),
+                score: 0.9,
+                attributes: [("k".to_string(), "v".to_string())].into(),
+                ..Default::default()
+            }],
+        };
+        let pb = msg.encode_to_vec();
+        let js = serde_json::to_vec(&msg).unwrap();
+        let a: Detections3D = decode(&pb, Encoding::Protobuf).unwrap();
+        let b: Detections3D = decode(&js, Encoding::Json).unwrap();
+        assert_eq!(a, msg);
+        assert_eq!(b, msg);
+        // Missing fields default, as in protobuf.
+        let c: Detections3D =
+            decode(br#"{"detections":[{"label":"car"}]}"#, Encoding::Json).unwrap();
+        assert_eq!(c.stamp, None);
+        assert_eq!(c.detections[0].label, "car");
+    }
+}

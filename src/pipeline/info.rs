@@ -1,0 +1,130 @@
+//! `probmot info`: what a recording holds, per channel, and which channels probmot can use.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+use anyhow::Result;
+use mcap::records::Record;
+
+use crate::mcapio::reader::read_records;
+use crate::msgs::{self, Detections3D, Encoding, Tracks3D};
+
+/// One channel of a recording.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ChannelSummary {
+    /// Channel id.
+    pub id: u16,
+    /// Topic.
+    pub topic: String,
+    /// Schema name (empty for schemaless channels).
+    pub schema: String,
+    /// Schema encoding.
+    pub schema_encoding: String,
+    /// Message encoding.
+    pub message_encoding: String,
+    /// Messages on the channel.
+    pub messages: u64,
+    /// Earliest and latest log_time, ns.
+    pub log_time_range: Option<(u64, u64)>,
+    /// What probmot can do with it: "detections", "tracks", or empty.
+    pub role: String,
+    /// For detection and track channels: boxes per label.
+    pub per_label: BTreeMap<String, u64>,
+    /// Messages of a detections/tracks channel that failed to decode.
+    pub undecodable: u64,
+}
+
+/// The whole file.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct FileSummary {
+    /// Path.
+    pub path: String,
+    /// Header profile.
+    pub profile: String,
+    /// Header library.
+    pub library: String,
+    /// Channels by id.
+    pub channels: Vec<ChannelSummary>,
+    /// Attachments.
+    pub attachments: u64,
+    /// Metadata records.
+    pub metadata: u64,
+    /// All messages.
+    pub messages: u64,
+}
+
+/// Reads the whole file and summarises it.
+pub fn file_info(path: &Path) -> Result<FileSummary> {
+    let mut out = FileSummary {
+        path: path.display().to_string(),
+        ..Default::default()
+    };
+    let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
+    let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
+    read_records(path, |rec, _| {
+        match rec {
+            Record::Header(h) => {
+                out.profile = h.profile;
+                out.library = h.library;
+            }
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, (header.name, header.encoding));
+            }
+            Record::Channel(c) => {
+                let (schema, schema_encoding) =
+                    schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let role = match (schema.as_str(), Encoding::from_message_encoding(&c.message_encoding)) {
+                    (msgs::DETECTIONS_SCHEMA, Some(_)) => "detections",
+                    (msgs::TRACKS_SCHEMA, Some(_)) => "tracks",
+                    _ => "",
+                };
+                channels.entry(c.id).or_insert(ChannelSummary {
+                    id: c.id,
+                    topic: c.topic,
+                    schema,
+                    schema_encoding,
+                    message_encoding: c.message_encoding,
+                    role: role.into(),
+                    ..Default::default()
+                });
+            }
+            Record::Message { header, data } => {
+                out.messages += 1;
+                if let Some(ch) = channels.get_mut(&header.channel_id) {
+                    ch.messages += 1;
+                    let t = header.log_time;
+                    ch.log_time_range = Some(match ch.log_time_range {
+                        Some((a, b)) => (a.min(t), b.max(t)),
+                        None => (t, t),
+                    });
+                    let enc = Encoding::from_message_encoding(&ch.message_encoding);
+                    match (ch.role.as_str(), enc) {
+                        ("detections", Some(enc)) => match msgs::decode::<Detections3D>(&data, enc) {
+                            Ok(m) => {
+                                for d in m.detections {
+                                    *ch.per_label.entry(d.label).or_default() += 1;
+                                }
+                            }
+                            Err(_) => ch.undecodable += 1,
+                        },
+                        ("tracks", Some(enc)) => match msgs::decode::<Tracks3D>(&data, enc) {
+                            Ok(m) => {
+                                for t in m.tracks {
+                                    *ch.per_label.entry(t.label).or_default() += 1;
+                                }
+                            }
+                            Err(_) => ch.undecodable += 1,
+                        },
+                        _ => {}
+                    }
+                }
+            }
+            Record::Attachment { .. } => out.attachments += 1,
+            Record::Metadata(_) => out.metadata += 1,
+            _ => {}
+        }
+        Ok(())
+    })?;
+    out.channels = channels.into_values().collect();
+    Ok(out)
+}

@@ -1,0 +1,5 @@
+//! The jobs behind the subcommands, built on the tracker core and the MCAP adapters.
+
+pub mod detections;
+pub mod info;
+pub mod track;

@@ -1,0 +1,562 @@
+//! `probmot track`: read an MCAP recording, replay its detections in stamp order through the
+//! tracker, and write every input record plus a tracks channel to a new MCAP file.
+//!
+//! Two streaming passes over the input. The first decodes only the detection messages to learn
+//! the frame stamps (16 bytes kept per detection message). The second copies every record to the
+//! output in file order and runs the tracker as soon as all messages of the next frame (in stamp
+//! order) have been seen; messages that arrive early wait in a small reorder buffer. Memory is
+//! bounded by the live tracks, one chunk of the input and output, and the out-of-orderness of
+//! the file, not by its length.
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::path::Path;
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use indicatif::ProgressBar;
+use mcap::records::{MessageHeader, Record};
+
+use super::detections::{convert, InputCounters, Origin};
+use crate::mcapio::reader::read_records;
+use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputOptions};
+use crate::msgs::{self, v3, Detections3D, Encoding, ImageBox, Track3D, Tracks3D};
+use crate::sim::write::size3;
+use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
+
+/// Settings of one `track` run.
+#[derive(Debug, Clone)]
+pub struct TrackOptions {
+    /// Detection topics; empty: every channel whose schema is `probmot.Detections3D`.
+    pub detection_topics: Vec<String>,
+    /// Topic of the tracks channel written.
+    pub tracks_topic: String,
+    /// Tracker configuration.
+    pub config: TrackerConfig,
+    /// Copy only, no tracking (for measuring the cost of I/O).
+    pub no_track: bool,
+    /// Turn every skipped box into an error.
+    pub strict: bool,
+}
+
+/// What a run did; printed as the summary line or as JSON.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct TrackSummary {
+    /// Input path.
+    pub input: String,
+    /// Output path.
+    pub output: String,
+    /// Detection topics used.
+    pub detection_topics: Vec<String>,
+    /// Frames (distinct detection stamps) tracked.
+    pub frames: u64,
+    /// Detection messages read.
+    pub detection_messages: u64,
+    /// Detections given to the tracker, per label, and the skipped ones by reason.
+    pub detections: InputCounters,
+    /// Tracks started.
+    pub tracks_born: u64,
+    /// Tracks that reached `min_hits`.
+    pub tracks_confirmed: u64,
+    /// Mean number of reported frames per confirmed track.
+    pub mean_track_length: Option<f64>,
+    /// Input messages copied.
+    pub messages_copied: u64,
+    /// Attachments copied.
+    pub attachments: u64,
+    /// Metadata records copied.
+    pub metadata: u64,
+    /// Tracks messages written.
+    pub tracks_messages: u64,
+    /// Per detection topic, messages whose stamp is earlier than the previous message's.
+    pub stamps_backwards: BTreeMap<String, u64>,
+    /// Detection messages that sharing a stamp with a message of another topic were merged.
+    pub merged_messages: u64,
+    /// Warnings for the user.
+    pub warnings: Vec<String>,
+    /// Wall time in seconds.
+    pub wall_time_s: f64,
+}
+
+/// Result of the first pass.
+struct Scan {
+    profile: String,
+    schema_ids: HashSet<u16>,
+    channel_ids: HashSet<u16>,
+    det_channels: HashMap<u16, (Encoding, String)>,
+    /// `(stamp, ordinal)` of every detection message.
+    entries: Vec<(u64, u64)>,
+    stamps_backwards: BTreeMap<String, u64>,
+    topics: HashSet<String>,
+}
+
+/// Stamp of a detection message: its own `stamp`, else the MCAP `log_time`.
+fn stamp_of(msg: &Detections3D, log_time: u64) -> u64 {
+    msg.stamp.unwrap_or(log_time)
+}
+
+fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
+    format!(
+        "{file}: topic {topic}, message at log_time {} (sequence {})",
+        h.log_time, h.sequence
+    )
+}
+
+fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
+    let file = input.display().to_string();
+    let mut schemas: HashMap<u16, String> = HashMap::new();
+    let mut s = Scan {
+        profile: String::new(),
+        schema_ids: HashSet::new(),
+        channel_ids: HashSet::new(),
+        det_channels: HashMap::new(),
+        entries: Vec::new(),
+        stamps_backwards: BTreeMap::new(),
+        topics: HashSet::new(),
+    };
+    let mut last_stamp: HashMap<u16, u64> = HashMap::new();
+    let mut ordinal = 0u64;
+    read_records(input, |rec, stats| {
+        match rec {
+            Record::Header(h) => s.profile = h.profile,
+            Record::Schema { header, .. } => {
+                s.schema_ids.insert(header.id);
+                schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                s.channel_ids.insert(c.id);
+                s.topics.insert(c.topic.clone());
+                let schema_name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let wanted = if opts.detection_topics.is_empty() {
+                    schema_name == msgs::DETECTIONS_SCHEMA
+                } else {
+                    opts.detection_topics.contains(&c.topic)
+                };
+                if wanted {
+                    let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
+                        bail!(
+                            "{file}: channel {} ({}) has message encoding '{}' with schema '{}'; \
+                             detections are read as {} with encoding protobuf or json",
+                            c.id,
+                            c.topic,
+                            c.message_encoding,
+                            schema_name,
+                            msgs::DETECTIONS_SCHEMA
+                        );
+                    };
+                    if !schema_name.is_empty() && schema_name != msgs::DETECTIONS_SCHEMA {
+                        bail!(
+                            "{file}: topic {} has schema '{}'; supported detection schemas: {}",
+                            c.topic,
+                            schema_name,
+                            msgs::DETECTIONS_SCHEMA
+                        );
+                    }
+                    s.det_channels.insert(c.id, (enc, c.topic.clone()));
+                }
+            }
+            Record::Message { header, data } => {
+                if let Some((enc, topic)) = s.det_channels.get(&header.channel_id) {
+                    let msg: Detections3D = msgs::decode(&data, *enc).with_context(|| {
+                        format!(
+                            "{}: cannot decode {}",
+                            describe_message(&file, topic, &header),
+                            msgs::DETECTIONS_SCHEMA
+                        )
+                    })?;
+                    let stamp = stamp_of(&msg, header.log_time);
+                    if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
+                        if stamp < prev {
+                            *s.stamps_backwards.entry(topic.clone()).or_default() += 1;
+                        }
+                    }
+                    s.entries.push((stamp, ordinal));
+                    ordinal += 1;
+                }
+                if ordinal % 256 == 0 {
+                    progress.set_position(stats.bytes_read);
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    for t in &opts.detection_topics {
+        if !s.topics.contains(t) {
+            bail!("{file}: no channel with topic {t} (given with --detections-topic)");
+        }
+    }
+    Ok(s)
+}
+
+/// One decoded detection message waiting for its frame.
+struct Pending {
+    ordinal: u64,
+    log_time: u64,
+    topic_idx: usize,
+    msg: Detections3D,
+}
+
+/// Runs `track` on one file. The output appears only when everything succeeded.
+pub fn track_file(
+    input: &Path,
+    output: &Path,
+    opts: &TrackOptions,
+    progress: &ProgressBar,
+) -> Result<TrackSummary> {
+    let started = Instant::now();
+    check_output_path(Some(input), output)?;
+    let file = input.display().to_string();
+    let size = std::fs::metadata(input)
+        .with_context(|| format!("cannot read {}", input.display()))?
+        .len();
+    let mut summary = TrackSummary {
+        input: file.clone(),
+        output: output.display().to_string(),
+        ..Default::default()
+    };
+    progress.set_length(if opts.no_track { size } else { 2 * size });
+    progress.set_message("scanning");
+
+    let scan = if opts.no_track {
+        None
+    } else {
+        let s = scan(input, opts, progress)?;
+        if s.topics.contains(&opts.tracks_topic) {
+            bail!(
+                "{file}: already has a channel on {}; choose another topic with --tracks-topic",
+                opts.tracks_topic
+            );
+        }
+        if s.det_channels.is_empty() {
+            summary.warnings.push(format!(
+                "{file}: no detection channel (schema {}); the log is copied unchanged without a \
+                 tracks channel",
+                msgs::DETECTIONS_SCHEMA
+            ));
+        }
+        Some(s)
+    };
+
+    // Frames in stamp order: (stamp, number of messages).
+    let mut frames: Vec<(u64, u32)> = Vec::new();
+    let mut profile = String::new();
+    let mut topics: Vec<String> = Vec::new();
+    let mut det_channels: HashMap<u16, (Encoding, usize)> = HashMap::new();
+    let mut ids = None;
+    if let Some(mut s) = scan {
+        s.entries.sort_unstable();
+        for &(stamp, _) in &s.entries {
+            match frames.last_mut() {
+                Some((st, n)) if *st == stamp => *n += 1,
+                _ => frames.push((stamp, 1)),
+            }
+        }
+        summary.merged_messages = s.entries.len() as u64 - frames.len() as u64;
+        summary.detection_messages = s.entries.len() as u64;
+        summary.stamps_backwards = s.stamps_backwards;
+        profile = s.profile;
+        let mut det: Vec<(u16, (Encoding, String))> = s.det_channels.into_iter().collect();
+        det.sort_by_key(|(id, _)| *id);
+        for (id, (enc, topic)) in det {
+            if !topics.contains(&topic) {
+                topics.push(topic.clone());
+            }
+            let idx = topics.iter().position(|t| *t == topic).unwrap();
+            det_channels.insert(id, (enc, idx));
+        }
+        if !det_channels.is_empty() {
+            let schema_id = (1..=u16::MAX)
+                .find(|i| !s.schema_ids.contains(i))
+                .context("no free schema id in the output")?;
+            let channel_id = (1..=u16::MAX)
+                .find(|i| !s.channel_ids.contains(i))
+                .context("no free channel id in the output")?;
+            ids = Some((schema_id, channel_id));
+        }
+    }
+    summary.detection_topics = topics.clone();
+
+    let mut out = AtomicOutput::create(
+        output,
+        &OutputOptions {
+            profile,
+            ..Default::default()
+        },
+    )?;
+    if let Some((schema_id, channel_id)) = ids {
+        out.writer.add_schema_with_id(
+            schema_id,
+            msgs::TRACKS_SCHEMA,
+            "protobuf",
+            msgs::DESCRIPTOR_SET,
+        )?;
+        out.writer.add_channel_with_id(
+            channel_id,
+            schema_id,
+            &opts.tracks_topic,
+            "protobuf",
+            &BTreeMap::new(),
+        )?;
+    }
+
+    let mut tracker = Tracker::new(opts.config.clone())?;
+    let mut counters = InputCounters::default();
+    let mut pending: BTreeMap<u64, Vec<Pending>> = BTreeMap::new();
+    let mut next_frame = 0usize;
+    let mut ordinal = 0u64;
+    let mut frame_state = FrameState::default();
+    let base = if opts.no_track { 0 } else { size };
+    if !opts.no_track {
+        progress.set_message("tracking");
+    }
+
+    read_records(input, |rec, stats| {
+        match rec {
+            Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
+            Record::Schema { header, data } => {
+                if header.id != 0 {
+                    out.writer
+                        .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
+                        .with_context(|| format!("{file}: copying schema {}", header.id))?;
+                }
+            }
+            Record::Channel(c) => {
+                out.writer
+                    .add_channel_with_id(
+                        c.id,
+                        c.schema_id,
+                        &c.topic,
+                        &c.message_encoding,
+                        &c.metadata,
+                    )
+                    .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
+            }
+            Record::Message { header, data } => {
+                out.writer
+                    .write_to_known_channel(&header, &data)
+                    .with_context(|| {
+                        format!(
+                            "{file}: copying message at log_time {} on channel {}",
+                            header.log_time, header.channel_id
+                        )
+                    })?;
+                summary.messages_copied += 1;
+                if let Some(&(enc, topic_idx)) = det_channels.get(&header.channel_id) {
+                    let msg: Detections3D = msgs::decode(&data, enc).with_context(|| {
+                        describe_message(&file, &topics[topic_idx], &header)
+                    })?;
+                    let stamp = stamp_of(&msg, header.log_time);
+                    pending.entry(stamp).or_default().push(Pending {
+                        ordinal,
+                        log_time: header.log_time,
+                        topic_idx,
+                        msg,
+                    });
+                    ordinal += 1;
+                    while let Some(&(stamp, count)) = frames.get(next_frame) {
+                        if pending.get(&stamp).map(|v| v.len() as u32) != Some(count) {
+                            break;
+                        }
+                        let mut msgs_of_frame = pending.remove(&stamp).unwrap();
+                        msgs_of_frame.sort_by_key(|p| p.ordinal);
+                        let (schema_id, channel_id) = ids.expect("ids exist with detections");
+                        let _ = schema_id;
+                        let tracks = frame_state.run(
+                            stamp,
+                            &msgs_of_frame,
+                            &mut tracker,
+                            &mut counters,
+                            opts.strict,
+                            &file,
+                            &topics,
+                        )?;
+                        let mut buf = std::mem::take(&mut frame_state.buf);
+                        msgs::encode_into(&tracks, &mut buf);
+                        out.writer.write_to_known_channel(
+                            &MessageHeader {
+                                channel_id,
+                                sequence: next_frame as u32,
+                                log_time: stamp,
+                                publish_time: stamp,
+                            },
+                            &buf,
+                        )?;
+                        frame_state.buf = buf;
+                        frame_state.recycle(tracks);
+                        summary.tracks_messages += 1;
+                        next_frame += 1;
+                        if next_frame % 64 == 0 {
+                            progress.set_message(format!(
+                                "tracking: frame {next_frame}/{}",
+                                frames.len()
+                            ));
+                        }
+                    }
+                }
+                if summary.messages_copied % 256 == 0 {
+                    progress.set_position(base + stats.bytes_read);
+                }
+            }
+            Record::Attachment { header, data, .. } => {
+                out.writer
+                    .attach(&mcap::Attachment {
+                        log_time: header.log_time,
+                        create_time: header.create_time,
+                        name: header.name,
+                        media_type: header.media_type,
+                        data,
+                    })
+                    .with_context(|| format!("{file}: copying an attachment"))?;
+                summary.attachments += 1;
+            }
+            Record::Metadata(m) => {
+                out.writer
+                    .write_metadata(&m)
+                    .with_context(|| format!("{file}: copying metadata {}", m.name))?;
+                summary.metadata += 1;
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    if next_frame != frames.len() {
+        bail!(
+            "{file}: the file changed while it was read ({} of {} frames seen)",
+            next_frame,
+            frames.len()
+        );
+    }
+    out.commit()?;
+    progress.set_position(progress.length().unwrap_or(0));
+
+    let st = tracker.stats();
+    summary.frames = st.frames;
+    summary.tracks_born = st.born;
+    summary.tracks_confirmed = st.confirmed;
+    summary.mean_track_length = tracker.mean_confirmed_track_length();
+    if counters.total_skipped() > 0 {
+        let parts: Vec<String> = counters
+            .skipped
+            .iter()
+            .map(|(r, n)| format!("{n} ({})", r.describe()))
+            .collect();
+        summary.warnings.push(format!(
+            "{file}: skipped {} detection boxes: {}",
+            counters.total_skipped(),
+            parts.join(", ")
+        ));
+    }
+    if counters.score_outside_unit > 0 {
+        summary.warnings.push(format!(
+            "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
+            counters.score_outside_unit
+        ));
+    }
+    for (topic, n) in &summary.stamps_backwards {
+        summary.warnings.push(format!(
+            "{file}: topic {topic}: {n} messages have a stamp earlier than the message before \
+             them; frames were replayed in stamp order"
+        ));
+    }
+    summary.detections = counters;
+    summary.wall_time_s = started.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// Per-frame buffers reused across frames, and the attributes of each track's last matched
+/// detection.
+#[derive(Default)]
+struct FrameState {
+    dets: Vec<Detection>,
+    /// `(message index within the frame, detection index within the message)` per detection.
+    src: Vec<(u32, u32)>,
+    last_extra: HashMap<u64, (Option<ImageBox>, BTreeMap<String, String>)>,
+    spare_tracks: Vec<Track3D>,
+    buf: Vec<u8>,
+}
+
+impl FrameState {
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        stamp: u64,
+        frame: &[Pending],
+        tracker: &mut Tracker,
+        counters: &mut InputCounters,
+        strict: bool,
+        file: &str,
+        topics: &[String],
+    ) -> Result<Tracks3D> {
+        self.dets.clear();
+        self.src.clear();
+        for (mi, p) in frame.iter().enumerate() {
+            let origin = Origin {
+                file,
+                topic: &topics[p.topic_idx],
+                log_time: p.log_time,
+            };
+            for (di, d) in p.msg.detections.iter().enumerate() {
+                if let Some(det) = convert(d, di, tracker, counters, strict, &origin)? {
+                    self.dets.push(det);
+                    self.src.push((mi as u32, di as u32));
+                }
+            }
+        }
+        tracker
+            .step(stamp, &self.dets)
+            .with_context(|| format!("{file}: frame at stamp {stamp}"))?;
+        let reports = tracker.reports();
+        let mut tracks = std::mem::take(&mut self.spare_tracks);
+        tracks.clear();
+        for r in reports {
+            if let Some(i) = r.detection {
+                let (mi, di) = self.src[i as usize];
+                let d = &frame[mi as usize].msg.detections[di as usize];
+                if d.image_box.is_some() || !d.attributes.is_empty() {
+                    self.last_extra
+                        .insert(r.id, (d.image_box, d.attributes.clone()));
+                } else {
+                    self.last_extra.remove(&r.id);
+                }
+            }
+            tracks.push(to_track3d(r, tracker.label(r.class), self.last_extra.get(&r.id)));
+        }
+        for id in tracker.deleted() {
+            self.last_extra.remove(id);
+        }
+        Ok(Tracks3D {
+            stamp,
+            frame_id: frame.first().map(|p| p.msg.frame_id.clone()).unwrap_or_default(),
+            tracks,
+        })
+    }
+
+    fn recycle(&mut self, msg: Tracks3D) {
+        self.spare_tracks = msg.tracks;
+    }
+}
+
+/// The output message of one reported track.
+pub fn to_track3d(
+    r: &TrackReport,
+    label: &str,
+    extra: Option<&(Option<ImageBox>, BTreeMap<String, String>)>,
+) -> Track3D {
+    Track3D {
+        id: r.id,
+        label: label.to_string(),
+        center: Some(v3(r.bbox.center)),
+        size: Some(size3(r.bbox.size)),
+        yaw: r.bbox.yaw,
+        velocity: Some(v3(r.velocity)),
+        yaw_rate: r.yaw_rate,
+        score: r.score,
+        position_variance: Some(v3(r.position_variance)),
+        yaw_variance: r.yaw_variance,
+        age: r.age,
+        hits: r.hits,
+        frames_since_update: r.frames_since_update,
+        image_box: extra.and_then(|e| e.0),
+        attributes: extra.map(|e| e.1.clone()).unwrap_or_default(),
+    }
+}
