@@ -61,7 +61,12 @@ pub enum CovarianceArg {
 #[derive(Debug, Clone, Args)]
 pub struct TrackerArgs {
     /// Tracker config file (JSON, as printed by `probmot config`).
-    #[arg(long, value_name = "FILE", conflicts_with = "preset", help_heading = "Tracker")]
+    #[arg(
+        long,
+        value_name = "FILE",
+        conflicts_with = "preset",
+        help_heading = "Tracker"
+    )]
     pub config: Option<PathBuf>,
     /// Built-in preset: nuscenes-chiu2019 (default) or ab3dmot.
     #[arg(long, value_name = "NAME", help_heading = "Tracker")]

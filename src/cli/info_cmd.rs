@@ -36,13 +36,23 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
         info.messages, info.attachments, info.metadata
     );
     println!("channels:");
-    let w = info.channels.iter().map(|c| c.topic.len()).max().unwrap_or(5).max(5);
+    let w = info
+        .channels
+        .iter()
+        .map(|c| c.topic.len())
+        .max()
+        .unwrap_or(5)
+        .max(5);
     for c in &info.channels {
         let range = c
             .log_time_range
             .map(|(a, b)| format!("{} .. {}", secs(a), secs(b)))
             .unwrap_or_else(|| "-".into());
-        let schema = if c.schema.is_empty() { "(no schema)" } else { &c.schema };
+        let schema = if c.schema.is_empty() {
+            "(no schema)"
+        } else {
+            &c.schema
+        };
         println!(
             "  ({:>3}) {:<w$}  {:>7} msgs  {} [{}/{}]  {}{}",
             c.id,
@@ -52,10 +62,18 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
             c.schema_encoding,
             c.message_encoding,
             range,
-            if c.role.is_empty() { String::new() } else { format!("  <- usable as {}", c.role) },
+            if c.role.is_empty() {
+                String::new()
+            } else {
+                format!("  <- usable as {}", c.role)
+            },
         );
         if !c.per_label.is_empty() {
-            let parts: Vec<String> = c.per_label.iter().map(|(l, n)| format!("{l} {n}")).collect();
+            let parts: Vec<String> = c
+                .per_label
+                .iter()
+                .map(|(l, n)| format!("{l} {n}"))
+                .collect();
             println!("        boxes per class: {}", parts.join(", "));
         }
         if c.undecodable > 0 {

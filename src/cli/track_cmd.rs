@@ -210,7 +210,9 @@ fn run_many(a: &TrackArgs, dir: &Path, opts: &TrackOptions, progress: bool) -> R
             }
             Err(e) => {
                 eprintln!("error: {}: {e:#}", input.display());
-                json.push(serde_json::json!({"input": input, "ok": false, "error": format!("{e:#}")}));
+                json.push(
+                    serde_json::json!({"input": input, "ok": false, "error": format!("{e:#}")}),
+                );
             }
         }
     }

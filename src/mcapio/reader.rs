@@ -29,8 +29,7 @@ pub fn read_records(
     path: &Path,
     mut f: impl FnMut(Record<'_>, ReadStats) -> Result<()>,
 ) -> Result<()> {
-    let mut file =
-        File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let options = LinearReaderOptions::default()
         .with_validate_chunk_crcs(true)
         .with_record_length_limit(RECORD_LENGTH_LIMIT);

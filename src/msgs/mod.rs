@@ -10,7 +10,8 @@ pub use generated::*;
 
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
 /// the data of each MCAP schema record (schema encoding `protobuf`).
-pub const DESCRIPTOR_SET: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/probmot_descriptor.bin"));
+pub const DESCRIPTOR_SET: &[u8] =
+    include_bytes!(concat!(env!("OUT_DIR"), "/probmot_descriptor.bin"));
 
 /// Schema name of a detections channel.
 pub const DETECTIONS_SCHEMA: &str = "probmot.Detections3D";

@@ -79,7 +79,11 @@ pub fn convert(
                 origin.file,
                 origin.topic,
                 origin.log_time,
-                if d.label.is_empty() { "no label" } else { &d.label },
+                if d.label.is_empty() {
+                    "no label"
+                } else {
+                    &d.label
+                },
                 reason.describe()
             );
         }

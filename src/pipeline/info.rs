@@ -73,7 +73,10 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
             Record::Channel(c) => {
                 let (schema, schema_encoding) =
                     schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let role = match (schema.as_str(), Encoding::from_message_encoding(&c.message_encoding)) {
+                let role = match (
+                    schema.as_str(),
+                    Encoding::from_message_encoding(&c.message_encoding),
+                ) {
                     (msgs::DETECTIONS_SCHEMA, Some(_)) => "detections",
                     (msgs::TRACKS_SCHEMA, Some(_)) => "tracks",
                     _ => "",
@@ -99,7 +102,8 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                     });
                     let enc = Encoding::from_message_encoding(&ch.message_encoding);
                     match (ch.role.as_str(), enc) {
-                        ("detections", Some(enc)) => match msgs::decode::<Detections3D>(&data, enc) {
+                        ("detections", Some(enc)) => match msgs::decode::<Detections3D>(&data, enc)
+                        {
                             Ok(m) => {
                                 for d in m.detections {
                                     *ch.per_label.entry(d.label).or_default() += 1;

@@ -313,12 +313,10 @@ pub fn track_file(
     read_records(input, |rec, stats| {
         match rec {
             Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
-            Record::Schema { header, data } => {
-                if header.id != 0 {
-                    out.writer
-                        .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
-                        .with_context(|| format!("{file}: copying schema {}", header.id))?;
-                }
+            Record::Schema { header, data } if header.id != 0 => {
+                out.writer
+                    .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
+                    .with_context(|| format!("{file}: copying schema {}", header.id))?;
             }
             Record::Channel(c) => {
                 out.writer
@@ -342,9 +340,8 @@ pub fn track_file(
                     })?;
                 summary.messages_copied += 1;
                 if let Some(&(enc, topic_idx)) = det_channels.get(&header.channel_id) {
-                    let msg: Detections3D = msgs::decode(&data, enc).with_context(|| {
-                        describe_message(&file, &topics[topic_idx], &header)
-                    })?;
+                    let msg: Detections3D = msgs::decode(&data, enc)
+                        .with_context(|| describe_message(&file, &topics[topic_idx], &header))?;
                     let stamp = stamp_of(&msg, header.log_time);
                     pending.entry(stamp).or_default().push(Pending {
                         ordinal,
@@ -519,14 +516,21 @@ impl FrameState {
                     self.last_extra.remove(&r.id);
                 }
             }
-            tracks.push(to_track3d(r, tracker.label(r.class), self.last_extra.get(&r.id)));
+            tracks.push(to_track3d(
+                r,
+                tracker.label(r.class),
+                self.last_extra.get(&r.id),
+            ));
         }
         for id in tracker.deleted() {
             self.last_extra.remove(id);
         }
         Ok(Tracks3D {
             stamp,
-            frame_id: frame.first().map(|p| p.msg.frame_id.clone()).unwrap_or_default(),
+            frame_id: frame
+                .first()
+                .map(|p| p.msg.frame_id.clone())
+                .unwrap_or_default(),
             tracks,
         })
     }

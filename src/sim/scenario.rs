@@ -53,6 +53,7 @@ impl SimOptions {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 /// Object with a constant-turn-rate motion script: a list of `(from_frame, speed, yaw_rate)`.
 fn scripted(
     id: u64,
@@ -122,7 +123,11 @@ pub fn objects(opts: &SimOptions) -> Vec<SimObject> {
                 CAR,
                 [-45.0, -2.0, 0.9],
                 0.0,
-                &[(0, 10.0, 0.0), (turn_start, 10.0, rate), (turn_start + turn_frames, 10.0, 0.0)],
+                &[
+                    (0, 10.0, 0.0),
+                    (turn_start, 10.0, rate),
+                    (turn_start + turn_frames, 10.0, 0.0),
+                ],
                 n,
                 dt,
             )];
@@ -132,9 +137,36 @@ pub fn objects(opts: &SimOptions) -> Vec<SimObject> {
                 let id = 2 + i as u64;
                 let lane = (i % 4) as f64;
                 let obj = match i % 4 {
-                    0 => scripted(id, "car", CAR, [60.0, 2.0, 0.9], PI, &[(0, 9.0, 0.0)], n, dt),
-                    1 => scripted(id, "car", CAR, [8.0, -30.0 - 5.0 * lane, 0.9], FRAC_PI_2, &[(0, 7.0, 0.0)], n, dt),
-                    2 => scripted(id, "car", CAR, [-20.0, 8.0, 0.9], 0.0, &[(0, 0.0, 0.0)], n, dt),
+                    0 => scripted(
+                        id,
+                        "car",
+                        CAR,
+                        [60.0, 2.0, 0.9],
+                        PI,
+                        &[(0, 9.0, 0.0)],
+                        n,
+                        dt,
+                    ),
+                    1 => scripted(
+                        id,
+                        "car",
+                        CAR,
+                        [8.0, -30.0 - 5.0 * lane, 0.9],
+                        FRAC_PI_2,
+                        &[(0, 7.0, 0.0)],
+                        n,
+                        dt,
+                    ),
+                    2 => scripted(
+                        id,
+                        "car",
+                        CAR,
+                        [-20.0, 8.0, 0.9],
+                        0.0,
+                        &[(0, 0.0, 0.0)],
+                        n,
+                        dt,
+                    ),
                     _ => scripted(
                         id,
                         "car",
@@ -154,30 +186,91 @@ pub fn objects(opts: &SimOptions) -> Vec<SimObject> {
             let mut v = Vec::new();
             let mut id = 1;
             // Two pairs walking side by side, 0.9 m apart, crossing each other's path.
-            for (k, (x0, y0, yaw)) in [(-10.0, -1.0, 0.0), (10.0, 3.0, PI)].into_iter().enumerate() {
+            for (k, (x0, y0, yaw)) in [(-10.0, -1.0, 0.0), (10.0, 3.0, PI)]
+                .into_iter()
+                .enumerate()
+            {
                 for side in 0..2 {
                     let off = 0.9 * side as f64;
-                    let start = if k == 0 { [x0, y0 + off, 0.9] } else { [x0, y0 - off, 0.9] };
-                    v.push(scripted(id, "pedestrian", PED, start, yaw, &[(0, 1.4, 0.0)], n, dt));
+                    let start = if k == 0 {
+                        [x0, y0 + off, 0.9]
+                    } else {
+                        [x0, y0 - off, 0.9]
+                    };
+                    v.push(scripted(
+                        id,
+                        "pedestrian",
+                        PED,
+                        start,
+                        yaw,
+                        &[(0, 1.4, 0.0)],
+                        n,
+                        dt,
+                    ));
                     id += 1;
                 }
             }
             // Crossers on a diagonal, one turning slowly.
-            v.push(scripted(id, "pedestrian", PED, [-6.0, -8.0, 0.9], 0.8, &[(0, 1.2, 0.0), (n / 2, 1.2, 0.15)], n, dt));
+            v.push(scripted(
+                id,
+                "pedestrian",
+                PED,
+                [-6.0, -8.0, 0.9],
+                0.8,
+                &[(0, 1.2, 0.0), (n / 2, 1.2, 0.15)],
+                n,
+                dt,
+            ));
             id += 1;
-            v.push(scripted(id, "pedestrian", PED, [5.0, -9.0, 0.9], 2.2, &[(0, 1.5, 0.0)], n, dt));
+            v.push(scripted(
+                id,
+                "pedestrian",
+                PED,
+                [5.0, -9.0, 0.9],
+                2.2,
+                &[(0, 1.5, 0.0)],
+                n,
+                dt,
+            ));
             id += 1;
             // A standing person and a slow car passing by.
-            v.push(scripted(id, "pedestrian", PED, [0.0, 6.0, 0.9], -0.3, &[(0, 0.0, 0.0)], n, dt));
+            v.push(scripted(
+                id,
+                "pedestrian",
+                PED,
+                [0.0, 6.0, 0.9],
+                -0.3,
+                &[(0, 0.0, 0.0)],
+                n,
+                dt,
+            ));
             id += 1;
-            v.push(scripted(id, "car", CAR, [-40.0, -6.0, 0.9], 0.0, &[(0, 5.0, 0.0)], n, dt));
+            v.push(scripted(
+                id,
+                "car",
+                CAR,
+                [-40.0, -6.0, 0.9],
+                0.0,
+                &[(0, 5.0, 0.0)],
+                n,
+                dt,
+            ));
             let extra = opts.objects.unwrap_or(0);
             for _ in 0..extra {
                 id += 1;
                 let x0 = rng.random_range(-15.0..15.0);
                 let y0 = rng.random_range(-15.0..15.0);
                 let yaw = rng.random_range(-PI..PI);
-                v.push(scripted(id, "pedestrian", PED, [x0, y0, 0.9], yaw, &[(0, rng.random_range(0.8..1.8), 0.0)], n, dt));
+                v.push(scripted(
+                    id,
+                    "pedestrian",
+                    PED,
+                    [x0, y0, 0.9],
+                    yaw,
+                    &[(0, rng.random_range(0.8..1.8), 0.0)],
+                    n,
+                    dt,
+                ));
             }
             // Short occlusions: the second person of each pair is hidden for 2 frames when the
             // pairs pass each other, and a crosser for 1 frame.
@@ -234,13 +327,21 @@ fn city(opts: &SimOptions, rng: &mut ChaCha8Rng) -> Vec<SimObject> {
         }
         let (size, speed, q_std) = class_profile(label);
         let jitter = |rng: &mut ChaCha8Rng| 1.0 + 0.05 * rng.random_range(-1.0..1.0);
-        let size = [size[0] * jitter(rng), size[1] * jitter(rng), size[2] * jitter(rng)];
+        let size = [
+            size[0] * jitter(rng),
+            size[1] * jitter(rng),
+            size[2] * jitter(rng),
+        ];
         // Lifetime: most objects live through a long part of the log.
         let len = rng.random_range((n / 3).max(1)..=n);
         let birth = rng.random_range(0..=(n - len));
         let parked = rng.random::<f64>() < 0.2;
         let yaw0: f64 = rng.random_range(-PI..PI);
-        let s0 = if parked { 0.0 } else { speed * rng.random_range(0.6..1.3) };
+        let s0 = if parked {
+            0.0
+        } else {
+            speed * rng.random_range(0.6..1.3)
+        };
         let mut vel = [s0 * yaw0.cos(), s0 * yaw0.sin()];
         let mut pos = [
             rng.random_range(-60.0..60.0),
@@ -256,7 +357,11 @@ fn city(opts: &SimOptions, rng: &mut ChaCha8Rng) -> Vec<SimObject> {
             if speed_now > 0.5 {
                 yaw = vel[1].atan2(vel[0]);
             }
-            let yaw_rate = if f > birth { wrap(yaw - prev_yaw) / dt } else { 0.0 };
+            let yaw_rate = if f > birth {
+                wrap(yaw - prev_yaw) / dt
+            } else {
+                0.0
+            };
             *st = Some(TruthState {
                 center: pos,
                 yaw: wrap(yaw),

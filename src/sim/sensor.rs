@@ -125,7 +125,9 @@ pub fn detect(
         l
     };
     for _ in 0..n_fp {
-        let label = labels[rng.random_range(0..labels.len().max(1)).min(labels.len() - 1)];
+        let label = labels[rng
+            .random_range(0..labels.len().max(1))
+            .min(labels.len() - 1)];
         let (size, _, _) = class_profile(label);
         out.push(SimDetection {
             label,

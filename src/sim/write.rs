@@ -33,13 +33,16 @@ pub struct SimSummary {
 pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
     let objs = objects(opts);
     // The detector's random stream is separate from the scenario's.
-    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_0f_de7ec7);
+    let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_0fde_7ec7);
     let mut output = AtomicOutput::create(out, &OutputOptions::default())?;
     let w = &mut output.writer;
     let schema_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
     let schema_trk = w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
     let mut meta = BTreeMap::new();
-    meta.insert("probmot.simulate.scenario".to_string(), opts.scenario.name().to_string());
+    meta.insert(
+        "probmot.simulate.scenario".to_string(),
+        opts.scenario.name().to_string(),
+    );
     let ch_det = w.add_channel(schema_det, "/detections", "protobuf", &meta)?;
     let ch_gt = w.add_channel(schema_trk, "/ground_truth", "protobuf", &meta)?;
     let period_ns = (1e9 / opts.rate_hz).round() as u64;

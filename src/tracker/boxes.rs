@@ -46,7 +46,12 @@ impl Box3 {
         let hl = 0.5 * self.size[0];
         let hw = 0.5 * self.size[1];
         let local = [[hl, hw], [-hl, hw], [-hl, -hw], [hl, -hw]];
-        local.map(|[u, v]| [self.center[0] + c * u - s * v, self.center[1] + s * u + c * v])
+        local.map(|[u, v]| {
+            [
+                self.center[0] + c * u - s * v,
+                self.center[1] + s * u + c * v,
+            ]
+        })
     }
 
     /// Lower and upper z of the box.

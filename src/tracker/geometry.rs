@@ -220,7 +220,11 @@ mod tests {
         let b = bx(0.0, 0.0, FRAC_PI_4, 2.0, 2.0);
         let inter = 8.0 * (2f64.sqrt() - 1.0);
         let expected = inter / (8.0 - inter);
-        assert!((iou3d(&a, &b) - expected).abs() < 1e-12, "{}", iou3d(&a, &b));
+        assert!(
+            (iou3d(&a, &b) - expected).abs() < 1e-12,
+            "{}",
+            iou3d(&a, &b)
+        );
     }
 
     #[test]

@@ -226,7 +226,10 @@ impl Tracker {
                 });
             }
             if !d.bbox.is_valid() || !d.score.is_finite() {
-                return Err(StepError::InvalidDetection { index, bbox: d.bbox });
+                return Err(StepError::InvalidDetection {
+                    index,
+                    bbox: d.bbox,
+                });
             }
         }
         self.last_stamp = Some(stamp_ns);
@@ -366,8 +369,7 @@ fn step_class(
             t.confirmed = true;
             stats.confirmed += 1;
         }
-        if t.time_since_update < max_age && (t.hits >= min_hits || frame_count <= min_hits as u64)
-        {
+        if t.time_since_update < max_age && (t.hits >= min_hits || frame_count <= min_hits as u64) {
             t.reported_frames += 1;
             reports.push(t.report(dt_nominal, *m));
         }

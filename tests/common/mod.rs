@@ -1,0 +1,145 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use probmot::msgs::{Detections3D, Tracks3D};
+use prost::Message as _;
+
+/// The probmot binary built for the tests.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_probmot"))
+}
+
+/// Runs probmot with arguments; returns the output (any exit status).
+pub fn probmot(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run probmot")
+}
+
+/// Runs probmot and asserts success.
+pub fn probmot_ok(args: &[&str]) -> Output {
+    let out = probmot(args);
+    assert!(
+        out.status.success(),
+        "probmot {args:?} failed: {}\n{}",
+        String::from_utf8_lossy(&out.stderr),
+        String::from_utf8_lossy(&out.stdout)
+    );
+    out
+}
+
+/// Path of a file in the repository.
+pub fn repo(p: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
+}
+
+/// One message as stored in a file.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct Msg {
+    pub topic: String,
+    pub schema: String,
+    pub message_encoding: String,
+    pub log_time: u64,
+    pub publish_time: u64,
+    pub sequence: u32,
+    pub data: Vec<u8>,
+}
+
+/// Every message of an MCAP file, in file order.
+pub fn messages(path: &Path) -> Vec<Msg> {
+    let bytes = std::fs::read(path).unwrap();
+    mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| {
+            let m = m.unwrap();
+            Msg {
+                topic: m.channel.topic.clone(),
+                schema: m
+                    .channel
+                    .schema
+                    .as_ref()
+                    .map(|s| s.name.clone())
+                    .unwrap_or_default(),
+                message_encoding: m.channel.message_encoding.clone(),
+                log_time: m.log_time,
+                publish_time: m.publish_time,
+                sequence: m.sequence,
+                data: m.data.into_owned(),
+            }
+        })
+        .collect()
+}
+
+/// The decoded messages of a tracks topic, in file order.
+pub fn tracks(path: &Path, topic: &str) -> Vec<Tracks3D> {
+    messages(path)
+        .into_iter()
+        .filter(|m| m.topic == topic)
+        .map(|m| Tracks3D::decode(m.data.as_slice()).unwrap())
+        .collect()
+}
+
+/// The decoded messages of a detections topic, in file order.
+pub fn detections(path: &Path, topic: &str) -> Vec<Detections3D> {
+    messages(path)
+        .into_iter()
+        .filter(|m| m.topic == topic)
+        .map(|m| Detections3D::decode(m.data.as_slice()).unwrap())
+        .collect()
+}
+
+/// Asserts that no number in a tracks message is NaN or infinite.
+pub fn assert_finite(t: &Tracks3D) {
+    for tr in &t.tracks {
+        let c = tr.center.unwrap();
+        let s = tr.size.unwrap();
+        let v = tr.velocity.unwrap();
+        let pv = tr.position_variance.unwrap();
+        for x in [
+            c.x,
+            c.y,
+            c.z,
+            s.length,
+            s.width,
+            s.height,
+            tr.yaw,
+            v.x,
+            v.y,
+            v.z,
+            tr.yaw_rate,
+            tr.score,
+            pv.x,
+            pv.y,
+            pv.z,
+            tr.yaw_variance,
+        ] {
+            assert!(x.is_finite(), "non-finite value in track {}: {tr:?}", tr.id);
+        }
+    }
+}
+
+/// Per truth id, the track id that reported it (matched this frame) in each frame, using the
+/// `sim_truth_id` attribute the simulator puts on detections and probmot carries to tracks.
+pub fn truth_to_track(frames: &[Tracks3D]) -> std::collections::BTreeMap<u64, Vec<(usize, u64)>> {
+    let mut m: std::collections::BTreeMap<u64, Vec<(usize, u64)>> = Default::default();
+    for (f, t) in frames.iter().enumerate() {
+        for tr in &t.tracks {
+            if tr.frames_since_update != 0 {
+                continue;
+            }
+            if let Some(id) = tr.attributes.get("sim_truth_id") {
+                let id: u64 = id.parse().unwrap();
+                if id != 0 {
+                    m.entry(id).or_default().push((f, tr.id));
+                }
+            }
+        }
+    }
+    m
+}
+
+/// Number of id switches: consecutive reports of one truth object by different track ids.
+pub fn id_switches(seq: &[(usize, u64)]) -> usize {
+    seq.windows(2).filter(|w| w[0].1 != w[1].1).count()
+}

@@ -1,0 +1,326 @@
+//! End-to-end tests of `probmot track` on the sample logs.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use common::*;
+use prost::Message as _;
+use prost_reflect::{DescriptorPool, DynamicMessage, Value};
+
+const SAMPLES: [&str; 3] = ["turning-car", "pedestrians", "city"];
+
+/// The arguments each sample log was made with (also in sample_logs/README.md).
+fn sample_args(name: &str) -> Vec<&'static str> {
+    match name {
+        "turning-car" => vec!["--scenario", "turning-car", "--seed", "1", "--frames", "40"],
+        "pedestrians" => vec!["--scenario", "pedestrians", "--seed", "1", "--frames", "40"],
+        "city" => vec![
+            "--scenario",
+            "city",
+            "--seed",
+            "1",
+            "--frames",
+            "40",
+            "--objects",
+            "40",
+        ],
+        _ => unreachable!(),
+    }
+}
+
+fn track(input: &Path, output: &Path, extra: &[&str]) {
+    let mut args = vec![
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--quiet",
+    ];
+    args.extend_from_slice(extra);
+    probmot_ok(&args);
+}
+
+#[test]
+fn sample_logs_regenerate_byte_identical() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in SAMPLES {
+        let out = dir.path().join(format!("{name}.mcap"));
+        let mut args = vec!["simulate"];
+        args.extend(sample_args(name));
+        args.extend(["-o", out.to_str().unwrap()]);
+        probmot_ok(&args);
+        let committed = std::fs::read(repo(&format!("sample_logs/{name}.mcap"))).unwrap();
+        assert!(
+            std::fs::read(&out).unwrap() == committed,
+            "sample_logs/{name}.mcap differs from a fresh `probmot simulate`"
+        );
+    }
+}
+
+#[test]
+fn every_input_message_survives_and_tracks_decode_with_the_embedded_descriptor() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in SAMPLES {
+        let input = repo(&format!("sample_logs/{name}.mcap"));
+        let output = dir.path().join(format!("{name}.tracked.mcap"));
+        track(&input, &output, &[]);
+        let before = messages(&input);
+        let after = messages(&output);
+        let mut copied: Vec<Msg> = after
+            .iter()
+            .filter(|m| m.topic != "/tracks")
+            .cloned()
+            .collect();
+        let mut original = before.clone();
+        copied.sort();
+        original.sort();
+        assert_eq!(copied, original, "{name}: input messages changed");
+
+        // One tracks message per frame (distinct detection stamps), at the frame's stamp.
+        let det_times: Vec<u64> = before
+            .iter()
+            .filter(|m| m.topic == "/detections")
+            .map(|m| m.log_time)
+            .collect();
+        let trk: Vec<&Msg> = after.iter().filter(|m| m.topic == "/tracks").collect();
+        assert_eq!(trk.len(), det_times.len());
+        assert_eq!(
+            trk.iter().map(|m| m.log_time).collect::<Vec<_>>(),
+            det_times
+        );
+
+        // Decode with the descriptor embedded in the file's schema record, not our types.
+        let bytes = std::fs::read(&output).unwrap();
+        let summary = mcap::Summary::read(&bytes)
+            .unwrap()
+            .expect("output has a summary");
+        let ch = summary
+            .channels
+            .values()
+            .find(|c| c.topic == "/tracks")
+            .unwrap();
+        let schema = ch.schema.as_ref().unwrap();
+        assert_eq!(schema.name, "probmot.Tracks3D");
+        assert_eq!(schema.encoding, "protobuf");
+        let pool = DescriptorPool::decode(schema.data.as_ref()).unwrap();
+        let desc = pool.get_message_by_name("probmot.Tracks3D").unwrap();
+        for m in &trk {
+            let dynamic = DynamicMessage::decode(desc.clone(), m.data.as_slice()).unwrap();
+            let ours = probmot::msgs::Tracks3D::decode(m.data.as_slice()).unwrap();
+            assert_finite(&ours);
+            assert_eq!(
+                dynamic.get_field_by_name("stamp").unwrap().as_u64(),
+                Some(ours.stamp)
+            );
+            let list = dynamic.get_field_by_name("tracks").unwrap();
+            let list = list.as_list().unwrap();
+            assert_eq!(list.len(), ours.tracks.len());
+            for (d, o) in list.iter().zip(&ours.tracks) {
+                let d = d.as_message().unwrap();
+                assert_eq!(d.get_field_by_name("id").unwrap().as_u64(), Some(o.id));
+                assert_eq!(
+                    d.get_field_by_name("label").unwrap().as_str(),
+                    Some(o.label.as_str())
+                );
+                let c = d.get_field_by_name("center").unwrap();
+                let c = c.as_message().unwrap();
+                assert_eq!(
+                    c.get_field_by_name("x").unwrap().as_ref(),
+                    &Value::F64(o.center.unwrap().x)
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn turning_car_keeps_one_track_id() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("sample_logs/turning-car.mcap");
+    let output = dir.path().join("out.mcap");
+    track(&input, &output, &[]);
+    // Frames in which the turning car (truth id 1) was detected.
+    let dets = detections(&input, "/detections");
+    let detected: Vec<usize> = dets
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| {
+            d.detections
+                .iter()
+                .any(|x| x.attributes.get("sim_truth_id").map(String::as_str) == Some("1"))
+        })
+        .map(|(i, _)| i)
+        .collect();
+    let frames = tracks(&output, "/tracks");
+    let seq = truth_to_track(&frames).remove(&1).unwrap_or_default();
+    let mut count: BTreeMap<u64, usize> = BTreeMap::new();
+    for (_, id) in &seq {
+        *count.entry(*id).or_default() += 1;
+    }
+    let (best, n) = count
+        .iter()
+        .max_by_key(|(_, n)| **n)
+        .map(|(a, b)| (*a, *b))
+        .unwrap();
+    eprintln!(
+        "turning car: detected in {} frames, track {best} reported it in {n}; ids seen {count:?}",
+        detected.len()
+    );
+    assert!(
+        n as f64 >= 0.9 * detected.len() as f64,
+        "the turning car kept track {best} in only {n} of {} frames",
+        detected.len()
+    );
+}
+
+#[test]
+fn pedestrians_id_switches_are_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let output = dir.path().join("out.mcap");
+    track(&repo("sample_logs/pedestrians.mcap"), &output, &[]);
+    let frames = tracks(&output, "/tracks");
+    let per_truth = truth_to_track(&frames);
+    let mut total = 0;
+    for (truth, seq) in &per_truth {
+        let s = id_switches(seq);
+        eprintln!(
+            "pedestrians: truth {truth}: {} matched frames, {s} id switches",
+            seq.len()
+        );
+        total += s;
+    }
+    eprintln!("pedestrians: {total} id switches in all");
+    // 8 objects over 40 frames with scripted occlusions: switches must stay rare.
+    assert!(total <= 4, "{total} id switches");
+    assert_eq!(per_truth.len(), 8);
+}
+
+/// Writes a copy of `input` with its messages in reverse file order (same times and bytes).
+fn reverse_order_copy(input: &Path, output: &Path) {
+    let bytes = std::fs::read(input).unwrap();
+    let msgs: Vec<mcap::Message> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .collect();
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(output).unwrap(),
+    ))
+    .unwrap();
+    for m in msgs.iter().rev() {
+        w.write(m).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn out_of_order_input_gives_the_same_tracks() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["turning-car", "city"] {
+        let input = repo(&format!("sample_logs/{name}.mcap"));
+        let reversed = dir.path().join(format!("{name}.reversed.mcap"));
+        reverse_order_copy(&input, &reversed);
+        let a = dir.path().join("a.mcap");
+        let b = dir.path().join("b.mcap");
+        track(&input, &a, &[]);
+        track(&reversed, &b, &[]);
+        let mut ta = tracks(&a, "/tracks");
+        let mut tb = tracks(&b, "/tracks");
+        assert!(!ta.is_empty());
+        ta.sort_by_key(|t| t.stamp);
+        tb.sort_by_key(|t| t.stamp);
+        assert_eq!(
+            ta, tb,
+            "{name}: tracks differ when the file is written backwards"
+        );
+    }
+}
+
+#[test]
+fn same_input_gives_byte_identical_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("sample_logs/city.mcap");
+    let a = dir.path().join("a.mcap");
+    let b = dir.path().join("b.mcap");
+    track(&input, &a, &[]);
+    track(&input, &b, &[]);
+    assert!(std::fs::read(&a).unwrap() == std::fs::read(&b).unwrap());
+}
+
+#[test]
+fn refuses_bad_paths_with_status_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.mcap");
+    std::fs::copy(repo("sample_logs/turning-car.mcap"), &input).unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let inp = input.to_str().unwrap();
+
+    let out = probmot(&["track", inp, "-o", inp]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("is the input file"));
+
+    let missing_dir = dir.path().join("nope/out.mcap");
+    let out = probmot(&["track", inp, "-o", missing_dir.to_str().unwrap()]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("does not exist"));
+
+    let out = probmot(&[
+        "track",
+        dir.path().join("absent.mcap").to_str().unwrap(),
+        "-o",
+        dir.path().join("o.mcap").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("absent.mcap"));
+
+    // A tracks topic that already exists is refused.
+    let out = probmot(&[
+        "track",
+        inp,
+        "-o",
+        dir.path().join("o.mcap").to_str().unwrap(),
+        "--tracks-topic",
+        "/ground_truth",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("/ground_truth"));
+
+    // Nothing but the input is left in the directory, and the input is unchanged.
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, vec!["in.mcap".to_string()]);
+    assert!(std::fs::read(&input).unwrap() == before);
+}
+
+#[test]
+fn many_files_in_parallel_report_failures_and_finish_the_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = repo("sample_logs/pedestrians.mcap");
+    let bad = dir.path().join("corrupt.mcap");
+    let mut bytes = std::fs::read(&good).unwrap();
+    bytes.truncate(bytes.len() / 2);
+    std::fs::write(&bad, &bytes).unwrap();
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = probmot(&[
+        "track",
+        good.to_str().unwrap(),
+        bad.to_str().unwrap(),
+        repo("sample_logs/turning-car.mcap").to_str().unwrap(),
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+        "--jobs",
+        "2",
+        "--quiet",
+    ]);
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("corrupt.mcap"), "{err}");
+    assert!(out_dir.join("pedestrians.mcap").exists());
+    assert!(out_dir.join("turning-car.mcap").exists());
+    assert!(!out_dir.join("corrupt.mcap").exists());
+    assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 2);
+}
