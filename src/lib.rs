@@ -3,6 +3,7 @@
 //! [`tracker`] is the pure tracker core; the other modules read and write MCAP, simulate drives,
 //! and drive the command-line tool.
 
+pub mod eval;
 pub mod mcapio;
 pub mod msgs;
 pub mod pipeline;

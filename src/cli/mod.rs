@@ -1,6 +1,7 @@
 //! Command-line parsing and the subcommands' front ends.
 
 mod config_cmd;
+mod eval_cmd;
 mod info_cmd;
 mod simulate_cmd;
 mod track_cmd;
@@ -28,6 +29,7 @@ enum Command {
     Info(info_cmd::InfoArgs),
     Simulate(simulate_cmd::SimulateArgs),
     Config(config_cmd::ConfigArgs),
+    Eval(eval_cmd::EvalArgs),
 }
 
 /// Runs a parsed command line; the exit code on success.
@@ -37,6 +39,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Info(a) => info_cmd::run(a),
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Config(a) => config_cmd::run(a),
+        Command::Eval(a) => eval_cmd::run(a),
     }
 }
 

@@ -1,0 +1,17 @@
+//! Evaluation: the nuScenes tracking metrics (as the official devkit computes them) and the
+//! KITTI-style 3D MOT metrics, on probmot's `Tracks3D` channels.
+
+pub mod mot_accumulator;
+pub mod numpy_compat;
+pub mod nuscenes;
+pub mod report;
+pub mod scene;
+
+/// Serializes NaN as JSON `null`.
+pub(crate) fn nan_as_null<S: serde::Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if v.is_finite() {
+        s.serialize_f64(*v)
+    } else {
+        s.serialize_none()
+    }
+}

@@ -1,0 +1,588 @@
+//! The nuScenes tracking metrics (nuscenes-devkit 1.2.0, `tracking_nips_2019`) re-implemented:
+//! per-track mean scores, linear interpolation of gaps, 2 m centre-distance matching with
+//! motmetrics semantics, 40 recall thresholds, AMOTA / AMOTP and the CLEAR MOT metrics at the
+//! best-MOTA threshold. The rules are written out in `../shared/reference/evaluation-protocols.md`
+//! (beside the repository) and checked against the devkit's own numbers in `tests/`.
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+
+use serde::Serialize;
+
+use super::mot_accumulator::{EventKind, MotAccumulator};
+use super::nan_as_null;
+use super::numpy_compat::{linspace_round12, np_interp, np_mean, np_sum};
+use super::scene::Scene;
+use crate::tracker::config::NUSCENES_CLASSES;
+
+/// Parameters of the protocol.
+#[derive(Debug, Clone)]
+pub struct NuscenesParams {
+    /// Classes to evaluate.
+    pub classes: Vec<String>,
+    /// Matching distance in metres (a pair matches when closer than this).
+    pub dist_th: f64,
+    /// Lowest recall level.
+    pub min_recall: f64,
+    /// Number of recall levels.
+    pub num_thresholds: usize,
+    /// Seconds per frame used by TID and LGD (the devkit uses 0.5 whatever the data).
+    pub sample_period: f64,
+}
+
+impl Default for NuscenesParams {
+    fn default() -> Self {
+        NuscenesParams {
+            classes: NUSCENES_CLASSES.iter().map(|s| s.to_string()).collect(),
+            dist_th: 2.0,
+            min_recall: 0.1,
+            num_thresholds: 40,
+            sample_period: 0.5,
+        }
+    }
+}
+
+/// Every metric of one class (or the overall aggregate). NaN where undefined (JSON `null`).
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct Metrics {
+    #[serde(serialize_with = "nan_as_null")]
+    pub amota: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub amotp: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub recall: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub motar: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub mota: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub motp: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub mt: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub ml: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub faf: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub tp: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub fp: f64,
+    #[serde(rename = "fn", serialize_with = "nan_as_null")]
+    pub fn_: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub ids: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub frag: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub tid: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub lgd: f64,
+    #[serde(serialize_with = "nan_as_null")]
+    pub gt: f64,
+}
+
+/// Names of the metrics, in report order (the main one first).
+pub const METRIC_NAMES: [&str; 17] = [
+    "amota", "amotp", "recall", "motar", "mota", "motp", "mt", "ml", "faf", "tp", "fp", "fn",
+    "ids", "frag", "tid", "lgd", "gt",
+];
+
+impl Metrics {
+    fn all(v: f64) -> Metrics {
+        Metrics {
+            amota: v,
+            amotp: v,
+            recall: v,
+            motar: v,
+            mota: v,
+            motp: v,
+            mt: v,
+            ml: v,
+            faf: v,
+            tp: v,
+            fp: v,
+            fn_: v,
+            ids: v,
+            frag: v,
+            tid: v,
+            lgd: v,
+            gt: v,
+        }
+    }
+
+    /// A metric by name (see [`METRIC_NAMES`]).
+    pub fn get(&self, name: &str) -> f64 {
+        match name {
+            "amota" => self.amota,
+            "amotp" => self.amotp,
+            "recall" => self.recall,
+            "motar" => self.motar,
+            "mota" => self.mota,
+            "motp" => self.motp,
+            "mt" => self.mt,
+            "ml" => self.ml,
+            "faf" => self.faf,
+            "tp" => self.tp,
+            "fp" => self.fp,
+            "fn" => self.fn_,
+            "ids" => self.ids,
+            "frag" => self.frag,
+            "tid" => self.tid,
+            "lgd" => self.lgd,
+            "gt" => self.gt,
+            _ => f64::NAN,
+        }
+    }
+
+    fn set(&mut self, name: &str, v: f64) {
+        let slot = match name {
+            "amota" => &mut self.amota,
+            "amotp" => &mut self.amotp,
+            "recall" => &mut self.recall,
+            "motar" => &mut self.motar,
+            "mota" => &mut self.mota,
+            "motp" => &mut self.motp,
+            "mt" => &mut self.mt,
+            "ml" => &mut self.ml,
+            "faf" => &mut self.faf,
+            "tp" => &mut self.tp,
+            "fp" => &mut self.fp,
+            "fn" => &mut self.fn_,
+            "ids" => &mut self.ids,
+            "frag" => &mut self.frag,
+            "tid" => &mut self.tid,
+            "lgd" => &mut self.lgd,
+            "gt" => &mut self.gt,
+            _ => return,
+        };
+        *slot = v;
+    }
+}
+
+/// Result of an evaluation.
+#[derive(Debug, Clone, Serialize)]
+pub struct NuscenesResult {
+    /// Protocol name.
+    pub protocol: &'static str,
+    /// Per class.
+    pub classes: BTreeMap<String, Metrics>,
+    /// Aggregate over classes (sums for counts, NaN-means otherwise).
+    pub overall: Metrics,
+    /// Things the user should know (e.g. many identical scores).
+    pub notes: Vec<String>,
+}
+
+/// A box after preprocessing.
+#[derive(Debug, Clone)]
+struct PBox {
+    id: u64,
+    label: String,
+    x: f64,
+    y: f64,
+    score: f64,
+}
+
+/// One scene after score averaging and interpolation.
+struct Prepared {
+    gt: Vec<Vec<PBox>>,
+    pred: Vec<Vec<PBox>>,
+}
+
+fn to_pbox(b: &super::scene::EvalBox) -> PBox {
+    PBox {
+        id: b.id,
+        label: b.label.clone(),
+        x: b.center[0],
+        y: b.center[1],
+        score: b.score,
+    }
+}
+
+/// Fills the gaps of every track (by id, across classes) at the scene's timestamps, as the
+/// devkit's `interpolate_tracks` does: weight `r = (t_right - t) / (t_right - t_left)` on the
+/// *right* box, class and id of the right box, appended after the frame's own boxes.
+fn interpolate(ts: &[i64], frames: &mut [Vec<PBox>]) {
+    let mut order: Vec<u64> = Vec::new();
+    let mut by_id: HashMap<u64, (Vec<i64>, Vec<PBox>)> = HashMap::new();
+    for (t, boxes) in ts.iter().zip(frames.iter()) {
+        for b in boxes {
+            let e = by_id.entry(b.id).or_insert_with(|| {
+                order.push(b.id);
+                (Vec::new(), Vec::new())
+            });
+            e.0.push(*t);
+            e.1.push(b.clone());
+        }
+    }
+    for (fi, &t) in ts.iter().enumerate() {
+        for id in &order {
+            let (times, boxes) = &by_id[id];
+            if times[0] <= t && t <= *times.last().unwrap() && !times.contains(&t) {
+                let right = times.partition_point(|v| *v <= t);
+                let left = right - 1;
+                let r = (times[right] - t) as f64 / (times[right] - times[left]) as f64;
+                let (lb, rb) = (&boxes[left], &boxes[right]);
+                frames[fi].push(PBox {
+                    id: *id,
+                    label: rb.label.clone(),
+                    x: (1.0 - r) * lb.x + r * rb.x,
+                    y: (1.0 - r) * lb.y + r * rb.y,
+                    score: (1.0 - r) * lb.score + r * rb.score,
+                });
+            }
+        }
+    }
+}
+
+fn prepare(scene: &Scene) -> Prepared {
+    // The devkit's timestamps are microseconds.
+    let ts: Vec<i64> = scene.frames.iter().map(|f| (f.0 / 1000) as i64).collect();
+    let mut gt: Vec<Vec<PBox>> = scene
+        .frames
+        .iter()
+        .map(|f| f.1.iter().map(to_pbox).collect())
+        .collect();
+    let mut pred: Vec<Vec<PBox>> = scene
+        .frames
+        .iter()
+        .map(|f| f.2.iter().map(to_pbox).collect())
+        .collect();
+    // Each track's boxes get the track's mean score (np.mean, before interpolation).
+    let mut scores: HashMap<u64, Vec<f64>> = HashMap::new();
+    for frame in &pred {
+        for b in frame {
+            scores.entry(b.id).or_default().push(b.score);
+        }
+    }
+    let means: HashMap<u64, f64> = scores.iter().map(|(k, v)| (*k, np_mean(v))).collect();
+    for frame in &mut pred {
+        for b in frame {
+            b.score = means[&b.id];
+        }
+    }
+    interpolate(&ts, &mut gt);
+    interpolate(&ts, &mut pred);
+    Prepared { gt, pred }
+}
+
+/// What one pass over all scenes at one score threshold gives.
+#[derive(Default)]
+struct Pass {
+    frames: u64,
+    matches: u64,
+    switches: u64,
+    misses: u64,
+    fps: u64,
+    dist_sum_terms: Vec<f64>,
+    /// Per ground-truth object: `(global frame index, tracked)` in frame order.
+    objects: Vec<Vec<(u64, bool)>>,
+    /// Scores of matched predictions (only collected without threshold).
+    match_scores: Vec<f64>,
+}
+
+/// `sklearn.metrics.pairwise.euclidean_distances` for 2-d points (dot-product expansion).
+fn euclidean(a: &PBox, b: &PBox) -> f64 {
+    let dot = a.x * b.x + a.y * b.y;
+    let aa = a.x * a.x + a.y * a.y;
+    let bb = b.x * b.x + b.y * b.y;
+    let d2 = (-2.0 * dot + aa + bb).max(0.0);
+    d2.sqrt()
+}
+
+fn run_pass(scenes: &[Prepared], class: &str, threshold: Option<f64>, p: &NuscenesParams) -> Pass {
+    let mut pass = Pass::default();
+    let mut events = Vec::new();
+    let mut dist = Vec::new();
+    for scene in scenes {
+        let mut acc = MotAccumulator::new();
+        let mut object_index: HashMap<u64, usize> = HashMap::new();
+        for (gt_frame, pred_frame) in scene.gt.iter().zip(&scene.pred) {
+            let g: Vec<&PBox> = gt_frame.iter().filter(|b| b.label == class).collect();
+            let h: Vec<&PBox> = pred_frame
+                .iter()
+                .filter(|b| b.label == class && threshold.is_none_or(|t| b.score >= t))
+                .collect();
+            if g.is_empty() && h.is_empty() {
+                continue;
+            }
+            dist.clear();
+            for gb in &g {
+                for hb in &h {
+                    let d = euclidean(gb, hb);
+                    dist.push(if d >= p.dist_th { f64::NAN } else { d });
+                }
+            }
+            let oids: Vec<u64> = g.iter().map(|b| b.id).collect();
+            let hids: Vec<u64> = h.iter().map(|b| b.id).collect();
+            events.clear();
+            acc.update(&oids, &hids, &dist, &mut events);
+            let frame = pass.frames;
+            pass.frames += 1;
+            let mut matched_hids: HashSet<u64> = HashSet::new();
+            for e in &events {
+                match e.kind {
+                    EventKind::Match => {
+                        pass.matches += 1;
+                        pass.dist_sum_terms.push(e.distance);
+                        matched_hids.insert(hids[e.hypothesis.unwrap()]);
+                    }
+                    EventKind::Switch => {
+                        pass.switches += 1;
+                        pass.dist_sum_terms.push(e.distance);
+                    }
+                    EventKind::Miss => {
+                        pass.misses += 1;
+                        pass.dist_sum_terms.push(0.0);
+                    }
+                    EventKind::FalsePositive => {
+                        pass.fps += 1;
+                        pass.dist_sum_terms.push(0.0);
+                    }
+                }
+                if let Some(oi) = e.object {
+                    let next = pass.objects.len();
+                    let idx = *object_index.entry(oids[oi]).or_insert(next);
+                    if idx == pass.objects.len() {
+                        pass.objects.push(Vec::new());
+                    }
+                    pass.objects[idx].push((frame, e.kind != EventKind::Miss));
+                }
+            }
+            if threshold.is_none() {
+                pass.match_scores.extend(
+                    h.iter()
+                        .filter(|b| matched_hids.contains(&b.id))
+                        .map(|b| b.score),
+                );
+            }
+        }
+    }
+    pass
+}
+
+fn metrics_of(pass: &Pass, p: &NuscenesParams) -> Metrics {
+    let tp = pass.matches as f64;
+    let ids = pass.switches as f64;
+    let fp = pass.fps as f64;
+    let fn_ = pass.misses as f64;
+    let objects = tp + ids + fn_;
+    let detections = tp + ids;
+    let recall_m = tp / objects;
+    let nominator = (fn_ + ids + fp) - (1.0 - recall_m) * objects;
+    let denominator = recall_m * objects;
+    let motar = if denominator == 0.0 {
+        f64::NAN
+    } else {
+        (1.0 - nominator / denominator).max(0.0)
+    };
+    let mota = (1.0 - (fn_ + ids + fp) / objects).max(0.0);
+    let motp = if detections == 0.0 {
+        f64::NAN
+    } else {
+        np_sum(&pass.dist_sum_terms) / detections
+    };
+    let (mut mt, mut ml, mut frag) = (0.0, 0.0, 0.0);
+    let (mut tid, mut lgd) = (0.0, 0.0);
+    let mut missed = 0usize;
+    for seq in &pass.objects {
+        let tracked = seq.iter().filter(|s| s.1).count() as f64;
+        let ratio = tracked / seq.len() as f64;
+        if ratio >= 0.8 {
+            mt += 1.0;
+        }
+        if ratio < 0.2 {
+            ml += 1.0;
+        }
+        let Some(first) = seq.iter().position(|s| s.1) else {
+            missed += 1;
+            continue;
+        };
+        let last = seq.iter().rposition(|s| s.1).unwrap();
+        for k in first + 1..=last {
+            if !seq[k].1 && seq[k - 1].1 {
+                frag += 1.0;
+            }
+        }
+        tid += (seq[first].0 - seq[0].0) as f64 * p.sample_period;
+        let matched: HashSet<u64> = seq.iter().filter(|s| s.1).map(|s| s.0).collect();
+        let (mut gap, mut cur) = (0u64, 0u64);
+        for i in seq[0].0..=seq.last().unwrap().0 {
+            if matched.contains(&i) {
+                gap = gap.max(cur);
+                cur = 0;
+            } else {
+                cur += 1;
+            }
+        }
+        gap = gap.max(cur);
+        lgd += gap as f64 * p.sample_period;
+    }
+    let matched_tracks = pass.objects.len() - missed;
+    let (tid, lgd) = if matched_tracks == 0 {
+        (f64::NAN, f64::NAN)
+    } else {
+        (tid / matched_tracks as f64, lgd / matched_tracks as f64)
+    };
+    Metrics {
+        amota: f64::NAN,
+        amotp: f64::NAN,
+        recall: detections / objects,
+        motar,
+        mota,
+        motp,
+        mt,
+        ml,
+        faf: fp / pass.frames as f64 * 100.0,
+        tp,
+        fp,
+        fn_,
+        ids,
+        frag,
+        tid,
+        lgd,
+        gt: objects,
+    }
+}
+
+/// Evaluates one class. `None` when the class has no ground truth.
+fn evaluate_class(
+    scenes: &[Prepared],
+    class: &str,
+    p: &NuscenesParams,
+    notes: &mut Vec<String>,
+) -> Metrics {
+    let mut gt_boxes = 0u64;
+    let mut gt_ids: HashSet<u64> = HashSet::new();
+    for s in scenes {
+        for f in &s.gt {
+            for b in f.iter().filter(|b| b.label == class) {
+                gt_boxes += 1;
+                gt_ids.insert(b.id);
+            }
+        }
+    }
+    if gt_boxes == 0 {
+        return Metrics::all(f64::NAN);
+    }
+    // Recall thresholds from the scores of matched predictions.
+    let mut scores = run_pass(scenes, class, None, p).match_scores;
+    let n = p.num_thresholds;
+    let mut thresholds = vec![f64::NAN; n];
+    if !scores.is_empty() {
+        scores.sort_by(|a, b| b.total_cmp(a));
+        let rec: Vec<f64> = (1..=scores.len())
+            .map(|k| k as f64 / gt_boxes as f64)
+            .collect();
+        let max_rec = *rec.last().unwrap();
+        let levels = linspace_round12(p.min_recall, 1.0, n);
+        for (i, r) in levels.iter().enumerate() {
+            thresholds[i] = if *r > max_rec {
+                f64::NAN
+            } else {
+                np_interp(*r, &rec, &scores, 0.0)
+            };
+        }
+        thresholds.reverse();
+    }
+    let achieved = thresholds.iter().filter(|t| !t.is_nan()).count();
+    if achieved == 0 {
+        // Worst values everywhere; FP, IDS and FRAG cannot be known.
+        let mut m = Metrics::all(f64::NAN);
+        for (k, v) in [
+            ("amota", 0.0),
+            ("amotp", 2.0),
+            ("recall", 0.0),
+            ("motar", 0.0),
+            ("mota", 0.0),
+            ("motp", 2.0),
+            ("mt", 0.0),
+            ("ml", gt_ids.len() as f64),
+            ("faf", 500.0),
+            ("tp", 0.0),
+            ("fn", gt_boxes as f64),
+            ("tid", 20.0),
+            ("lgd", 20.0),
+            ("gt", gt_boxes as f64),
+        ] {
+            m.set(k, v);
+        }
+        return m;
+    }
+    let mut per_threshold: Vec<Metrics> = Vec::with_capacity(n);
+    let mut computed: Vec<(f64, Metrics)> = Vec::new();
+    for &t in &thresholds {
+        if t.is_nan() {
+            per_threshold.push(Metrics::all(f64::NAN));
+            continue;
+        }
+        let m = match computed.iter().find(|(v, _)| *v == t) {
+            Some((_, m)) => *m,
+            None => {
+                let m = metrics_of(&run_pass(scenes, class, Some(t), p), p);
+                computed.push((t, m));
+                m
+            }
+        };
+        per_threshold.push(m);
+    }
+    if computed.len() == 1 && achieved > 1 {
+        notes.push(format!(
+            "{class}: every matched track has the same score, so all {achieved} reached recall \
+             levels share one threshold (evaluated once; the devkit can fail on such input)"
+        ));
+    }
+    // Best MOTA: the first maximum in threshold order (ties go to the highest recall).
+    let mut best = None;
+    for (i, m) in per_threshold.iter().enumerate() {
+        if !m.mota.is_nan() && best.is_none_or(|b: usize| m.mota > per_threshold[b].mota) {
+            best = Some(i);
+        }
+    }
+    let mut out = per_threshold[best.expect("an achieved threshold exists")];
+    let motar: Vec<f64> = per_threshold
+        .iter()
+        .map(|m| if m.motar.is_nan() { 0.0 } else { m.motar })
+        .collect();
+    let motp: Vec<f64> = per_threshold
+        .iter()
+        .map(|m| if m.motp.is_nan() { 2.0 } else { m.motp })
+        .collect();
+    out.amota = np_mean(&motar);
+    out.amotp = np_mean(&motp);
+    out
+}
+
+/// Evaluates scenes (one log each) with the nuScenes protocol.
+pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
+    let prepared: Vec<Prepared> = scenes.iter().map(prepare).collect();
+    let mut notes = Vec::new();
+    let mut classes = BTreeMap::new();
+    for c in &p.classes {
+        classes.insert(c.clone(), evaluate_class(&prepared, c, p, &mut notes));
+    }
+    let mut overall = Metrics::all(f64::NAN);
+    for name in METRIC_NAMES {
+        let vals: Vec<f64> = classes.values().map(|m| m.get(name)).collect();
+        let finite: Vec<f64> = vals.iter().copied().filter(|v| !v.is_nan()).collect();
+        let summed = matches!(name, "mt" | "ml" | "tp" | "fp" | "fn" | "ids" | "frag");
+        // Counts are only aggregated over classes that have ground truth.
+        let with_gt = classes.values().any(|m| !m.gt.is_nan());
+        let v = if summed {
+            if with_gt {
+                np_sum(&finite)
+            } else {
+                f64::NAN
+            }
+        } else if finite.is_empty() {
+            f64::NAN
+        } else {
+            np_sum(&finite) / finite.len() as f64
+        };
+        overall.set(name, v);
+    }
+    NuscenesResult {
+        protocol: "nuscenes",
+        classes,
+        overall,
+        notes,
+    }
+}

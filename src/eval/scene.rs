@@ -1,0 +1,158 @@
+//! Loading ground truth and tracks from MCAP into per-frame box lists (one log = one scene).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use mcap::records::Record;
+
+use crate::mcapio::reader::read_records;
+use crate::msgs::{self, Encoding, Track3D, Tracks3D};
+
+/// One box as the evaluation sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalBox {
+    /// Track or instance id.
+    pub id: u64,
+    /// Class label.
+    pub label: String,
+    /// Centre.
+    pub center: [f64; 3],
+    /// Length, width, height.
+    pub size: [f64; 3],
+    /// Heading.
+    pub yaw: f64,
+    /// Score (tracks) or 1 (truth).
+    pub score: f64,
+    /// Attributes (KITTI fields are carried here).
+    pub attributes: BTreeMap<String, String>,
+    /// 2D box, if known.
+    pub image_box: Option<[f64; 4]>,
+}
+
+impl EvalBox {
+    fn from_track(t: &Track3D) -> EvalBox {
+        let c = t.center.unwrap_or_default();
+        let s = t.size.unwrap_or_default();
+        EvalBox {
+            id: t.id,
+            label: t.label.clone(),
+            center: [c.x, c.y, c.z],
+            size: [s.length, s.width, s.height],
+            yaw: t.yaw,
+            score: t.score,
+            attributes: t.attributes.clone(),
+            image_box: t.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
+        }
+    }
+}
+
+/// Ground truth and tracks of one log, by frame stamp (ns). Every stamp of either channel is a
+/// frame; a frame may hold no box of one or both.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// Name (the file name), used in reports.
+    pub name: String,
+    /// Frames in stamp order: `(stamp_ns, truth boxes, track boxes)`.
+    pub frames: Vec<(u64, Vec<EvalBox>, Vec<EvalBox>)>,
+}
+
+/// Reads the `Tracks3D` messages of one topic: `(stamp, boxes)` per message.
+pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+    let file = path.display().to_string();
+    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
+    let mut channels: BTreeMap<u16, Encoding> = BTreeMap::new();
+    let mut found = false;
+    let mut out = Vec::new();
+    read_records(path, |rec, _| {
+        match rec {
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) if c.topic == topic => {
+                found = true;
+                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                if schema != msgs::TRACKS_SCHEMA {
+                    bail!(
+                        "{file}: topic {topic} has schema '{schema}', expected {}",
+                        msgs::TRACKS_SCHEMA
+                    );
+                }
+                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
+                    bail!(
+                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
+                        c.message_encoding
+                    );
+                };
+                channels.insert(c.id, enc);
+            }
+            Record::Message { header, data } => {
+                if let Some(enc) = channels.get(&header.channel_id) {
+                    let m: Tracks3D = msgs::decode(&data, *enc).with_context(|| {
+                        format!(
+                            "{file}: topic {topic}, message at log_time {}: cannot decode",
+                            header.log_time
+                        )
+                    })?;
+                    let stamp = if m.stamp != 0 { m.stamp } else { header.log_time };
+                    out.push((stamp, m.tracks.iter().map(EvalBox::from_track).collect()));
+                }
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    if !found {
+        bail!("{file}: no channel with topic {topic}");
+    }
+    Ok(out)
+}
+
+/// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes
+/// need ids, and tracks must lie within the truth's time range.
+pub fn load_scene(
+    truth: &Path,
+    truth_topic: &str,
+    tracks: &Path,
+    tracks_topic: &str,
+) -> Result<Scene> {
+    let gt = read_tracks_topic(truth, truth_topic)?;
+    let tr = read_tracks_topic(tracks, tracks_topic)?;
+    if gt.is_empty() {
+        bail!("{}: topic {truth_topic} has no messages", truth.display());
+    }
+    for (stamp, boxes) in &gt {
+        if let Some(b) = boxes.iter().find(|b| b.id == 0) {
+            bail!(
+                "{}: topic {truth_topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \
+                 ground truth needs the true instance ids",
+                truth.display(),
+                b.label
+            );
+        }
+    }
+    let first = gt.iter().map(|g| g.0).min().unwrap();
+    let last = gt.iter().map(|g| g.0).max().unwrap();
+    if let Some((s, _)) = tr.iter().find(|(s, _)| *s < first || *s > last) {
+        bail!(
+            "{}: topic {tracks_topic} has a frame at stamp {s} ns, outside the ground truth's time \
+             range {first}..{last} ns in {}; are these the tracks of another log?",
+            tracks.display(),
+            truth.display()
+        );
+    }
+    let mut frames: BTreeMap<u64, (Vec<EvalBox>, Vec<EvalBox>)> = BTreeMap::new();
+    for (s, b) in gt {
+        frames.entry(s).or_default().0.extend(b);
+    }
+    for (s, b) in tr {
+        frames.entry(s).or_default().1.extend(b);
+    }
+    Ok(Scene {
+        name: tracks
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        frames: frames.into_iter().map(|(s, (g, t))| (s, g, t)).collect(),
+    })
+}
