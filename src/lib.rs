@@ -4,6 +4,7 @@
 //! and drive the command-line tool.
 
 pub mod eval;
+pub mod formats;
 pub mod mcapio;
 pub mod msgs;
 pub mod pipeline;

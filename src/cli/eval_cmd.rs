@@ -150,10 +150,7 @@ pub fn run(a: EvalArgs) -> Result<ExitCode> {
         );
         print!("{}", table(&COLUMNS, &rows(&result)));
         if let Some(base) = &baseline {
-            println!(
-                "\nbaseline {}:",
-                a.baseline.as_ref().unwrap().display()
-            );
+            println!("\nbaseline {}:", a.baseline.as_ref().unwrap().display());
             print!("{}", table(&COLUMNS, &rows(base)));
             println!("\nchange (this - baseline):");
             let mut delta = Vec::new();

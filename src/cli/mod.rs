@@ -2,6 +2,7 @@
 
 mod config_cmd;
 mod eval_cmd;
+mod import_cmd;
 mod info_cmd;
 mod simulate_cmd;
 mod track_cmd;
@@ -30,6 +31,8 @@ enum Command {
     Simulate(simulate_cmd::SimulateArgs),
     Config(config_cmd::ConfigArgs),
     Eval(eval_cmd::EvalArgs),
+    Import(import_cmd::ImportArgs),
+    Export(import_cmd::ExportArgs),
 }
 
 /// Runs a parsed command line; the exit code on success.
@@ -40,6 +43,8 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Config(a) => config_cmd::run(a),
         Command::Eval(a) => eval_cmd::run(a),
+        Command::Import(a) => import_cmd::run_import(a),
+        Command::Export(a) => import_cmd::run_export(a),
     }
 }
 

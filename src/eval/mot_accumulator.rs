@@ -132,7 +132,11 @@ impl MotAccumulator {
 /// motmetrics' `lsa_solve_scipy`: non-finite entries become `2 r c + 1` with
 /// `c = max |finite| + 1` and `r = min(rows, cols)`, scipy's algorithm solves, and pairs on
 /// non-finite entries are dropped by the caller. `cost` is overwritten.
-pub fn assign_with_missing_edges(cost: &mut Vec<f64>, rows: usize, cols: usize) -> Vec<(usize, usize)> {
+pub fn assign_with_missing_edges(
+    cost: &mut Vec<f64>,
+    rows: usize,
+    cols: usize,
+) -> Vec<(usize, usize)> {
     if rows == 0 || cols == 0 {
         return Vec::new();
     }
@@ -178,7 +182,7 @@ mod tests {
         acc.update(&[1], &[10, 11], &[0.5, 0.2], &mut ev);
         assert_eq!(ev[0].kind, EventKind::Match);
         assert_eq!(ev[0].hypothesis, Some(1)); // the closer one, 11
-        // Frame 2: 11 is still valid though 10 is closer: the pairing is kept.
+                                               // Frame 2: 11 is still valid though 10 is closer: the pairing is kept.
         ev.clear();
         acc.update(&[1], &[10, 11], &[0.1, 1.5], &mut ev);
         assert_eq!(ev[0].kind, EventKind::Match);

@@ -94,7 +94,11 @@ pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalB
                             header.log_time
                         )
                     })?;
-                    let stamp = if m.stamp != 0 { m.stamp } else { header.log_time };
+                    let stamp = if m.stamp != 0 {
+                        m.stamp
+                    } else {
+                        header.log_time
+                    };
                     out.push((stamp, m.tracks.iter().map(EvalBox::from_track).collect()));
                 }
             }

@@ -72,6 +72,27 @@ fn parent_dir(p: &Path) -> PathBuf {
     }
 }
 
+/// Writes `bytes` to `dest` atomically: a temporary file in the same directory, synced, then
+/// renamed over `dest`. Permissions are those of an ordinary file (0644).
+pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
+    use std::io::Write;
+    let dir = parent_dir(dest);
+    let mut tmp = NamedTempFile::with_prefix_in(".probmot-", &dir)
+        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        tmp.as_file()
+            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
+    }
+    tmp.write_all(bytes)
+        .and_then(|_| tmp.as_file().sync_all())
+        .with_context(|| format!("writing {}", dest.display()))?;
+    tmp.persist(dest)
+        .with_context(|| format!("renaming the output to {}", dest.display()))?;
+    Ok(())
+}
+
 impl AtomicOutput {
     /// Creates the temporary file beside `dest` and an MCAP writer on it: zstd chunks, message
     /// and chunk indexes, and a summary section, so viewers can seek.

@@ -2,4 +2,5 @@
 
 pub mod detections;
 pub mod info;
+pub mod kitti_io;
 pub mod track;

@@ -1,0 +1,3 @@
+//! Dataset formats: parsing and writing the text formats of public benchmarks.
+
+pub mod kitti;

@@ -1,0 +1,356 @@
+//! `probmot import kitti` and `probmot export kitti`.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+
+use crate::eval::scene::read_tracks_topic;
+use crate::formats::kitti::{
+    box_to_camera, camera_to_box, format_row, parse_detection_line, parse_label_line, KittiRow,
+};
+use crate::mcapio::reader::read_records;
+use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
+use crate::msgs::{self, v3, Detection3D, Detections3D, ImageBox, Track3D, Tracks3D};
+use crate::sim::write::{size3, START_NS};
+use crate::tracker::Box3;
+
+/// KITTI tracking runs at 10 Hz.
+pub const KITTI_PERIOD_NS: u64 = 100_000_000;
+/// Name of the metadata record that remembers the KITTI sequence and time base.
+pub const KITTI_METADATA: &str = "probmot.kitti";
+
+/// Attributes that carry the KITTI fields the 3D box does not hold.
+pub mod attr {
+    /// Original type, e.g. `Car`.
+    pub const TYPE: &str = "kitti_type";
+    /// Truncation.
+    pub const TRUNCATED: &str = "kitti_truncated";
+    /// Occlusion level.
+    pub const OCCLUDED: &str = "kitti_occluded";
+    /// Observation angle.
+    pub const ALPHA: &str = "kitti_alpha";
+    /// Original track id (ground truth).
+    pub const TRACK_ID: &str = "kitti_track_id";
+}
+
+/// Counts of an import.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ImportSummary {
+    /// Frames written.
+    pub frames: u32,
+    /// Detections written.
+    pub detections: u64,
+    /// Ground-truth rows written (DontCare included).
+    pub truth_rows: u64,
+    /// Detection files read.
+    pub detection_files: Vec<String>,
+}
+
+fn read_lines(path: &Path) -> Result<Vec<(usize, String)>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    Ok(text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| (i + 1, l.to_string()))
+        .collect())
+}
+
+/// Resolves `--detections` arguments: files as given; for a directory, `SEQ.txt` in it or in its
+/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`).
+pub fn resolve_detection_files(args: &[PathBuf], sequence: &str) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    let name = format!("{sequence}.txt");
+    for a in args {
+        if a.is_dir() {
+            let direct = a.join(&name);
+            if direct.is_file() {
+                out.push(direct);
+            }
+            let mut subs: Vec<PathBuf> = std::fs::read_dir(a)
+                .with_context(|| format!("cannot list {}", a.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.is_dir())
+                .collect();
+            subs.sort();
+            for s in subs {
+                let f = s.join(&name);
+                if f.is_file() {
+                    out.push(f);
+                }
+            }
+        } else if a.is_file() {
+            out.push(a.clone());
+        } else {
+            bail!("{}: no such file or directory", a.display());
+        }
+    }
+    if out.is_empty() {
+        bail!("no detection file {name} found in {:?}", args);
+    }
+    Ok(out)
+}
+
+fn attrs(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
+    pairs
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect()
+}
+
+fn image_box(b: [f64; 4]) -> ImageBox {
+    ImageBox {
+        x1: b[0],
+        y1: b[1],
+        x2: b[2],
+        y2: b[3],
+    }
+}
+
+/// Writes one sequence as MCAP: `/detections` and `/ground_truth` at 10 Hz, one message per
+/// frame on each (empty where nothing was seen), plus a `probmot.kitti` metadata record.
+pub fn import_kitti(
+    labels: Option<&Path>,
+    detection_files: &[PathBuf],
+    sequence: &str,
+    output: &Path,
+) -> Result<ImportSummary> {
+    check_output_path(None, output)?;
+    let mut dets: BTreeMap<u32, Vec<KittiRow>> = BTreeMap::new();
+    let mut summary = ImportSummary::default();
+    for f in detection_files {
+        for (n, line) in read_lines(f)? {
+            let row =
+                parse_detection_line(&line).with_context(|| format!("{}:{n}", f.display()))?;
+            dets.entry(row.frame).or_default().push(row);
+        }
+        summary.detection_files.push(f.display().to_string());
+    }
+    let mut truth: BTreeMap<u32, Vec<KittiRow>> = BTreeMap::new();
+    if let Some(l) = labels {
+        for (n, line) in read_lines(l)? {
+            let row = parse_label_line(&line).with_context(|| format!("{}:{n}", l.display()))?;
+            truth.entry(row.frame).or_default().push(row);
+        }
+    }
+    let last = dets
+        .keys()
+        .chain(truth.keys())
+        .max()
+        .copied()
+        .context("no rows in the label or detection files")?;
+
+    let mut out = AtomicOutput::create(output, &OutputOptions::default())?;
+    let w = &mut out.writer;
+    let s_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
+    let s_trk = w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
+    let none = BTreeMap::new();
+    let c_det = w.add_channel(s_det, "/detections", "protobuf", &none)?;
+    let c_gt = if labels.is_some() {
+        Some(w.add_channel(s_trk, "/ground_truth", "protobuf", &none)?)
+    } else {
+        None
+    };
+    w.write_metadata(&mcap::records::Metadata {
+        name: KITTI_METADATA.into(),
+        metadata: attrs(&[
+            ("sequence", sequence.to_string()),
+            ("first_stamp_ns", START_NS.to_string()),
+            ("frame_period_ns", KITTI_PERIOD_NS.to_string()),
+        ]),
+    })?;
+    let mut buf = Vec::new();
+    for frame in 0..=last {
+        let stamp = START_NS + frame as u64 * KITTI_PERIOD_NS;
+        let header = |ch| mcap::records::MessageHeader {
+            channel_id: ch,
+            sequence: frame,
+            log_time: stamp,
+            publish_time: stamp,
+        };
+        let rows = dets.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
+        let msg = Detections3D {
+            stamp: Some(stamp),
+            frame_id: "kitti_camera_z_up".into(),
+            detections: rows
+                .iter()
+                .map(|r| {
+                    let b = camera_to_box(r.hwl, r.xyz, r.rotation_y);
+                    Detection3D {
+                        center: Some(v3(b.center)),
+                        size: Some(size3(b.size)),
+                        yaw: b.yaw,
+                        label: r.kind.to_lowercase(),
+                        score: r.score.unwrap_or(0.0),
+                        velocity: None,
+                        image_box: Some(image_box(r.bbox)),
+                        attributes: attrs(&[
+                            (attr::TYPE, r.kind.clone()),
+                            (attr::ALPHA, format!("{}", r.alpha)),
+                        ]),
+                    }
+                })
+                .collect(),
+        };
+        summary.detections += rows.len() as u64;
+        msgs::encode_into(&msg, &mut buf);
+        w.write_to_known_channel(&header(c_det), &buf)?;
+        if let Some(c_gt) = c_gt {
+            let rows = truth.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
+            let gt = Tracks3D {
+                stamp,
+                frame_id: "kitti_camera_z_up".into(),
+                tracks: rows.iter().map(truth_track).collect(),
+            };
+            summary.truth_rows += rows.len() as u64;
+            msgs::encode_into(&gt, &mut buf);
+            w.write_to_known_channel(&header(c_gt), &buf)?;
+        }
+    }
+    out.commit()?;
+    summary.frames = last + 1;
+    Ok(summary)
+}
+
+fn truth_track(r: &KittiRow) -> Track3D {
+    let b = camera_to_box(r.hwl, r.xyz, r.rotation_y);
+    Track3D {
+        // Instance ids must be non-zero; DontCare regions (id -1) get id 0.
+        id: if r.track_id >= 0 {
+            r.track_id as u64 + 1
+        } else {
+            0
+        },
+        label: r.kind.to_lowercase(),
+        center: Some(v3(b.center)),
+        size: Some(size3(b.size)),
+        yaw: b.yaw,
+        velocity: Some(v3([0.0; 3])),
+        score: 1.0,
+        image_box: Some(image_box(r.bbox)),
+        attributes: attrs(&[
+            (attr::TYPE, r.kind.clone()),
+            (attr::TRUNCATED, format!("{}", r.truncated)),
+            (attr::OCCLUDED, format!("{}", r.occluded)),
+            (attr::ALPHA, format!("{}", r.alpha)),
+            (attr::TRACK_ID, format!("{}", r.track_id)),
+        ]),
+        ..Default::default()
+    }
+}
+
+/// The time base written by `import kitti`: `(first_stamp_ns, frame_period_ns)`.
+pub fn kitti_time_base(path: &Path) -> Result<(u64, u64)> {
+    let mut base = None;
+    read_records(path, |rec, _| {
+        if let mcap::records::Record::Metadata(m) = rec {
+            if m.name == KITTI_METADATA {
+                let get = |k: &str| -> Result<u64> {
+                    m.metadata
+                        .get(k)
+                        .with_context(|| format!("metadata {KITTI_METADATA} lacks {k}"))?
+                        .parse()
+                        .with_context(|| format!("metadata {KITTI_METADATA}: bad {k}"))
+                };
+                base = Some((get("first_stamp_ns")?, get("frame_period_ns")?));
+            }
+        }
+        Ok(())
+    })?;
+    Ok(base.unwrap_or((START_NS, KITTI_PERIOD_NS)))
+}
+
+/// Counts of an export.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct ExportSummary {
+    /// Rows written.
+    pub rows: u64,
+    /// Frames with at least one row.
+    pub frames: u64,
+}
+
+/// Writes a `Tracks3D` topic as a KITTI tracking result (or label) file. Type, 2D box, alpha,
+/// truncation and occlusion come from the box's `kitti_*` attributes and image box (a track
+/// carries those of its last matched detection); missing ones are written as the label with a
+/// capital, a zero box, -10 and 0.
+pub fn export_kitti(
+    input: &Path,
+    topic: &str,
+    output: &Path,
+    scores: bool,
+) -> Result<ExportSummary> {
+    check_output_path(Some(input), output)?;
+    let (first, period) = kitti_time_base(input)?;
+    let frames = read_tracks_topic(input, topic)?;
+    let mut text = String::new();
+    let mut summary = ExportSummary::default();
+    let truth = topic != "/tracks" && !scores;
+    for (stamp, boxes) in &frames {
+        if *stamp < first || (stamp - first) % period != 0 {
+            bail!(
+                "{}: topic {topic} has a frame at stamp {stamp} ns, not on the KITTI time base \
+                 ({first} + k * {period} ns)",
+                input.display()
+            );
+        }
+        let frame = ((stamp - first) / period) as u32;
+        if !boxes.is_empty() {
+            summary.frames += 1;
+        }
+        for b in boxes {
+            let bx = Box3 {
+                center: b.center,
+                yaw: b.yaw,
+                size: b.size,
+            };
+            let (hwl, xyz, ry) = box_to_camera(&bx);
+            let a = &b.attributes;
+            let parse = |k: &str, d: f64| a.get(k).and_then(|v| v.parse().ok()).unwrap_or(d);
+            let kind = a
+                .get(attr::TYPE)
+                .cloned()
+                .unwrap_or_else(|| capitalize(&b.label));
+            let track_id = if truth {
+                parse(attr::TRACK_ID, b.id as f64 - 1.0) as i64
+            } else {
+                b.id as i64
+            };
+            let row = KittiRow {
+                frame,
+                track_id,
+                kind,
+                truncated: if truth {
+                    parse(attr::TRUNCATED, 0.0)
+                } else {
+                    0.0
+                },
+                occluded: if truth {
+                    parse(attr::OCCLUDED, 0.0) as i64
+                } else {
+                    0
+                },
+                alpha: parse(attr::ALPHA, -10.0),
+                bbox: b.image_box.unwrap_or([0.0; 4]),
+                hwl,
+                xyz,
+                rotation_y: ry,
+                score: if truth { None } else { Some(b.score) },
+            };
+            text.push_str(&format_row(&row));
+            text.push('\n');
+            summary.rows += 1;
+        }
+    }
+    write_file_atomic(output, text.as_bytes())?;
+    Ok(summary)
+}
+
+fn capitalize(s: &str) -> String {
+    let mut c = s.chars();
+    match c.next() {
+        Some(f) => f.to_uppercase().collect::<String>() + c.as_str(),
+        None => String::new(),
+    }
+}
