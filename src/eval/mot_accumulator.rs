@@ -77,9 +77,9 @@ impl MotAccumulator {
             // 2. Minimum-cost assignment of the rest.
             self.cost.clear();
             self.cost.extend_from_slice(dist);
-            for i in 0..no {
-                for j in 0..nh {
-                    if omask[i] || hmask[j] {
+            for (i, om) in omask.iter().enumerate() {
+                for (j, hm) in hmask.iter().enumerate() {
+                    if *om || *hm {
                         self.cost[i * nh + j] = f64::NAN;
                     }
                 }
