@@ -208,6 +208,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,
+        max_detections_per_message: 100_000,
     };
     let mut failures = Vec::new();
     for (i, f) in files.iter().enumerate() {
@@ -221,7 +222,10 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
         };
         // No detection channel: a warning, not an error.
         assert!(
-            summary.warnings.iter().any(|w| w.contains("no detection channel")),
+            summary
+                .warnings
+                .iter()
+                .any(|w| w.contains("no detection channel")),
             "{}: {:?}",
             f.display(),
             summary.warnings

@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary};
+use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use rayon::prelude::*;
 
 use super::config_cmd::TrackerArgs;
@@ -55,6 +55,9 @@ pub struct TrackArgs {
     /// Fail on any detection box that would otherwise be skipped with a warning.
     #[arg(long)]
     strict: bool,
+    /// Largest number of boxes accepted in one detection message (more is an error).
+    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DETECTIONS)]
+    max_detections: usize,
     /// Also write a Rerun recording of the run (needs the `rerun` cargo feature).
     #[arg(long, value_name = "OUT.rrd")]
     rerun: Option<PathBuf>,
@@ -112,6 +115,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         config,
         no_track: a.no_track,
         strict: a.strict,
+        max_detections_per_message: a.max_detections,
     };
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {

@@ -36,7 +36,13 @@ pub struct TrackOptions {
     pub no_track: bool,
     /// Turn every skipped box into an error.
     pub strict: bool,
+    /// Largest number of boxes accepted in one detection message; more is an error (a frame
+    /// that large is a corrupted or misrouted message, and would stall the tracker).
+    pub max_detections_per_message: usize,
 }
+
+/// Default of [`TrackOptions::max_detections_per_message`].
+pub const DEFAULT_MAX_DETECTIONS: usize = 100_000;
 
 /// What a run did; printed as the summary line or as JSON.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -163,6 +169,15 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                             msgs::DETECTIONS_SCHEMA
                         )
                     })?;
+                    if msg.detections.len() > opts.max_detections_per_message {
+                        bail!(
+                            "{}: {} detections in one message, more than the limit of {} \
+                             (--max-detections)",
+                            describe_message(&file, topic, &header),
+                            msg.detections.len(),
+                            opts.max_detections_per_message
+                        );
+                    }
                     let stamp = stamp_of(&msg, header.log_time);
                     if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
                         if stamp < prev {

@@ -1,0 +1,383 @@
+//! Bad input gets a defined answer: skipped boxes are counted (or refused with --strict), bad
+//! files fail with status 2 and leave no output, a killed run leaves no output, and no NaN ever
+//! reaches a tracks message.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use common::*;
+use probmot::msgs::{self, v3, Detection3D, Detections3D, Size3};
+
+fn det(label: &str, c: [f64; 3], yaw: f64, score: f64) -> Detection3D {
+    Detection3D {
+        center: Some(v3(c)),
+        size: Some(Size3 {
+            length: 4.5,
+            width: 1.9,
+            height: 1.6,
+        }),
+        yaw,
+        label: label.into(),
+        score,
+        ..Default::default()
+    }
+}
+
+/// Writes `/detections` frames as protobuf (or JSON) messages.
+fn write_log(path: &Path, frames: &[(u64, Vec<Detection3D>)], json: bool) {
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(path).unwrap(),
+    ))
+    .unwrap();
+    let (enc, schema_enc, schema_data): (&str, &str, &[u8]) = if json {
+        ("json", "jsonschema", b"{}")
+    } else {
+        ("protobuf", "protobuf", msgs::DESCRIPTOR_SET)
+    };
+    let s = w
+        .add_schema(msgs::DETECTIONS_SCHEMA, schema_enc, schema_data)
+        .unwrap();
+    let ch = w
+        .add_channel(s, "/detections", enc, &BTreeMap::new())
+        .unwrap();
+    for (i, (stamp, dets)) in frames.iter().enumerate() {
+        let m = Detections3D {
+            stamp: Some(*stamp),
+            frame_id: "map".into(),
+            detections: dets.clone(),
+        };
+        let bytes = if json {
+            serde_json::to_vec(&m).unwrap()
+        } else {
+            prost::Message::encode_to_vec(&m)
+        };
+        w.write_to_known_channel(
+            &mcap::records::MessageHeader {
+                channel_id: ch,
+                sequence: i as u32,
+                log_time: *stamp,
+                publish_time: *stamp,
+            },
+            &bytes,
+        )
+        .unwrap();
+    }
+    w.finish().unwrap();
+}
+
+const S: u64 = 1_000_000_000;
+
+fn straight_car(n: u64, gap_at: Option<(u64, u64)>) -> Vec<(u64, Vec<Detection3D>)> {
+    let mut t = 0;
+    (0..n)
+        .map(|k| {
+            if let Some((at, extra)) = gap_at {
+                if k == at {
+                    t += extra;
+                }
+            }
+            t += S / 2;
+            (t, vec![det("car", [5.0 * k as f64, 0.0, 0.8], 0.0, 0.9)])
+        })
+        .collect()
+}
+
+fn json_summary(out: &std::process::Output) -> serde_json::Value {
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "no JSON summary ({e}): {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    })
+}
+
+#[test]
+fn bad_boxes_are_skipped_and_counted_or_refused_with_strict() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.mcap");
+    let mut frames = straight_car(6, None);
+    let mut bad_nan = det("car", [f64::NAN, 0.0, 0.0], 0.0, 0.9);
+    bad_nan.yaw = 0.0;
+    let mut bad_size = det("car", [50.0, 50.0, 0.0], 0.0, 0.9);
+    bad_size.size.as_mut().unwrap().width = 0.0;
+    let inf_score = det("car", [70.0, 70.0, 0.0], 0.0, f64::INFINITY);
+    let mut no_size = det("car", [90.0, 90.0, 0.0], 0.0, 0.9);
+    no_size.size = None;
+    let logit = det("pedestrian", [-30.0, 5.0, 0.0], 0.0, 7.5);
+    frames[2]
+        .1
+        .extend([bad_nan, bad_size, inf_score, no_size, logit]);
+    frames[3].1.clear(); // an empty array is a frame with no detection
+    write_log(&input, &frames, false);
+    let out = dir.path().join("out.mcap");
+    let run = probmot_ok(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let s = json_summary(&run);
+    let skipped = &s["detections"]["skipped"];
+    assert_eq!(skipped["non_finite"], 2, "{s}");
+    assert_eq!(skipped["non_positive_size"], 1);
+    assert_eq!(skipped["missing_field"], 1);
+    assert_eq!(s["detections"]["score_outside_unit"], 1);
+    assert_eq!(s["frames"], 6);
+    assert!(s["warnings"]
+        .to_string()
+        .contains("skipped 4 detection boxes"));
+    for t in tracks(&out, "/tracks") {
+        assert_finite(&t);
+    }
+    // The skipped boxes did not change the tracks: same as a log without them.
+    let clean = dir.path().join("clean.mcap");
+    let mut frames2 = straight_car(6, None);
+    frames2[2]
+        .1
+        .push(det("pedestrian", [-30.0, 5.0, 0.0], 0.0, 7.5));
+    frames2[3].1.clear();
+    write_log(&clean, &frames2, false);
+    let out2 = dir.path().join("out2.mcap");
+    probmot_ok(&[
+        "track",
+        clean.to_str().unwrap(),
+        "-o",
+        out2.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert_eq!(tracks(&out, "/tracks"), tracks(&out2, "/tracks"));
+
+    // --strict: the first bad box is an error naming file, topic, log time and detection.
+    let out3 = dir.path().join("strict.mcap");
+    let r = probmot(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out3.to_str().unwrap(),
+        "--strict",
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("in.mcap") && err.contains("/detections") && err.contains("log_time"),
+        "{err}"
+    );
+    assert!(
+        err.contains("detection 1") && err.contains("non-finite"),
+        "{err}"
+    );
+    assert!(!out3.exists());
+}
+
+#[test]
+fn unknown_labels_without_default_entry_are_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg_path = dir.path().join("cfg.json");
+    let mut cfg = probmot::tracker::TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    cfg.default = None;
+    std::fs::write(&cfg_path, cfg.to_json()).unwrap();
+    let input = dir.path().join("in.mcap");
+    let mut frames = straight_car(4, None);
+    frames[1]
+        .1
+        .push(det("forklift", [20.0, 20.0, 0.0], 0.0, 0.9));
+    write_log(&input, &frames, false);
+    let out = dir.path().join("out.mcap");
+    let run = probmot_ok(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+        "--config",
+        cfg_path.to_str().unwrap(),
+    ]);
+    assert_eq!(
+        json_summary(&run)["detections"]["skipped"]["unknown_label"],
+        1
+    );
+}
+
+#[test]
+fn absurd_detection_counts_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.mcap");
+    let many: Vec<Detection3D> = (0..1_000_000)
+        .map(|i| det("car", [i as f64, 0.0, 0.0], 0.0, 0.5))
+        .collect();
+    write_log(&input, &[(S, many)], false);
+    let out = dir.path().join("out.mcap");
+    let r = probmot(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("1000000 detections in one message"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn json_detections_track_like_protobuf() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+    write_log(&a, &straight_car(8, None), false);
+    write_log(&b, &straight_car(8, None), true);
+    let (oa, ob) = (dir.path().join("oa.mcap"), dir.path().join("ob.mcap"));
+    probmot_ok(&[
+        "track",
+        a.to_str().unwrap(),
+        "-o",
+        oa.to_str().unwrap(),
+        "--quiet",
+    ]);
+    probmot_ok(&[
+        "track",
+        b.to_str().unwrap(),
+        "-o",
+        ob.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let ta = tracks(&oa, "/tracks");
+    assert_eq!(ta.len(), 8);
+    assert_eq!(ta, tracks(&ob, "/tracks"));
+}
+
+#[test]
+fn extreme_coordinates_and_long_gaps_give_no_nan() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.mcap");
+    // A 10-second gap in the middle, and a second object 1e6 m away.
+    let mut frames = straight_car(12, Some((6, 10 * S)));
+    for (_, d) in frames.iter_mut() {
+        d.push(det("car", [1e6, -1e6, 1e3], 3.0, 0.8));
+    }
+    // The car is missed in the frame right after the gap: it coasts through 10.5 s.
+    frames[6].1.remove(0);
+    write_log(&input, &frames, false);
+    let out = dir.path().join("out.mcap");
+    probmot_ok(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let t = tracks(&out, "/tracks");
+    assert_eq!(t.len(), 12);
+    for m in &t {
+        assert_finite(m);
+    }
+    assert!(t[6].tracks.iter().any(|x| x.frames_since_update == 1));
+}
+
+#[test]
+fn bad_files_fail_with_status_2_and_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read(repo("sample_logs/city.mcap")).unwrap();
+    let mut cases: Vec<(&str, Vec<u8>)> = vec![
+        ("empty", vec![]),
+        ("magic", {
+            let mut b = good.clone();
+            b[1] = b'X';
+            b
+        }),
+        ("truncated", good[..good.len() / 2].to_vec()),
+        ("tail", good[..good.len() - 9].to_vec()),
+    ];
+    // Corrupt a byte inside the first chunk's compressed records: its CRC no longer matches.
+    let mut crc = good.clone();
+    crc[200] ^= 0x55;
+    cases.push(("crc", crc));
+    for (name, bytes) in &cases {
+        let input = dir.path().join(format!("{name}.mcap"));
+        std::fs::write(&input, bytes).unwrap();
+        let out = dir.path().join(format!("{name}.out.mcap"));
+        let r = probmot(&[
+            "track",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(r.status.code(), Some(2), "{name}: {:?}", r);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(&format!("{name}.mcap")), "{name}: {err}");
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(!out.exists(), "{name}: output left behind");
+        assert_eq!(
+            &std::fs::read(&input).unwrap(),
+            bytes,
+            "{name}: input changed"
+        );
+    }
+    // Nothing else was left in the directory (no temporary files either).
+    let left = std::fs::read_dir(dir.path()).unwrap().count();
+    assert_eq!(left, cases.len());
+    // An unreadable input path.
+    let r = probmot(&[
+        "track",
+        "/nonexistent/in.mcap",
+        "-o",
+        dir.path().join("x.mcap").to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("/nonexistent/in.mcap"));
+}
+
+#[test]
+fn killed_run_leaves_no_output_and_an_intact_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("big.mcap");
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--frames",
+        "2000",
+        "--objects",
+        "120",
+        "-o",
+        input.to_str().unwrap(),
+    ]);
+    let before = std::fs::read(&input).unwrap();
+    let out_dir = dir.path().join("out");
+    std::fs::create_dir(&out_dir).unwrap();
+    let out = out_dir.join("big.tracked.mcap");
+    let mut child = bin()
+        .args([
+            "track",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .spawn()
+        .unwrap();
+    // Wait until the output is being written (its temporary file exists), then SIGKILL.
+    let started = std::time::Instant::now();
+    loop {
+        let writing = std::fs::read_dir(&out_dir).unwrap().count() > 0;
+        if writing || started.elapsed().as_secs() > 60 {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    let finished_already = child.try_wait().unwrap().is_some();
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        !finished_already,
+        "the run finished before it could be killed; use a bigger log"
+    );
+    assert!(!out.exists(), "a killed run left an output file");
+    assert!(
+        std::fs::read(&input).unwrap() == before,
+        "the input changed"
+    );
+}
