@@ -2,6 +2,7 @@
 
 mod config_cmd;
 mod eval_cmd;
+mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
 mod simulate_cmd;
@@ -31,6 +32,7 @@ enum Command {
     Simulate(simulate_cmd::SimulateArgs),
     Config(config_cmd::ConfigArgs),
     Eval(eval_cmd::EvalArgs),
+    Fit(fit_cmd::FitArgs),
     Import(import_cmd::ImportArgs),
     Export(import_cmd::ExportArgs),
 }
@@ -43,6 +45,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Simulate(a) => simulate_cmd::run(a),
         Command::Config(a) => config_cmd::run(a),
         Command::Eval(a) => eval_cmd::run(a),
+        Command::Fit(a) => fit_cmd::run(a),
         Command::Import(a) => import_cmd::run_import(a),
         Command::Export(a) => import_cmd::run_export(a),
     }

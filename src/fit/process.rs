@@ -97,7 +97,11 @@ mod tests {
     fn yaw_second_difference_is_wrapped() {
         // A steady turn of 0.2 rad/frame across +-pi: second difference 0, not 2 pi.
         let y0 = PI - 0.3;
-        let d = second_difference(&b(1, 0.0, y0), &b(1, 0.0, wrap(y0 + 0.2)), &b(1, 0.0, wrap(y0 + 0.4)));
+        let d = second_difference(
+            &b(1, 0.0, y0),
+            &b(1, 0.0, wrap(y0 + 0.2)),
+            &b(1, 0.0, wrap(y0 + 0.4)),
+        );
         assert!(d[3].abs() < 1e-12, "{}", d[3]);
     }
 

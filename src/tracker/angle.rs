@@ -5,6 +5,9 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 /// Wraps an angle (radians) into `[-pi, pi)`.
 #[inline]
 pub fn wrap(angle: f64) -> f64 {
+    if (-PI..PI).contains(&angle) {
+        return angle;
+    }
     let a = (angle + PI).rem_euclid(TAU) - PI;
     // rem_euclid can return TAU for tiny negative inputs through rounding.
     if a >= PI {

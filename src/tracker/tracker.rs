@@ -286,6 +286,7 @@ fn step_class(
     if let Some(k) = k {
         for t in &mut c.tracks {
             t.kf.predict(k, &c.noise);
+            t.innovation = None;
             t.age += 1;
             t.time_since_update += 1;
         }
@@ -330,7 +331,10 @@ fn step_class(
     for &(d, t) in &s.matches {
         let det = &all_dets[c.dets[d as usize] as usize];
         let trk = &mut c.tracks[t as usize];
-        trk.kf.update(&det.bbox, &c.noise);
+        match trk.innovation.take() {
+            Some(inn) => trk.kf.update_with(&det.bbox, &c.noise, &inn),
+            None => trk.kf.update(&det.bbox, &c.noise),
+        }
         trk.hits += 1;
         trk.time_since_update = 0;
         trk.score = det.score;

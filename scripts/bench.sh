@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# Whole-program measurements that a criterion bench cannot make: peak memory against log length,
+# and the speed-up of `track --jobs 2` over `--jobs 1` on 8 logs. Prints the figures that go into
+# BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary directory)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+work="${1:-$(mktemp -d)}"
+mkdir -p "$work"
+cargo build --release --quiet
+bin=target/release/probmot
+
+median() { sort -g | awk '{a[NR]=$1} END {print a[int((NR+1)/2)]}'; }
+div() { awk -v a="$1" -v b="$2" 'BEGIN { printf "%.3f\n", a / b }'; }
+wall() { local s e; s=$(date +%s.%N); "$@" >/dev/null 2>&1; e=$(date +%s.%N); awk -v a="$e" -v b="$s" 'BEGIN { printf "%.3f\n", a - b }'; }
+peak_kb() { /usr/bin/time -v "$@" 2>&1 >/dev/null | awk -F: '/Maximum resident set size/ {gsub(/ /,"",$2); print $2}'; }
+
+echo "machine: $(nproc) cores, $(awk '/MemTotal/ {printf "%.0f GiB", $2/1048576}' /proc/meminfo), $(uname -m), $(rustc --version)"
+
+# --- peak memory: a log 10x as long must not need more than 1.2x the memory
+"$bin" simulate --scenario city --frames 1000 --objects 100 --rate 10 --seed 5 -o "$work/short.mcap" >/dev/null
+"$bin" simulate --scenario city --frames 10000 --objects 100 --rate 10 --seed 5 -o "$work/long.mcap" >/dev/null
+for f in short long; do
+  runs=()
+  for i in 1 2 3; do runs+=("$(peak_kb "$bin" track "$work/$f.mcap" -o "$work/$f.out.mcap" --quiet --dt-nominal 0.1)"); done
+  printf '%s\n' "${runs[@]}" | median > "$work/$f.rss"
+  echo "peak RSS $f ($(du -h "$work/$f.mcap" | cut -f1)): $(cat "$work/$f.rss") kB (median of 3)"
+done
+echo "peak RSS ratio long/short: $(div "$(cat "$work/long.rss")" "$(cat "$work/short.rss")")"
+
+# --- many logs: 8 logs, --jobs 1 vs --jobs 2
+mkdir -p "$work/many" "$work/out1" "$work/out2"
+for i in 1 2 3 4 5 6 7 8; do
+  "$bin" simulate --scenario city --frames 1500 --objects 120 --seed "$i" -o "$work/many/log$i.mcap" >/dev/null
+done
+for j in 1 2; do
+  t=()
+  for i in 1 2 3; do t+=("$(wall "$bin" track "$work"/many/*.mcap --out-dir "$work/out$j" --jobs "$j" --quiet)"); done
+  printf '%s\n' "${t[@]}" | median > "$work/jobs$j.s"
+  echo "8 logs with --jobs $j: $(cat "$work/jobs$j.s") s (median of 3)"
+done
+echo "speed-up --jobs 2 over --jobs 1: $(div "$(cat "$work/jobs1.s")" "$(cat "$work/jobs2.s")")x"
