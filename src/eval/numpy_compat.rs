@@ -33,13 +33,10 @@ fn pairwise_sum(a: &[f64]) -> f64 {
     }
 }
 
-/// `np.sum` of a 1-d float64 array: the first element is the reduction's initial value and the
-/// rest is summed pairwise (valid for arrays shorter than numpy's 8192-element buffer).
+/// `np.sum` of a contiguous 1-d float64 array: pairwise summation of the whole array (valid for
+/// arrays shorter than numpy's 8192-element buffer).
 pub fn np_sum(a: &[f64]) -> f64 {
-    match a.split_first() {
-        None => 0.0,
-        Some((first, rest)) => *first + pairwise_sum(rest),
-    }
+    pairwise_sum(a)
 }
 
 /// `np.mean` of a 1-d float64 array.
@@ -106,6 +103,22 @@ mod tests {
         // numpy: np.mean([0.1, 0.1, 0.1]) == 0.10000000000000002
         assert_eq!(np_mean(&[0.1, 0.1, 0.1]), 0.10000000000000002);
         assert_eq!(np_mean(&[0.5, 0.25]), 0.375);
+    }
+
+    /// Values printed by numpy 1.26.4 (`np.mean([0.3] * n)`, `np.sum([0.1 * i + 0.37 ...])`).
+    #[test]
+    fn matches_numpy_rounding() {
+        let mean = |n: usize| np_mean(&vec![0.3; n]);
+        assert_eq!(mean(9), 0.3);
+        assert_eq!(mean(10), 0.29999999999999993);
+        assert_eq!(mean(11), 0.29999999999999993);
+        assert_eq!(mean(16), 0.3);
+        assert_eq!(mean(129), 0.30000000000000004);
+        let sum = |n: usize| np_sum(&(0..n).map(|i| 0.1 * i as f64 + 0.37).collect::<Vec<_>>());
+        assert_eq!(sum(3), 1.4100000000000001);
+        assert_eq!(sum(40), 92.80000000000001);
+        assert_eq!(sum(129), 873.3299999999999);
+        assert_eq!(sum(300), 4596.0);
     }
 
     #[test]

@@ -135,12 +135,14 @@ pub fn load_scene(
             );
         }
     }
+    // Frames are the union of both channels' stamps; tracks that share no time at all with
+    // the truth belong to another log.
     let first = gt.iter().map(|g| g.0).min().unwrap();
     let last = gt.iter().map(|g| g.0).max().unwrap();
-    if let Some((s, _)) = tr.iter().find(|(s, _)| *s < first || *s > last) {
+    if !tr.is_empty() && tr.iter().all(|(s, _)| *s < first || *s > last) {
         bail!(
-            "{}: topic {tracks_topic} has a frame at stamp {s} ns, outside the ground truth's time \
-             range {first}..{last} ns in {}; are these the tracks of another log?",
+            "{}: every frame of topic {tracks_topic} lies outside the ground truth's time range \
+             {first}..{last} ns in {}; are these the tracks of another log?",
             tracks.display(),
             truth.display()
         );

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use super::boxes::{Box3, ClassId, Detection};
 use super::config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
 use super::geometry::{giou3d, iou3d};
-use super::kalman::{mahalanobis, KalmanState, Noise};
+use super::kalman::{mahalanobis_sq, mahalanobis_sq_xy, KalmanState, Noise};
 use super::matching::{greedy, hungarian, Pair, NOT_A_CANDIDATE};
 use super::track::{Track, TrackReport};
 
@@ -331,10 +331,7 @@ fn step_class(
     for &(d, t) in &s.matches {
         let det = &all_dets[c.dets[d as usize] as usize];
         let trk = &mut c.tracks[t as usize];
-        match trk.innovation.take() {
-            Some(inn) => trk.kf.update_with(&det.bbox, &c.noise, &inn),
-            None => trk.kf.update(&det.bbox, &c.noise),
-        }
+        trk.kf.update(&det.bbox, &c.noise);
         trk.hits += 1;
         trk.time_since_update = 0;
         trk.score = det.score;
@@ -407,15 +404,12 @@ fn candidate_pairs(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) 
                 let b = &all_dets[di as usize].bbox;
                 for (ti, t) in c.tracks.iter().enumerate() {
                     let inn = t.innovation.as_ref().expect("computed above");
-                    let dx = b.center[0] - inn.z_pred[0];
-                    let dy = b.center[1] - inn.z_pred[1];
-                    // The xy marginal's distance bounds the full one from below, and
-                    // |y_xy|^2 / trace(S_xy) bounds that from below.
-                    if dx * dx + dy * dy > g2 * inn.trace_xy {
+                    // Pre-gate: the x and y terms alone already exceed the gate.
+                    if mahalanobis_sq_xy(inn, b) > g2 {
                         continue;
                     }
                     s.pairs.push(Pair {
-                        cost: mahalanobis(inn, b),
+                        cost: mahalanobis_sq(inn, b).sqrt(),
                         det: d as u32,
                         trk: ti as u32,
                     });
