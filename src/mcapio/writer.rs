@@ -112,7 +112,8 @@ impl AtomicOutput {
             .profile(opts.profile.clone())
             .library(library_string())
             .compression(Some(mcap::Compression::Zstd))
-            .compression_threads(0)
+            .compression_threads(1)
+            .compression_level(1)
             .chunk_size(Some(opts.chunk_size))
             .create(BufWriter::with_capacity(1 << 16, file))
             .with_context(|| format!("cannot start MCAP output {}", dest.display()))?;

@@ -60,6 +60,31 @@ where
     })
 }
 
+/// What the first pass of `track` needs from a detections message: its stamp and the number of
+/// boxes, decoded without building the boxes (they are skipped, not allocated).
+#[derive(Clone, PartialEq, prost::Message, serde::Deserialize)]
+pub struct DetectionsEnvelope {
+    /// `Detections3D.stamp`.
+    #[prost(uint64, optional, tag = "1")]
+    #[serde(default)]
+    pub stamp: Option<u64>,
+    /// One (empty) entry per box.
+    #[prost(message, repeated, tag = "3")]
+    #[serde(default)]
+    pub detections: Vec<Skipped>,
+}
+
+/// A message whose content is skipped (zero-sized: a `Vec` of these never allocates).
+#[derive(Clone, Copy, PartialEq, prost::Message)]
+pub struct Skipped {}
+
+impl<'de> serde::Deserialize<'de> for Skipped {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        serde::de::IgnoredAny::deserialize(d)?;
+        Ok(Skipped {})
+    }
+}
+
 /// Encodes a message to protobuf bytes into `buf` (cleared first).
 pub fn encode_into<M: prost::Message>(msg: &M, buf: &mut Vec<u8>) {
     buf.clear();
@@ -95,6 +120,20 @@ mod tests {
             .collect();
         assert!(names.contains(&DETECTIONS_SCHEMA.to_string()));
         assert!(names.contains(&TRACKS_SCHEMA.to_string()));
+    }
+
+    #[test]
+    fn envelope_reads_stamp_and_count_only() {
+        let msg = Detections3D {
+            stamp: Some(7),
+            frame_id: "f".into(),
+            detections: vec![Detection3D::default(); 3],
+        };
+        let e: DetectionsEnvelope = decode(&msg.encode_to_vec(), Encoding::Protobuf).unwrap();
+        assert_eq!((e.stamp, e.detections.len()), (Some(7), 3));
+        let j: DetectionsEnvelope =
+            decode(&serde_json::to_vec(&msg).unwrap(), Encoding::Json).unwrap();
+        assert_eq!((j.stamp, j.detections.len()), (Some(7), 3));
     }
 
     #[test]

@@ -19,7 +19,9 @@ use mcap::records::{MessageHeader, Record};
 use super::detections::{convert, InputCounters, Origin};
 use crate::mcapio::reader::read_records;
 use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputOptions};
-use crate::msgs::{self, v3, Detections3D, Encoding, ImageBox, Track3D, Tracks3D};
+use crate::msgs::{
+    self, v3, Detections3D, DetectionsEnvelope, Encoding, ImageBox, Track3D, Tracks3D,
+};
 use crate::sim::write::size3;
 use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
 
@@ -162,7 +164,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
             }
             Record::Message { header, data } => {
                 if let Some((enc, topic)) = s.det_channels.get(&header.channel_id) {
-                    let msg: Detections3D = msgs::decode(&data, *enc).with_context(|| {
+                    let msg: DetectionsEnvelope = msgs::decode(&data, *enc).with_context(|| {
                         format!(
                             "{}: cannot decode {}",
                             describe_message(&file, topic, &header),
@@ -178,7 +180,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                             opts.max_detections_per_message
                         );
                     }
-                    let stamp = stamp_of(&msg, header.log_time);
+                    let stamp = msg.stamp.unwrap_or(header.log_time);
                     if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
                         if stamp < prev {
                             *s.stamps_backwards.entry(topic.clone()).or_default() += 1;
@@ -371,19 +373,17 @@ pub fn track_file(
                         }
                         let mut msgs_of_frame = pending.remove(&stamp).unwrap();
                         msgs_of_frame.sort_by_key(|p| p.ordinal);
-                        let (schema_id, channel_id) = ids.expect("ids exist with detections");
-                        let _ = schema_id;
-                        let tracks = frame_state.run(
+                        let (_, channel_id) = ids.expect("ids exist with detections");
+                        frame_state.run(
                             stamp,
-                            &msgs_of_frame,
+                            &mut msgs_of_frame,
                             &mut tracker,
                             &mut counters,
                             opts.strict,
                             &file,
                             &topics,
                         )?;
-                        let mut buf = std::mem::take(&mut frame_state.buf);
-                        msgs::encode_into(&tracks, &mut buf);
+                        msgs::encode_into(&frame_state.out, &mut frame_state.buf);
                         out.writer.write_to_known_channel(
                             &MessageHeader {
                                 channel_id,
@@ -391,10 +391,9 @@ pub fn track_file(
                                 log_time: stamp,
                                 publish_time: stamp,
                             },
-                            &buf,
+                            &frame_state.buf,
                         )?;
-                        frame_state.buf = buf;
-                        frame_state.recycle(tracks);
+                        frame_state.finish(tracker.deleted());
                         summary.tracks_messages += 1;
                         next_frame += 1;
                         if next_frame % 64 == 0 {
@@ -475,30 +474,40 @@ pub fn track_file(
     Ok(summary)
 }
 
+/// Image box and attributes of a track's last matched detection.
+#[derive(Default)]
+struct Extra {
+    image_box: Option<ImageBox>,
+    attributes: BTreeMap<String, String>,
+}
+
 /// Per-frame buffers reused across frames, and the attributes of each track's last matched
-/// detection.
+/// detection. Nothing is allocated per detection in steady state: the output message's tracks
+/// are overwritten in place, and a track's attributes are moved (not copied) from its detection
+/// into the side table and swapped into the message only while it is encoded.
 #[derive(Default)]
 struct FrameState {
     dets: Vec<Detection>,
     /// `(message index within the frame, detection index within the message)` per detection.
     src: Vec<(u32, u32)>,
-    last_extra: HashMap<u64, (Option<ImageBox>, BTreeMap<String, String>)>,
-    spare_tracks: Vec<Track3D>,
+    last_extra: HashMap<u64, Extra>,
+    out: Tracks3D,
     buf: Vec<u8>,
 }
 
 impl FrameState {
+    /// Tracks one frame and fills `self.out`. Call [`FrameState::finish`] after encoding it.
     #[allow(clippy::too_many_arguments)]
     fn run(
         &mut self,
         stamp: u64,
-        frame: &[Pending],
+        frame: &mut [Pending],
         tracker: &mut Tracker,
         counters: &mut InputCounters,
         strict: bool,
         file: &str,
         topics: &[String],
-    ) -> Result<Tracks3D> {
+    ) -> Result<()> {
         self.dets.clear();
         self.src.clear();
         for (mi, p) in frame.iter().enumerate() {
@@ -518,64 +527,84 @@ impl FrameState {
             .step(stamp, &self.dets)
             .with_context(|| format!("{file}: frame at stamp {stamp}"))?;
         let reports = tracker.reports();
-        let mut tracks = std::mem::take(&mut self.spare_tracks);
-        tracks.clear();
-        for r in reports {
+        self.out.stamp = stamp;
+        self.out.frame_id.clear();
+        if let Some(p) = frame.first() {
+            self.out.frame_id.push_str(&p.msg.frame_id);
+        }
+        self.out.tracks.resize_with(reports.len(), Track3D::default);
+        for (t, r) in self.out.tracks.iter_mut().zip(reports) {
             if let Some(i) = r.detection {
                 let (mi, di) = self.src[i as usize];
-                let d = &frame[mi as usize].msg.detections[di as usize];
+                let d = &mut frame[mi as usize].msg.detections[di as usize];
                 if d.image_box.is_some() || !d.attributes.is_empty() {
-                    self.last_extra
-                        .insert(r.id, (d.image_box, d.attributes.clone()));
+                    let e = self.last_extra.entry(r.id).or_default();
+                    e.image_box = d.image_box;
+                    std::mem::swap(&mut e.attributes, &mut d.attributes);
                 } else {
                     self.last_extra.remove(&r.id);
                 }
             }
-            tracks.push(to_track3d(
-                r,
-                tracker.label(r.class),
-                self.last_extra.get(&r.id),
-            ));
+            fill_track3d(t, r, tracker.label(r.class));
+            match self.last_extra.get_mut(&r.id) {
+                Some(e) => {
+                    t.image_box = e.image_box;
+                    std::mem::swap(&mut t.attributes, &mut e.attributes);
+                }
+                None => {
+                    t.image_box = None;
+                    t.attributes.clear();
+                }
+            }
         }
-        for id in tracker.deleted() {
-            self.last_extra.remove(id);
-        }
-        Ok(Tracks3D {
-            stamp,
-            frame_id: frame
-                .first()
-                .map(|p| p.msg.frame_id.clone())
-                .unwrap_or_default(),
-            tracks,
-        })
+        Ok(())
     }
 
-    fn recycle(&mut self, msg: Tracks3D) {
-        self.spare_tracks = msg.tracks;
+    /// Gives the attributes lent to the encoded message back to the side table and forgets the
+    /// tracks deleted in this frame.
+    fn finish(&mut self, deleted: &[u64]) {
+        for t in &mut self.out.tracks {
+            if let Some(e) = self.last_extra.get_mut(&t.id) {
+                std::mem::swap(&mut t.attributes, &mut e.attributes);
+            }
+        }
+        for id in deleted {
+            self.last_extra.remove(id);
+        }
     }
+}
+
+/// Writes one reported track into an output message, reusing its allocations (the image box and
+/// attributes are left to the caller).
+pub fn fill_track3d(t: &mut Track3D, r: &TrackReport, label: &str) {
+    t.id = r.id;
+    t.label.clear();
+    t.label.push_str(label);
+    t.center = Some(v3(r.bbox.center));
+    t.size = Some(size3(r.bbox.size));
+    t.yaw = r.bbox.yaw;
+    t.velocity = Some(v3(r.velocity));
+    t.yaw_rate = r.yaw_rate;
+    t.score = r.score;
+    t.position_variance = Some(v3(r.position_variance));
+    t.yaw_variance = r.yaw_variance;
+    t.age = r.age;
+    t.hits = r.hits;
+    t.frames_since_update = r.frames_since_update;
 }
 
 /// The output message of one reported track.
 pub fn to_track3d(
     r: &TrackReport,
     label: &str,
-    extra: Option<&(Option<ImageBox>, BTreeMap<String, String>)>,
+    image_box: Option<ImageBox>,
+    attributes: BTreeMap<String, String>,
 ) -> Track3D {
-    Track3D {
-        id: r.id,
-        label: label.to_string(),
-        center: Some(v3(r.bbox.center)),
-        size: Some(size3(r.bbox.size)),
-        yaw: r.bbox.yaw,
-        velocity: Some(v3(r.velocity)),
-        yaw_rate: r.yaw_rate,
-        score: r.score,
-        position_variance: Some(v3(r.position_variance)),
-        yaw_variance: r.yaw_variance,
-        age: r.age,
-        hits: r.hits,
-        frames_since_update: r.frames_since_update,
-        image_box: extra.and_then(|e| e.0),
-        attributes: extra.map(|e| e.1.clone()).unwrap_or_default(),
-    }
+    let mut t = Track3D {
+        image_box,
+        attributes,
+        ..Default::default()
+    };
+    fill_track3d(&mut t, r, label);
+    t
 }
