@@ -74,7 +74,14 @@ impl MotAccumulator {
                     });
                 }
             }
-            // 2. Minimum-cost assignment of the rest.
+            // 2. Minimum-cost assignment of the rest (nothing to do when no valid pair is left:
+            // every pair the solver could return would be dropped).
+            let any_left = (0..no)
+                .any(|i| !omask[i] && (0..nh).any(|j| !hmask[j] && dist[i * nh + j].is_finite()));
+            if !any_left {
+                self.push_unmatched(&omask, &hmask, out);
+                return;
+            }
             self.cost.clear();
             self.cost.extend_from_slice(dist);
             for (i, om) in omask.iter().enumerate() {
@@ -106,6 +113,11 @@ impl MotAccumulator {
                 self.last_pair.insert(o, h);
             }
         }
+        self.push_unmatched(&omask, &hmask, out);
+    }
+
+    /// Misses for the objects and false positives for the hypotheses left unpaired.
+    fn push_unmatched(&self, omask: &[bool], hmask: &[bool], out: &mut Vec<Event>) {
         for (i, m) in omask.iter().enumerate() {
             if !m {
                 out.push(Event {

@@ -6,6 +6,7 @@
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 
+use rayon::prelude::*;
 use serde::Serialize;
 
 use super::mot_accumulator::{EventKind, MotAccumulator};
@@ -264,6 +265,38 @@ fn prepare(scene: &Scene) -> Prepared {
     Prepared { gt, pred }
 }
 
+/// One scene restricted to one class: per frame, `(id, x, y)` of the truth and
+/// `(id, x, y, score)` of the tracks, in the devkit's box order.
+struct ClassScene {
+    gt: Vec<Vec<(u64, f64, f64)>>,
+    pred: Vec<Vec<(u64, f64, f64, f64)>>,
+}
+
+fn class_view(scene: &Prepared, class: &str) -> ClassScene {
+    ClassScene {
+        gt: scene
+            .gt
+            .iter()
+            .map(|f| {
+                f.iter()
+                    .filter(|b| b.label == class)
+                    .map(|b| (b.id, b.x, b.y))
+                    .collect()
+            })
+            .collect(),
+        pred: scene
+            .pred
+            .iter()
+            .map(|f| {
+                f.iter()
+                    .filter(|b| b.label == class)
+                    .map(|b| (b.id, b.x, b.y, b.score))
+                    .collect()
+            })
+            .collect(),
+    }
+}
+
 /// What one pass over all scenes at one score threshold gives.
 #[derive(Default)]
 struct Pass {
@@ -280,50 +313,57 @@ struct Pass {
 }
 
 /// `sklearn.metrics.pairwise.euclidean_distances` for 2-d points (dot-product expansion).
-fn euclidean(a: &PBox, b: &PBox) -> f64 {
-    let dot = a.x * b.x + a.y * b.y;
-    let aa = a.x * a.x + a.y * a.y;
-    let bb = b.x * b.x + b.y * b.y;
+fn euclidean(ax: f64, ay: f64, bx: f64, by: f64) -> f64 {
+    let dot = ax * bx + ay * by;
+    let aa = ax * ax + ay * ay;
+    let bb = bx * bx + by * by;
     let d2 = (-2.0 * dot + aa + bb).max(0.0);
     d2.sqrt()
 }
 
-fn run_pass(scenes: &[Prepared], class: &str, threshold: Option<f64>, p: &NuscenesParams) -> Pass {
+fn run_pass(scenes: &[ClassScene], threshold: Option<f64>, p: &NuscenesParams) -> Pass {
     let mut pass = Pass::default();
     let mut events = Vec::new();
     let mut dist = Vec::new();
+    let mut oids: Vec<u64> = Vec::new();
+    let mut hids: Vec<u64> = Vec::new();
+    let mut hpos: Vec<(f64, f64, f64)> = Vec::new();
+    let mut matched_hids: Vec<u64> = Vec::new();
     for scene in scenes {
         let mut acc = MotAccumulator::new();
         let mut object_index: HashMap<u64, usize> = HashMap::new();
-        for (gt_frame, pred_frame) in scene.gt.iter().zip(&scene.pred) {
-            let g: Vec<&PBox> = gt_frame.iter().filter(|b| b.label == class).collect();
-            let h: Vec<&PBox> = pred_frame
-                .iter()
-                .filter(|b| b.label == class && threshold.is_none_or(|t| b.score >= t))
-                .collect();
-            if g.is_empty() && h.is_empty() {
+        for (g, h) in scene.gt.iter().zip(&scene.pred) {
+            hids.clear();
+            hpos.clear();
+            for &(id, x, y, score) in h {
+                if threshold.is_none_or(|t| score >= t) {
+                    hids.push(id);
+                    hpos.push((x, y, score));
+                }
+            }
+            if g.is_empty() && hids.is_empty() {
                 continue;
             }
+            oids.clear();
+            oids.extend(g.iter().map(|b| b.0));
             dist.clear();
-            for gb in &g {
-                for hb in &h {
-                    let d = euclidean(gb, hb);
+            for &(_, gx, gy) in g {
+                for &(hx, hy, _) in &hpos {
+                    let d = euclidean(gx, gy, hx, hy);
                     dist.push(if d >= p.dist_th { f64::NAN } else { d });
                 }
             }
-            let oids: Vec<u64> = g.iter().map(|b| b.id).collect();
-            let hids: Vec<u64> = h.iter().map(|b| b.id).collect();
             events.clear();
             acc.update(&oids, &hids, &dist, &mut events);
             let frame = pass.frames;
             pass.frames += 1;
-            let mut matched_hids: HashSet<u64> = HashSet::new();
+            matched_hids.clear();
             for e in &events {
                 match e.kind {
                     EventKind::Match => {
                         pass.matches += 1;
                         pass.dist_sum_terms.push(e.distance);
-                        matched_hids.insert(hids[e.hypothesis.unwrap()]);
+                        matched_hids.push(hids[e.hypothesis.unwrap()]);
                     }
                     EventKind::Switch => {
                         pass.switches += 1;
@@ -348,10 +388,12 @@ fn run_pass(scenes: &[Prepared], class: &str, threshold: Option<f64>, p: &Nuscen
                 }
             }
             if threshold.is_none() {
+                // The devkit collects the score of every kept box whose id was matched.
                 pass.match_scores.extend(
-                    h.iter()
-                        .filter(|b| matched_hids.contains(&b.id))
-                        .map(|b| b.score),
+                    hids.iter()
+                        .zip(&hpos)
+                        .filter(|(id, _)| matched_hids.contains(id))
+                        .map(|(_, pos)| pos.2),
                 );
             }
         }
@@ -450,13 +492,14 @@ fn evaluate_class(
     p: &NuscenesParams,
     notes: &mut Vec<String>,
 ) -> Metrics {
+    let scenes: Vec<ClassScene> = scenes.iter().map(|s| class_view(s, class)).collect();
     let mut gt_boxes = 0u64;
     let mut gt_ids: HashSet<u64> = HashSet::new();
-    for s in scenes {
+    for s in &scenes {
         for f in &s.gt {
-            for b in f.iter().filter(|b| b.label == class) {
+            for b in f {
                 gt_boxes += 1;
-                gt_ids.insert(b.id);
+                gt_ids.insert(b.0);
             }
         }
     }
@@ -464,7 +507,7 @@ fn evaluate_class(
         return Metrics::all(f64::NAN);
     }
     // Recall thresholds from the scores of matched predictions.
-    let mut scores = run_pass(scenes, class, None, p).match_scores;
+    let mut scores = run_pass(&scenes, None, p).match_scores;
     let n = p.num_thresholds;
     let mut thresholds = vec![f64::NAN; n];
     if !scores.is_empty() {
@@ -517,7 +560,7 @@ fn evaluate_class(
         let m = match computed.iter().find(|(v, _)| *v == t) {
             Some((_, m)) => *m,
             None => {
-                let m = metrics_of(&run_pass(scenes, class, Some(t), p), p);
+                let m = metrics_of(&run_pass(&scenes, Some(t), p), p);
                 computed.push((t, m));
                 m
             }
@@ -554,10 +597,21 @@ fn evaluate_class(
 /// Evaluates scenes (one log each) with the nuScenes protocol.
 pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
     let prepared: Vec<Prepared> = scenes.iter().map(prepare).collect();
+    // Classes are independent: evaluate them in parallel.
+    let per_class: Vec<(Metrics, Vec<String>)> = p
+        .classes
+        .par_iter()
+        .map(|c| {
+            let mut notes = Vec::new();
+            let m = evaluate_class(&prepared, c, p, &mut notes);
+            (m, notes)
+        })
+        .collect();
     let mut notes = Vec::new();
     let mut classes = BTreeMap::new();
-    for c in &p.classes {
-        classes.insert(c.clone(), evaluate_class(&prepared, c, p, &mut notes));
+    for (c, (m, n)) in p.classes.iter().zip(per_class) {
+        classes.insert(c.clone(), m);
+        notes.extend(n);
     }
     let mut overall = Metrics::all(f64::NAN);
     for name in METRIC_NAMES {
