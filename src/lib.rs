@@ -4,9 +4,11 @@
 //! and drive the command-line tool.
 
 pub mod eval;
+pub mod fit;
 pub mod formats;
 pub mod mcapio;
 pub mod msgs;
 pub mod pipeline;
 pub mod sim;
 pub mod tracker;
+pub mod viz;

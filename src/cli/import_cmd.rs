@@ -6,6 +6,9 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
 use probmot::pipeline::kitti_io::{export_kitti, import_kitti, resolve_detection_files};
+use probmot::pipeline::nuscenes_io::{
+    export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
+};
 
 /// Convert a dataset's files to an MCAP recording.
 #[derive(Debug, Args)]
@@ -17,6 +20,7 @@ pub struct ImportArgs {
 #[derive(Debug, Subcommand)]
 enum ImportFormat {
     Kitti(ImportKitti),
+    Nuscenes(ImportNuscenes),
 }
 
 /// One KITTI tracking sequence -> MCAP with /detections and /ground_truth at 10 Hz.
@@ -57,6 +61,7 @@ pub struct ExportArgs {
 #[derive(Debug, Subcommand)]
 enum ExportFormat {
     Kitti(ExportKitti),
+    Nuscenes(ExportNuscenes),
 }
 
 /// A Tracks3D channel -> KITTI tracking result file
@@ -79,6 +84,94 @@ struct ExportKitti {
     /// Output text file.
     #[arg(short, long)]
     output: PathBuf,
+}
+
+/// A nuScenes detection results file -> one MCAP per scene, with /detections, /ground_truth and
+/// /ego_pose at the dataset's samples (about 2 Hz).
+///
+/// Scenes written: those with at least one sample token in the results (or the --scene names),
+/// as OUT_DIR/<scene name>.mcap. Frames are the scene's samples in time order (from
+/// scene.first_sample_token along sample.next); stamp = sample timestamp (us) * 1000 ns; every
+/// sample gets a message on each channel, empty where nothing was seen.
+///
+/// Boxes stay in the global frame (frame_id nuscenes_global), centre = translation; size [w, l, h]
+/// becomes length l, width w, height h; the quaternion becomes the yaw of the box's x axis about
+/// +z. Detections keep their label (detection_name), score, velocity and the attributes
+/// nuscenes_sample_token and nuscenes_attribute_name.
+///
+/// Tables read from --meta DIR: sample.json and scene.json (required);
+/// sample_annotation.json + instance.json + category.json for /ground_truth (probmot.Tracks3D;
+/// id = position of the instance in instance.json + 1, label = the devkit's tracking class of
+/// the category; categories outside the seven classes are skipped and counted; velocity from
+/// the neighbouring annotations like the devkit); sample_data.json + ego_pose.json (with
+/// calibrated_sensor.json + sensor.json, else the file names) for /ego_pose: JSON messages
+/// (schema probmot.EgoPose) {"stamp": ns, "translation": [x, y, z], "rotation": [w, x, y, z]}
+/// holding the ego pose of each sample's LIDAR_TOP key frame, which the devkit's range filter
+/// uses. Metadata records: probmot.nuscenes (scene token and name) and
+/// probmot.nuscenes.samples (frame stamp in ns -> sample token), which `export nuscenes` reads.
+///
+/// Example:
+///   probmot import nuscenes --detections results_val.json --meta v1.0-trainval/ -o val/
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+struct ImportNuscenes {
+    /// Detection results JSON (nuScenes detection submission format).
+    #[arg(long, value_name = "FILE")]
+    detections: PathBuf,
+    /// Directory holding the dataset's tables (sample.json, scene.json, ...).
+    #[arg(long, value_name = "DIR")]
+    meta: PathBuf,
+    /// Output directory (created if missing).
+    #[arg(short, long, value_name = "OUT_DIR")]
+    output: PathBuf,
+    /// Import only these scenes (by name, e.g. scene-0103; repeatable).
+    #[arg(long, value_name = "NAME")]
+    scene: Vec<String>,
+}
+
+/// Tracks3D channels -> one nuScenes tracking submission JSON.
+///
+/// Give one tracked MCAP per scene, as written by `probmot import nuscenes` (and
+/// `probmot track`). The submission holds every sample token of the input scenes only (empty
+/// lists where no box); scenes of the split without an input file are not added, so give every
+/// scene of the split. At most 500 boxes per sample (the highest tracking scores are kept; drops
+/// are counted). Box: translation = centre, size [w, l, h], rotation = quaternion of the yaw,
+/// velocity [vx, vy], tracking_id = the track id as a string, tracking_name = the label (boxes
+/// whose label is not one of bicycle, bus, car, motorcycle, pedestrian, trailer, truck are
+/// skipped and counted), tracking_score = the score (NaN or infinite values are refused).
+///
+/// Example:
+///   probmot export nuscenes tracked/*.mcap -o tracking_results.json
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+struct ExportNuscenes {
+    /// Tracked MCAP files, one per scene.
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Topic to export (probmot.Tracks3D), e.g. /ground_truth.
+    #[arg(long, default_value = "/tracks")]
+    topic: String,
+    /// Output JSON file.
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Table directory (sample.json, scene.json): check each input's samples against its scene.
+    #[arg(long, value_name = "DIR")]
+    meta: Option<PathBuf>,
+    /// meta.use_camera = true.
+    #[arg(long)]
+    use_camera: bool,
+    /// meta.use_radar = true.
+    #[arg(long)]
+    use_radar: bool,
+    /// meta.use_map = true.
+    #[arg(long)]
+    use_map: bool,
+    /// meta.use_external = true.
+    #[arg(long)]
+    use_external: bool,
+    /// meta.use_lidar = false (default true).
+    #[arg(long)]
+    no_lidar: bool,
 }
 
 pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
@@ -107,6 +200,44 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                 s.truth_rows
             );
         }
+        ImportFormat::Nuscenes(n) => {
+            let s = import_nuscenes(&ImportOptions {
+                detections: n.detections.clone(),
+                meta: n.meta.clone(),
+                out_dir: n.output.clone(),
+                scenes: n.scene.clone(),
+            })?;
+            for w in &s.warnings {
+                eprintln!("warning: {w}");
+            }
+            for sc in &s.scenes {
+                println!(
+                    "{}: {} frames, {} detections, {} ground-truth boxes, {} ego poses",
+                    sc.output, sc.frames, sc.detections, sc.truth_boxes, sc.ego_poses
+                );
+            }
+            println!(
+                "{}: {} scenes, {} frames, {} detections, {}, {}",
+                n.output.display(),
+                s.scenes.len(),
+                s.frames,
+                s.detections,
+                if s.ground_truth {
+                    format!(
+                        "{} ground-truth boxes ({} outside the tracking classes skipped)",
+                        s.truth_boxes,
+                        s.truth_skipped.values().sum::<u64>()
+                    )
+                } else {
+                    "no ground truth (no sample_annotation.json)".to_string()
+                },
+                if s.ego_pose {
+                    format!("{} ego poses", s.ego_poses)
+                } else {
+                    "no ego poses".to_string()
+                }
+            );
+        }
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -120,6 +251,33 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
                 k.output.display(),
                 s.rows,
                 s.frames
+            );
+        }
+        ExportFormat::Nuscenes(n) => {
+            let opts = ExportOptions {
+                topic: n.topic.clone(),
+                meta_dir: n.meta.clone(),
+                meta: SubmissionMeta {
+                    use_camera: n.use_camera,
+                    use_lidar: !n.no_lidar,
+                    use_radar: n.use_radar,
+                    use_map: n.use_map,
+                    use_external: n.use_external,
+                },
+            };
+            let s = export_nuscenes(&n.inputs, &n.output, &opts)?;
+            for w in &s.warnings {
+                eprintln!("warning: {w}");
+            }
+            println!(
+                "{}: {} scenes, {} samples, {} boxes ({} dropped over the 500-per-sample cap, {} \
+                 with a non-tracking label skipped)",
+                n.output.display(),
+                s.scenes,
+                s.samples,
+                s.boxes,
+                s.dropped_over_cap,
+                s.skipped_labels.values().sum::<u64>()
             );
         }
     }

@@ -5,6 +5,7 @@ mod eval_cmd;
 mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
+mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;
 
@@ -35,6 +36,7 @@ enum Command {
     Fit(fit_cmd::FitArgs),
     Import(import_cmd::ImportArgs),
     Export(import_cmd::ExportArgs),
+    Plot(plot_cmd::PlotArgs),
 }
 
 /// Runs a parsed command line; the exit code on success.
@@ -48,6 +50,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Fit(a) => fit_cmd::run(a),
         Command::Import(a) => import_cmd::run_import(a),
         Command::Export(a) => import_cmd::run_export(a),
+        Command::Plot(a) => plot_cmd::run(a),
     }
 }
 

@@ -3,4 +3,5 @@
 pub mod detections;
 pub mod info;
 pub mod kitti_io;
+pub mod nuscenes_io;
 pub mod track;

@@ -138,7 +138,11 @@ impl KalmanState {
         let z = b.to_measurement();
         let p = &mut self.p;
         for i in 0..7 {
-            let y = if i == 3 { yaw_residual } else { z[i] - self.x[i] };
+            let y = if i == 3 {
+                yaw_residual
+            } else {
+                z[i] - self.x[i]
+            };
             let r = noise.r[(i, i)];
             let a = p[(i, i)];
             let s = a + r;
@@ -247,9 +251,14 @@ mod tests {
             }
             h
         };
-        for (step, (x, yaw, k)) in [(1.0, 0.1, 1.0), (2.5, 0.2, 0.5), (3.0, 3.0, 2.0), (4.2, -0.1, 1.0)]
-            .into_iter()
-            .enumerate()
+        for (step, (x, yaw, k)) in [
+            (1.0, 0.1, 1.0),
+            (2.5, 0.2, 0.5),
+            (3.0, 3.0, 2.0),
+            (4.2, -0.1, 1.0),
+        ]
+        .into_iter()
+        .enumerate()
         {
             s.predict(k, &n);
             let a = transition(k, true);
@@ -268,7 +277,12 @@ mod tests {
             dense.x[3] = wrap(dense.x[3]);
             let ikh = StateCov::identity() - kg * h;
             dense.p = ikh * dense.p * ikh.transpose() + kg * n.r * kg.transpose();
-            assert!((s.x - dense.x).amax() < 1e-9, "step {step}: {} vs {}", s.x, dense.x);
+            assert!(
+                (s.x - dense.x).amax() < 1e-9,
+                "step {step}: {} vs {}",
+                s.x,
+                dense.x
+            );
             assert!((s.p - dense.p).amax() < 1e-9, "step {step}");
         }
     }

@@ -1,0 +1,384 @@
+//! Seeing the tracks: bird's-eye-view (BEV) pictures of the boxes of a recording.
+//!
+//! This module reads the layers (detections, tracks, ground truth) of an MCAP file into plain
+//! per-frame box lists and selects a class and a time window; [`plot`] draws them, with no I/O.
+
+pub mod plot;
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use mcap::records::Record;
+
+use crate::mcapio::reader::read_records;
+use crate::msgs::{self, Detection3D, Detections3D, Encoding, Track3D, Tracks3D};
+
+/// One box seen from above (z and height are kept but not drawn).
+#[derive(Debug, Clone, PartialEq)]
+pub struct BevBox {
+    /// Track or instance id; 0 for detections, which have none.
+    pub id: u64,
+    /// Class label.
+    pub label: String,
+    /// Box centre, metres.
+    pub center: [f64; 3],
+    /// Length (along the heading), width, height, metres.
+    pub size: [f64; 3],
+    /// Heading about +z, radians; 0 points along +x.
+    pub yaw: f64,
+    /// Detection or track score.
+    pub score: f64,
+}
+
+impl BevBox {
+    fn from_track(t: &Track3D) -> BevBox {
+        let c = t.center.unwrap_or_default();
+        let s = t.size.unwrap_or_default();
+        BevBox {
+            id: t.id,
+            label: t.label.clone(),
+            center: [c.x, c.y, c.z],
+            size: [s.length, s.width, s.height],
+            yaw: t.yaw,
+            score: t.score,
+        }
+    }
+
+    fn from_detection(d: &Detection3D) -> BevBox {
+        let c = d.center.unwrap_or_default();
+        let s = d.size.unwrap_or_default();
+        BevBox {
+            id: 0,
+            label: d.label.clone(),
+            center: [c.x, c.y, c.z],
+            size: [s.length, s.width, s.height],
+            yaw: d.yaw,
+            score: d.score,
+        }
+    }
+
+    /// The four corners of the box seen from above, counter-clockwise: front-left, rear-left,
+    /// rear-right, front-right.
+    pub fn corners(&self) -> [(f64, f64); 4] {
+        let (s, c) = self.yaw.sin_cos();
+        let (hl, hw) = (self.size[0] / 2.0, self.size[1] / 2.0);
+        let at = |l: f64, w: f64| {
+            (
+                self.center[0] + l * c - w * s,
+                self.center[1] + l * s + w * c,
+            )
+        };
+        [at(hl, hw), at(-hl, hw), at(-hl, -hw), at(hl, -hw)]
+    }
+}
+
+/// Boxes of one frame: `(stamp in ns, boxes)`.
+pub type Frame = (u64, Vec<BevBox>);
+
+/// What a channel holds, and so how it is drawn.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Layer {
+    /// `probmot.Detections3D`: boxes without ids, drawn grey.
+    Detections,
+    /// `probmot.Tracks3D` written by the tracker: a colour per track id.
+    Tracks,
+    /// `probmot.Tracks3D` holding the true instances: a colour per instance id.
+    GroundTruth,
+}
+
+impl Layer {
+    /// Every layer, in panel order.
+    pub const ALL: [Layer; 3] = [Layer::Detections, Layer::Tracks, Layer::GroundTruth];
+
+    /// The name used on the command line (`detections`, `tracks`, `ground_truth`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Layer::Detections => "detections",
+            Layer::Tracks => "tracks",
+            Layer::GroundTruth => "ground_truth",
+        }
+    }
+
+    /// Parses a command-line name (`-` may stand for `_`, and `gt`/`truth` for ground truth).
+    pub fn parse(s: &str) -> Option<Layer> {
+        match s.trim().to_ascii_lowercase().replace('-', "_").as_str() {
+            "detections" | "dets" => Some(Layer::Detections),
+            "tracks" => Some(Layer::Tracks),
+            "ground_truth" | "groundtruth" | "gt" | "truth" => Some(Layer::GroundTruth),
+            _ => None,
+        }
+    }
+
+    /// The topic probmot writes this layer on.
+    pub fn default_topic(self) -> &'static str {
+        match self {
+            Layer::Detections => "/detections",
+            Layer::Tracks => "/tracks",
+            Layer::GroundTruth => "/ground_truth",
+        }
+    }
+
+    /// Schema the layer's channel must have.
+    pub fn schema(self) -> &'static str {
+        match self {
+            Layer::Detections => msgs::DETECTIONS_SCHEMA,
+            Layer::Tracks | Layer::GroundTruth => msgs::TRACKS_SCHEMA,
+        }
+    }
+
+    /// Whether boxes carry ids (and so get a colour each).
+    pub fn has_ids(self) -> bool {
+        !matches!(self, Layer::Detections)
+    }
+
+    /// Human title of the layer.
+    pub fn title(self) -> &'static str {
+        match self {
+            Layer::Detections => "detections",
+            Layer::Tracks => "tracks",
+            Layer::GroundTruth => "ground truth",
+        }
+    }
+}
+
+impl fmt::Display for Layer {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// The frames of one layer as read from its topic, in file order.
+#[derive(Debug, Clone)]
+pub struct LayerFrames {
+    /// Which layer.
+    pub layer: Layer,
+    /// The topic it was read from.
+    pub topic: String,
+    /// Frames in file order (one per message).
+    pub frames: Vec<Frame>,
+}
+
+/// The layers of one file, read in a single pass.
+#[derive(Debug, Clone)]
+pub struct FileLayers {
+    /// The layers found, in the order asked for. A layer whose topic the file lacks is absent.
+    pub layers: Vec<LayerFrames>,
+    /// Every topic of the file (for error messages).
+    pub topics: BTreeSet<String>,
+}
+
+impl FileLayers {
+    /// The layer, if its topic was found.
+    pub fn get(&self, layer: Layer) -> Option<&LayerFrames> {
+        self.layers.iter().find(|l| l.layer == layer)
+    }
+
+    /// Earliest frame stamp over all layers read, ns.
+    pub fn first_stamp(&self) -> Option<u64> {
+        self.layers
+            .iter()
+            .flat_map(|l| l.frames.iter().map(|f| f.0))
+            .min()
+    }
+
+    /// Latest frame stamp over all layers read, ns.
+    pub fn last_stamp(&self) -> Option<u64> {
+        self.layers
+            .iter()
+            .flat_map(|l| l.frames.iter().map(|f| f.0))
+            .max()
+    }
+}
+
+/// Reads the given `(layer, topic)` channels of `path` in one pass. Topics the file lacks are
+/// left out of the result (see [`FileLayers::topics`]); a topic with the wrong schema or an
+/// undecodable message is an error naming the file, topic and log time.
+pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers> {
+    let file = path.display().to_string();
+    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
+    // channel id -> (index into `wanted`, encoding)
+    let mut channels: BTreeMap<u16, (usize, Encoding)> = BTreeMap::new();
+    let mut topics = BTreeSet::new();
+    let mut frames: Vec<Option<Vec<Frame>>> = vec![None; wanted.len()];
+    read_records(path, |rec, _| {
+        match rec {
+            Record::Schema { header, .. } => {
+                schemas.insert(header.id, header.name);
+            }
+            Record::Channel(c) => {
+                topics.insert(c.topic.clone());
+                let Some(i) = wanted.iter().position(|(_, t)| *t == c.topic) else {
+                    return Ok(());
+                };
+                let (layer, topic) = &wanted[i];
+                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                if schema != layer.schema() {
+                    bail!(
+                        "{file}: topic {topic} has schema '{schema}', expected {} for the {layer} \
+                         layer",
+                        layer.schema()
+                    );
+                }
+                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
+                    bail!(
+                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
+                        c.message_encoding
+                    );
+                };
+                channels.insert(c.id, (i, enc));
+                frames[i].get_or_insert_with(Vec::new);
+            }
+            Record::Message { header, data } => {
+                let Some(&(i, enc)) = channels.get(&header.channel_id) else {
+                    return Ok(());
+                };
+                let (layer, topic) = &wanted[i];
+                let ctx = || {
+                    format!(
+                        "{file}: topic {topic}, message at log_time {}: cannot decode",
+                        header.log_time
+                    )
+                };
+                let frame = if *layer == Layer::Detections {
+                    let m: Detections3D = msgs::decode(&data, enc).with_context(ctx)?;
+                    (
+                        m.stamp.unwrap_or(header.log_time),
+                        m.detections.iter().map(BevBox::from_detection).collect(),
+                    )
+                } else {
+                    let m: Tracks3D = msgs::decode(&data, enc).with_context(ctx)?;
+                    let stamp = if m.stamp != 0 {
+                        m.stamp
+                    } else {
+                        header.log_time
+                    };
+                    (stamp, m.tracks.iter().map(BevBox::from_track).collect())
+                };
+                frames[i].get_or_insert_with(Vec::new).push(frame);
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    let layers = wanted
+        .iter()
+        .zip(frames)
+        .filter_map(|((layer, topic), f)| {
+            f.map(|frames| LayerFrames {
+                layer: *layer,
+                topic: topic.clone(),
+                frames,
+            })
+        })
+        .collect();
+    Ok(FileLayers { layers, topics })
+}
+
+/// Which boxes to keep: classes and a time window relative to a reference stamp.
+#[derive(Debug, Clone, Default)]
+pub struct Selection {
+    /// Classes to keep (exact label match); empty keeps all.
+    pub classes: Vec<String>,
+    /// Window start, seconds after the reference stamp (inclusive).
+    pub from_s: Option<f64>,
+    /// Window end, seconds after the reference stamp (inclusive).
+    pub to_s: Option<f64>,
+}
+
+impl Selection {
+    /// Whether a frame at `stamp` lies in the window, `t0` being the reference (first) stamp.
+    pub fn in_window(&self, stamp: u64, t0: u64) -> bool {
+        let t = (stamp as f64 - t0 as f64) / 1e9;
+        // Half a microsecond of slack so that `--to 9.5` keeps a frame stamped at 9.5 s.
+        const EPS: f64 = 5e-7;
+        self.from_s.is_none_or(|f| t >= f - EPS) && self.to_s.is_none_or(|e| t <= e + EPS)
+    }
+
+    /// Whether a box's class is kept.
+    pub fn keeps_class(&self, label: &str) -> bool {
+        self.classes.is_empty() || self.classes.iter().any(|c| c == label)
+    }
+
+    /// The frames of `frames` in the window with only the kept classes (frames left empty by the
+    /// class filter are kept, so the frame count still tells the window's length).
+    pub fn apply(&self, frames: &[Frame], t0: u64) -> Vec<Frame> {
+        frames
+            .iter()
+            .filter(|(s, _)| self.in_window(*s, t0))
+            .map(|(s, boxes)| {
+                (
+                    *s,
+                    boxes
+                        .iter()
+                        .filter(|b| self.keeps_class(&b.label))
+                        .cloned()
+                        .collect(),
+                )
+            })
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn bx(id: u64, label: &str) -> BevBox {
+        BevBox {
+            id,
+            label: label.into(),
+            center: [1.0, 2.0, 0.5],
+            size: [4.0, 2.0, 1.5],
+            yaw: 0.0,
+            score: 1.0,
+        }
+    }
+
+    #[test]
+    fn corners_follow_the_heading() {
+        let mut b = bx(1, "car");
+        let c = b.corners();
+        assert_eq!(c[0], (3.0, 3.0));
+        assert_eq!(c[2], (-1.0, 1.0));
+        b.yaw = std::f64::consts::FRAC_PI_2;
+        let c = b.corners();
+        // Front-left of a box heading +y lies at +y (front) and -x (left).
+        assert!((c[0].0 - 0.0).abs() < 1e-12 && (c[0].1 - 4.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn layer_names_round_trip() {
+        for l in Layer::ALL {
+            assert_eq!(Layer::parse(l.name()), Some(l));
+        }
+        assert_eq!(Layer::parse("ground-truth"), Some(Layer::GroundTruth));
+        assert_eq!(Layer::parse("gt"), Some(Layer::GroundTruth));
+        assert_eq!(Layer::parse("lidar"), None);
+    }
+
+    #[test]
+    fn selection_filters_window_and_class() {
+        let t0 = 1_000_000_000_000;
+        let frames: Vec<Frame> = (0..10u64)
+            .map(|i| {
+                (
+                    t0 + i * 500_000_000,
+                    vec![bx(1, "car"), bx(2, "pedestrian")],
+                )
+            })
+            .collect();
+        let sel = Selection {
+            classes: vec!["car".into()],
+            from_s: Some(1.0),
+            to_s: Some(2.0),
+        };
+        let out = sel.apply(&frames, t0);
+        assert_eq!(out.len(), 3, "1.0, 1.5 and 2.0 s");
+        assert!(out.iter().all(|(_, b)| b.len() == 1 && b[0].label == "car"));
+        let all = Selection::default().apply(&frames, t0);
+        assert_eq!(all.len(), 10);
+        assert_eq!(all[0].1.len(), 2);
+    }
+}

@@ -1,0 +1,286 @@
+//! `probmot plot`: a bird's-eye-view PNG of a tracked sample log, checked pixel by pixel (size,
+//! colours per id in the tracks panel, grey detections, rendered text), and its errors.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+use common::{probmot, probmot_ok, repo};
+use probmot::viz::plot::{id_color, BACKGROUND, DETECTION_GREY, PALETTE};
+
+/// A decoded RGB picture.
+struct Picture {
+    width: usize,
+    height: usize,
+    rgb: Vec<u8>,
+}
+
+impl Picture {
+    fn read(path: &Path) -> Picture {
+        let file = std::fs::File::open(path).expect("open png");
+        let mut dec = png::Decoder::new(std::io::BufReader::new(file));
+        dec.set_transformations(png::Transformations::EXPAND);
+        let mut reader = dec.read_info().expect("png header");
+        let mut buf = vec![0; reader.output_buffer_size()];
+        let info = reader.next_frame(&mut buf).expect("png data");
+        assert_eq!(info.color_type, png::ColorType::Rgb, "probmot writes RGB");
+        assert_eq!(info.bit_depth, png::BitDepth::Eight);
+        buf.truncate(info.buffer_size());
+        Picture {
+            width: info.width as usize,
+            height: info.height as usize,
+            rgb: buf,
+        }
+    }
+
+    fn at(&self, x: usize, y: usize) -> (u8, u8, u8) {
+        let i = 3 * (y * self.width + x);
+        (self.rgb[i], self.rgb[i + 1], self.rgb[i + 2])
+    }
+
+    /// Every colour in columns `x0..x1` and rows `y0..y1`.
+    fn colours(&self, x0: usize, x1: usize, y0: usize, y1: usize) -> BTreeSet<(u8, u8, u8)> {
+        let mut s = BTreeSet::new();
+        for y in y0..y1 {
+            for x in x0..x1 {
+                s.insert(self.at(x, y));
+            }
+        }
+        s
+    }
+
+    /// Pixels darker than mid-grey (text and axes) in the region.
+    fn dark_pixels(&self, x0: usize, x1: usize, y0: usize, y1: usize) -> usize {
+        let mut n = 0;
+        for y in y0..y1 {
+            for x in x0..x1 {
+                let (r, g, b) = self.at(x, y);
+                if u32::from(r) + u32::from(g) + u32::from(b) < 3 * 100 {
+                    n += 1;
+                }
+            }
+        }
+        n
+    }
+}
+
+fn tracked_turning_car(dir: &Path) -> PathBuf {
+    let out = dir.join("turning-car.tracked.mcap");
+    let input = repo("sample_logs/turning-car.mcap");
+    probmot_ok(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    out
+}
+
+fn stderr(out: &std::process::Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+#[test]
+fn plot_draws_three_panels_with_colours_per_track_and_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracked = tracked_turning_car(dir.path());
+    let png = dir.path().join("bev.png");
+    let (w, h) = (1200usize, 500usize);
+    let out = probmot_ok(&[
+        "plot",
+        tracked.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--class",
+        "car",
+        "--layers",
+        "detections,tracks,ground_truth",
+        "--width",
+        &w.to_string(),
+        "--height",
+        &h.to_string(),
+    ]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("3 panel(s)"), "{said}");
+    // Atomic output: no temporary file is left beside it.
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(
+        names.iter().all(|n| !n.starts_with(".probmot-")),
+        "{names:?}"
+    );
+
+    let pic = Picture::read(&png);
+    assert_eq!((pic.width, pic.height), (w, h), "size as requested");
+
+    // Panels split the width evenly: detections | tracks | ground truth.
+    let third = w / 3;
+    let palette: BTreeSet<(u8, u8, u8)> = PALETTE.iter().copied().collect();
+    let dets = pic.colours(0, third, 0, h);
+    let tracks = pic.colours(third, 2 * third, 0, h);
+    let truth = pic.colours(2 * third, w, 0, h);
+
+    let ids_in = |c: &BTreeSet<(u8, u8, u8)>| c.intersection(&palette).count();
+    assert!(
+        ids_in(&tracks) >= 3,
+        "tracks panel has {} id colours: {:?}",
+        ids_in(&tracks),
+        tracks.intersection(&palette).collect::<Vec<_>>()
+    );
+    assert!(ids_in(&truth) >= 3, "ground-truth panel: one colour per id");
+    assert_eq!(ids_in(&dets), 0, "detections have no ids and are grey");
+    assert!(dets.contains(&DETECTION_GREY), "grey detection boxes");
+    let non_background = tracks.iter().filter(|c| **c != BACKGROUND).count();
+    assert!(
+        non_background >= 5,
+        "{non_background} colours in the tracks panel"
+    );
+
+    // The colour of every ground-truth instance id of the log appears in the truth panel.
+    for id in 1..=5u64 {
+        assert!(
+            truth.contains(&id_color(id)),
+            "ground-truth id {id}: colour {:?} missing",
+            id_color(id)
+        );
+    }
+
+    // Text: the title rows and each panel's caption rows hold dark (glyph) pixels; a renderer
+    // without a font would have left them blank or failed.
+    let title_rows = (h / 25).max(18);
+    assert!(
+        pic.dark_pixels(w / 4, 3 * w / 4, 0, title_rows) > 50,
+        "title text"
+    );
+    for p in 0..3 {
+        assert!(
+            pic.dark_pixels(p * third, (p + 1) * third, title_rows, 2 * title_rows + 6) > 50,
+            "caption of panel {p}"
+        );
+    }
+    // Axis labels at the bottom ("x (m)" and tick numbers).
+    assert!(
+        pic.dark_pixels(third, 2 * third, h - 40, h) > 30,
+        "x axis text"
+    );
+}
+
+#[test]
+fn plot_window_class_and_default_layers() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracked = tracked_turning_car(dir.path());
+    let png = dir.path().join("window.png");
+    // Default layers: the three topics the tracked file has; a window of 2 s (5 frames at 2 Hz).
+    let out = probmot_ok(&[
+        "plot",
+        tracked.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--from",
+        "5",
+        "--to",
+        "7",
+        "--width",
+        "900",
+        "--height",
+        "400",
+    ]);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        said.contains("(detections, tracks, ground_truth)"),
+        "{said}"
+    );
+    assert!(said.contains("5 frames from 5.00 to 7.00 s"), "{said}");
+    let pic = Picture::read(&png);
+    assert_eq!((pic.width, pic.height), (900, 400));
+}
+
+#[test]
+fn plot_errors_are_clear_and_write_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let untracked = repo("sample_logs/turning-car.mcap");
+    let png = dir.path().join("x.png");
+    let p = png.to_str().unwrap();
+
+    // A layer whose topic the file lacks.
+    let out = probmot(&[
+        "plot",
+        untracked.to_str().unwrap(),
+        "-o",
+        p,
+        "--layers",
+        "tracks",
+    ]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("no topic /tracks"), "{e}");
+    assert!(e.contains("/ground_truth"), "lists the topics: {e}");
+
+    // A window after the end of the log.
+    let out = probmot(&[
+        "plot",
+        untracked.to_str().unwrap(),
+        "-o",
+        p,
+        "--from",
+        "100",
+        "--to",
+        "200",
+    ]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("no frame in the window 100.00 to 200.00 s"),
+        "{e}"
+    );
+    assert!(e.contains("19.50 s"), "says how long the log is: {e}");
+
+    // A class the log does not have.
+    let out = probmot(&[
+        "plot",
+        untracked.to_str().unwrap(),
+        "-o",
+        p,
+        "--class",
+        "bus",
+    ]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("no box of class bus"), "{e}");
+    assert!(e.contains("classes in the file: car"), "{e}");
+
+    // Unknown layer, reversed window, not a PNG name.
+    for (args, needle) in [
+        (vec!["--layers", "lidar"], "unknown layer 'lidar'"),
+        (vec!["--from", "3", "--to", "1"], "the window is empty"),
+        (vec!["--width", "20"], "--width 20 is out of range"),
+    ] {
+        let mut all = vec!["plot", untracked.to_str().unwrap(), "-o", p];
+        all.extend(args);
+        let out = probmot(&all);
+        assert!(!out.status.success(), "{all:?}");
+        assert!(stderr(&out).contains(needle), "{all:?}: {}", stderr(&out));
+    }
+    let jpg = dir.path().join("x.jpg");
+    let out = probmot(&[
+        "plot",
+        untracked.to_str().unwrap(),
+        "-o",
+        jpg.to_str().unwrap(),
+    ]);
+    assert!(
+        stderr(&out).contains("must end in .png"),
+        "{}",
+        stderr(&out)
+    );
+
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "no output on error"
+    );
+}
