@@ -228,3 +228,74 @@ fn bad_eval_input_is_a_clear_error() {
     assert_eq!(r.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&r.stderr).contains("no id"));
 }
+
+#[test]
+fn many_logs_are_scored_together_like_the_devkit_scores_scenes() {
+    // The five fixtures as five scenes of one evaluation (the devkit's own run over all five).
+    let devkit: Value = serde_json::from_slice(
+        &std::fs::read(repo("tests/fixtures/eval/all_fixtures.devkit.json")).unwrap(),
+    )
+    .unwrap();
+    let files: Vec<String> = FIXTURES
+        .iter()
+        .map(|f| {
+            repo(&format!("tests/fixtures/eval/{f}.mcap"))
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    let mut args = vec!["eval", "--json", "--truth"];
+    args.extend(files.iter().map(String::as_str));
+    let out = probmot_ok(&args);
+    let ours: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mut failures = Vec::new();
+    for (class, d) in devkit["classes"].as_object().unwrap() {
+        compare(
+            "all",
+            class,
+            &ours["result"]["classes"][class],
+            d,
+            &mut failures,
+        );
+    }
+    compare(
+        "all",
+        "overall",
+        &ours["result"]["overall"],
+        &devkit["overall"],
+        &mut failures,
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    // The per-log breakdown holds each fixture's own numbers.
+    let per_log = ours["per_log"].as_array().unwrap();
+    assert_eq!(per_log.len(), 5);
+    for (log, name) in per_log.iter().zip(FIXTURES) {
+        let single: Value = serde_json::from_slice(
+            &std::fs::read(repo(&format!("tests/fixtures/eval/{name}.devkit.json"))).unwrap(),
+        )
+        .unwrap();
+        compare(
+            name,
+            "overall",
+            &log["result"]["overall"],
+            &single["overall"],
+            &mut failures,
+        );
+    }
+    // A directory gives the same as the list of its files.
+    let dir = tempfile::tempdir().unwrap();
+    for f in &files {
+        let p = std::path::Path::new(f);
+        std::fs::copy(p, dir.path().join(p.file_name().unwrap())).unwrap();
+    }
+    let out = probmot_ok(&["eval", "--json", "--truth", dir.path().to_str().unwrap()]);
+    let from_dir: Value = serde_json::from_slice(&out.stdout).unwrap();
+    compare(
+        "dir",
+        "overall",
+        &from_dir["result"]["overall"],
+        &devkit["overall"],
+        &mut failures,
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}

@@ -1,15 +1,16 @@
 //! `probmot eval`.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
 use probmot::eval::nuscenes::{evaluate, Metrics, NuscenesParams, NuscenesResult};
 use probmot::eval::report::{fmt_value, table};
-use probmot::eval::scene::{load_scene, read_tracks_topic, EvalBox, Scene};
+use probmot::eval::scene::{load_scene_with, Scene};
+use rayon::prelude::*;
 
 /// Evaluation protocols.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -37,15 +38,18 @@ pub enum Protocol {
 ///   probmot eval --truth gt.mcap --tracks new.mcap --baseline old.mcap --max-drop 1
 ///   probmot eval --protocol kitti --truth 0000.tracked.mcap
 ///   probmot eval --protocol kitti --iou 0.5 --classes car --truth 0000.tracked.mcap
+///   probmot eval --truth gt/ --tracks tracked/ --json        # many logs, paired by file name
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct EvalArgs {
-    /// File with the ground-truth channel.
-    #[arg(long, value_name = "GT.mcap")]
-    truth: PathBuf,
-    /// File with the tracks channel (default: the truth file).
-    #[arg(long, value_name = "TRACKED.mcap")]
-    tracks: Option<PathBuf>,
+    /// Files with the ground-truth channel: files, directories (their *.mcap) or glob patterns.
+    /// Several logs are scored together, each log one scene, as the devkit does across scenes.
+    #[arg(long, value_name = "GT", num_args = 1.., required = true)]
+    truth: Vec<PathBuf>,
+    /// Files with the tracks channel (default: the truth files), paired with the truth files by
+    /// file name (or taken as is when both sides are one file).
+    #[arg(long, value_name = "TRACKED", num_args = 1..)]
+    tracks: Vec<PathBuf>,
     /// Ground-truth topic.
     #[arg(long, default_value = "/ground_truth")]
     truth_topic: String,
@@ -62,12 +66,13 @@ pub struct EvalArgs {
     /// KITTI only: minimum 3D IoU of a match [default: 0.25; 0.5 and 0.7 are also used].
     #[arg(long, value_name = "IOU")]
     iou: Option<f64>,
-    /// Another tracked version of the same log to compare with (same truth).
-    #[arg(long, value_name = "OTHER.mcap")]
-    baseline: Option<PathBuf>,
+    /// Another tracked version of the same log(s) to compare with (same truth; paired like
+    /// --tracks).
+    #[arg(long, value_name = "OTHER", num_args = 1..)]
+    baseline: Vec<PathBuf>,
     /// With --baseline: exit 3 if the overall main metric (AMOTA for nuscenes, sAMOTA for kitti)
     /// falls by more than this many percentage points.
-    #[arg(long, value_name = "POINTS", requires = "baseline")]
+    #[arg(long, value_name = "POINTS")]
     max_drop: Option<f64>,
     /// With --max-drop: also fail when any single class falls by more than that.
     #[arg(long, requires = "max_drop")]
@@ -96,11 +101,111 @@ fn rows(r: &NuscenesResult) -> Vec<(String, Vec<f64>)> {
     out
 }
 
-fn scene(args: &EvalArgs, tracks: &Path) -> Result<Scene> {
-    load_scene(&args.truth, &args.truth_topic, tracks, &args.tracks_topic)
+/// Expands files, directories (their `*.mcap`, sorted) and glob patterns.
+fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for a in args {
+        let text = a.to_string_lossy();
+        if a.is_dir() {
+            let mut files: Vec<PathBuf> = std::fs::read_dir(a)
+                .with_context(|| format!("cannot list {}", a.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+                .collect();
+            if files.is_empty() {
+                bail!("{}: no .mcap file in this directory", a.display());
+            }
+            files.sort();
+            out.extend(files);
+        } else if !a.exists() && text.contains(['*', '?', '[']) {
+            let mut files: Vec<PathBuf> = glob::glob(&text)
+                .with_context(|| format!("bad pattern {text}"))?
+                .filter_map(|p| p.ok())
+                .collect();
+            if files.is_empty() {
+                bail!("{text}: the pattern matches no file");
+            }
+            files.sort();
+            out.extend(files);
+        } else {
+            out.push(a.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// Pairs truth and tracks files: the same files when `tracks` is empty, as given when both are
+/// one file, else by file name.
+fn log_pairs(truth: &[PathBuf], tracks: &[PathBuf]) -> Result<Vec<(PathBuf, PathBuf)>> {
+    let truth = expand(truth)?;
+    if tracks.is_empty() {
+        return Ok(truth.iter().map(|t| (t.clone(), t.clone())).collect());
+    }
+    let tracks = expand(tracks)?;
+    if truth.len() == 1 && tracks.len() == 1 {
+        return Ok(vec![(truth[0].clone(), tracks[0].clone())]);
+    }
+    let mut by_name: BTreeMap<String, PathBuf> = BTreeMap::new();
+    for t in &tracks {
+        let name = t
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        if by_name.insert(name.clone(), t.clone()).is_some() {
+            bail!("two tracks files are named {name}; they cannot be paired by name");
+        }
+    }
+    let mut pairs = Vec::new();
+    for t in &truth {
+        let name = t
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        match by_name.remove(&name) {
+            Some(tr) => pairs.push((t.clone(), tr)),
+            None => bail!(
+                "no tracks file named {name} for the truth file {}",
+                t.display()
+            ),
+        }
+    }
+    if let Some(name) = by_name.keys().next() {
+        bail!("tracks file {name} has no truth file of the same name");
+    }
+    Ok(pairs)
+}
+
+/// Loads every log (in parallel); `kitti` allows ground-truth boxes without id (DontCare).
+fn load_logs(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)], kitti: bool) -> Result<Vec<Scene>> {
+    pairs
+        .par_iter()
+        .map(|(truth, tracks)| {
+            load_scene_with(truth, &a.truth_topic, tracks, &a.tracks_topic, kitti)
+        })
+        .collect()
+}
+
+/// "file" or "N logs" for the report's header.
+fn describe(pairs: &[(PathBuf, PathBuf)], tracks: bool) -> String {
+    match pairs {
+        [(t, r)] => if tracks { r } else { t }.display().to_string(),
+        _ => format!("{} logs", pairs.len()),
+    }
+}
+
+fn paths(pairs: &[(PathBuf, PathBuf)]) -> serde_json::Value {
+    serde_json::json!(pairs
+        .iter()
+        .map(|(t, r)| serde_json::json!({"truth": t, "tracks": r}))
+        .collect::<Vec<_>>())
 }
 
 pub fn run(a: EvalArgs) -> Result<ExitCode> {
+    if a.max_drop.is_some() && a.baseline.is_empty() {
+        bail!("--max-drop needs --baseline");
+    }
     match a.protocol {
         Protocol::Nuscenes => {
             if a.iou.is_some() {
@@ -117,19 +222,26 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     if !a.classes.is_empty() {
         params.classes = a.classes.clone();
     }
-    let tracks = a.tracks.clone().unwrap_or_else(|| a.truth.clone());
-    let result = evaluate(&[scene(&a, &tracks)?], &params);
+    let pairs = log_pairs(&a.truth, &a.tracks)?;
+    let scenes = load_logs(&a, &pairs, false)?;
+    let result = evaluate(&scenes, &params);
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",
-            a.truth.display(),
+            describe(&pairs, false),
             a.truth_topic,
             params.classes.join(", ")
         );
     }
-    let baseline = match &a.baseline {
-        Some(b) => Some(evaluate(&[scene(&a, b)?], &params)),
-        None => None,
+    let base_pairs = if a.baseline.is_empty() {
+        Vec::new()
+    } else {
+        log_pairs(&a.truth, &a.baseline)?
+    };
+    let baseline = if base_pairs.is_empty() {
+        None
+    } else {
+        Some(evaluate(&load_logs(&a, &base_pairs, false)?, &params))
     };
 
     // The gate.
@@ -159,23 +271,36 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
 
     if a.json {
+        // Per-log breakdown when several logs were scored together.
+        let per_log: Vec<serde_json::Value> = if scenes.len() > 1 {
+            scenes
+                .par_iter()
+                .zip(&pairs)
+                .map(|(s, (t, r))| {
+                    serde_json::json!({"truth": t, "tracks": r,
+                        "result": evaluate(std::slice::from_ref(s), &params)})
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         let v = serde_json::json!({
-            "truth": a.truth, "tracks": tracks, "result": result,
-            "baseline": baseline.as_ref().map(|b| serde_json::json!({"tracks": a.baseline, "result": b})),
+            "logs": paths(&pairs), "result": result, "per_log": per_log,
+            "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
             "nuScenes tracking metrics: {} vs {} ({} / {})",
-            tracks.display(),
-            a.truth.display(),
+            describe(&pairs, true),
+            describe(&pairs, false),
             a.tracks_topic,
             a.truth_topic
         );
         print!("{}", table(&COLUMNS, &rows(&result)));
         if let Some(base) = &baseline {
-            println!("\nbaseline {}:", a.baseline.as_ref().unwrap().display());
+            println!("\nbaseline {}:", describe(&base_pairs, true));
             print!("{}", table(&COLUMNS, &rows(base)));
             println!("\nchange (this - baseline):");
             let mut delta = Vec::new();
@@ -233,44 +358,6 @@ fn kitti_rows(r: &KittiResult, classes: &[String]) -> Vec<(String, Vec<f64>)> {
     out
 }
 
-/// Loads one KITTI scene. Unlike [`load_scene`], ground-truth boxes without an id are allowed:
-/// `probmot import kitti` stores DontCare regions that way.
-fn kitti_scene(a: &EvalArgs, tracks: &Path) -> Result<Scene> {
-    let gt = read_tracks_topic(&a.truth, &a.truth_topic)?;
-    let tr = read_tracks_topic(tracks, &a.tracks_topic)?;
-    let (Some(first), Some(last)) = (gt.iter().map(|g| g.0).min(), gt.iter().map(|g| g.0).max())
-    else {
-        bail!(
-            "{}: topic {} has no messages",
-            a.truth.display(),
-            a.truth_topic
-        );
-    };
-    if let Some((s, _)) = tr.iter().find(|(s, _)| *s < first || *s > last) {
-        bail!(
-            "{}: topic {} has a frame at stamp {s} ns, outside the ground truth's time range \
-             {first}..{last} ns in {}; are these the tracks of another log?",
-            tracks.display(),
-            a.tracks_topic,
-            a.truth.display()
-        );
-    }
-    let mut frames: BTreeMap<u64, (Vec<EvalBox>, Vec<EvalBox>)> = BTreeMap::new();
-    for (s, b) in gt {
-        frames.entry(s).or_default().0.extend(b);
-    }
-    for (s, b) in tr {
-        frames.entry(s).or_default().1.extend(b);
-    }
-    Ok(Scene {
-        name: tracks
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        frames: frames.into_iter().map(|(s, (g, t))| (s, g, t)).collect(),
-    })
-}
-
 fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let mut params = KittiParams::default();
     if !a.classes.is_empty() {
@@ -282,19 +369,26 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         }
         params.min_overlap = iou;
     }
-    let tracks = a.tracks.clone().unwrap_or_else(|| a.truth.clone());
-    let result = kitti::evaluate(&[kitti_scene(&a, &tracks)?], &params);
+    let pairs = log_pairs(&a.truth, &a.tracks)?;
+    let scenes = load_logs(&a, &pairs, true)?;
+    let result = kitti::evaluate(&scenes, &params);
     if result.classes.is_empty() {
         bail!(
             "{}: topic {} has no track box of the evaluated classes ({}); nothing to evaluate",
-            tracks.display(),
+            describe(&pairs, true),
             a.tracks_topic,
             params.classes.join(", ")
         );
     }
-    let baseline = match &a.baseline {
-        Some(b) => Some(kitti::evaluate(&[kitti_scene(&a, b)?], &params)),
-        None => None,
+    let base_pairs = if a.baseline.is_empty() {
+        Vec::new()
+    } else {
+        log_pairs(&a.truth, &a.baseline)?
+    };
+    let baseline = if base_pairs.is_empty() {
+        None
+    } else {
+        Some(kitti::evaluate(&load_logs(&a, &base_pairs, true)?, &params))
     };
 
     // The gate, on sAMOTA.
@@ -326,8 +420,8 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
 
     if a.json {
         let v = serde_json::json!({
-            "truth": a.truth, "tracks": tracks, "result": result,
-            "baseline": baseline.as_ref().map(|b| serde_json::json!({"tracks": a.baseline, "result": b})),
+            "logs": paths(&pairs), "result": result,
+            "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -335,8 +429,8 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         println!(
             "KITTI 3D MOT metrics (AB3DMOT evaluation, 3D IoU >= {}): {} vs {} ({} / {})",
             params.min_overlap,
-            tracks.display(),
-            a.truth.display(),
+            describe(&pairs, true),
+            describe(&pairs, false),
             a.tracks_topic,
             a.truth_topic
         );
@@ -345,7 +439,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             table(&KITTI_COLUMNS, &kitti_rows(&result, &params.classes))
         );
         if let Some(base) = &baseline {
-            println!("\nbaseline {}:", a.baseline.as_ref().unwrap().display());
+            println!("\nbaseline {}:", describe(&base_pairs, true));
             print!(
                 "{}",
                 table(&KITTI_COLUMNS, &kitti_rows(base, &params.classes))

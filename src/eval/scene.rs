@@ -113,19 +113,31 @@ pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalB
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes
-/// need ids, and tracks must lie within the truth's time range.
+/// need ids, and tracks must share time with the truth.
 pub fn load_scene(
     truth: &Path,
     truth_topic: &str,
     tracks: &Path,
     tracks_topic: &str,
 ) -> Result<Scene> {
+    load_scene_with(truth, truth_topic, tracks, tracks_topic, false)
+}
+
+/// [`load_scene`], optionally allowing truth boxes without id (KITTI's DontCare regions, which
+/// `probmot import kitti` stores with id 0 and label `dontcare`).
+pub fn load_scene_with(
+    truth: &Path,
+    truth_topic: &str,
+    tracks: &Path,
+    tracks_topic: &str,
+    allow_unlabelled: bool,
+) -> Result<Scene> {
     let gt = read_tracks_topic(truth, truth_topic)?;
     let tr = read_tracks_topic(tracks, tracks_topic)?;
     if gt.is_empty() {
         bail!("{}: topic {truth_topic} has no messages", truth.display());
     }
-    for (stamp, boxes) in &gt {
+    for (stamp, boxes) in gt.iter().filter(|_| !allow_unlabelled) {
         if let Some(b) = boxes.iter().find(|b| b.id == 0) {
             bail!(
                 "{}: topic {truth_topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \
