@@ -138,7 +138,7 @@ pub fn load_scene_with(
         bail!("{}: topic {truth_topic} has no messages", truth.display());
     }
     for (stamp, boxes) in gt.iter().filter(|_| !allow_unlabelled) {
-        if let Some(b) = boxes.iter().find(|b| b.id == 0) {
+        if let Some(b) = boxes.iter().find(|b| b.id == 0 && b.label != "dontcare") {
             bail!(
                 "{}: topic {truth_topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \
                  ground truth needs the true instance ids",

@@ -83,7 +83,7 @@ fn detection_box(d: &Detection3D) -> Option<FitBox> {
 }
 
 /// Reads one log: truth from `truth_topic`, detections from `detections_topic`. The truth must
-/// carry instance ids: a box with id 0, or two boxes with the same label and id at one stamp,
+/// carry instance ids: a box with id 0 (except `dontcare` regions, which are skipped), or two boxes with the same label and id at one stamp,
 /// is an error.
 pub fn load_log(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<FitLog> {
     let file = path.display().to_string();
@@ -98,6 +98,10 @@ pub fn load_log(path: &Path, truth_topic: &str, detections_topic: &str) -> Resul
         let seen = by_stamp.entry(stamp).or_default();
         let mut fb = Vec::with_capacity(boxes.len());
         for b in boxes {
+            // Regions without an object (KITTI's DontCare, imported with id 0) hold no box.
+            if b.id == 0 && b.label == "dontcare" {
+                continue;
+            }
             if b.id == 0 {
                 bail!(
                     "{file}: topic {truth_topic}, stamp {stamp}: ground-truth box ({}) has no id \

@@ -109,7 +109,7 @@ pub const NUSCENES_CLASSES: [&str; 7] = [
 ];
 
 /// Names of the built-in presets.
-pub const PRESETS: [&str; 2] = ["nuscenes-chiu2019", "ab3dmot"];
+pub const PRESETS: [&str; 3] = ["nuscenes-chiu2019", "ab3dmot", "kitti-pointrcnn"];
 
 /// AB3DMOT's default covariances: `(P0, Q, R)` diagonals.
 pub fn ab3dmot_covariances() -> ([f64; 11], [f64; 11], [f64; 7]) {
@@ -280,6 +280,15 @@ impl TrackerConfig {
                     classes,
                     default,
                 })
+            }
+            // Noise fitted with `probmot fit --fold-yaw --dt-nominal 0.1` on the ten KITTI tracking
+            // train sequences (PointRCNN detections); gates and life cycle tuned per class on
+            // the same sequences (scripts/kitti_benchmark.sh, README "Results on KITTI").
+            "kitti-pointrcnn" => {
+                let mut cfg =
+                    TrackerConfig::from_json(include_str!("presets/kitti-pointrcnn.json"))?;
+                cfg.name = name.into();
+                Ok(cfg)
             }
             "ab3dmot" => Ok(TrackerConfig {
                 name: name.into(),
