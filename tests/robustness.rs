@@ -381,3 +381,25 @@ fn killed_run_leaves_no_output_and_an_intact_input() {
         "the input changed"
     );
 }
+
+#[test]
+fn stamps_going_backwards_are_replayed_in_order_and_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let sorted = straight_car(6, None);
+    let mut shuffled = sorted.clone();
+    shuffled.swap(1, 4); // two stamps out of order on the one topic
+    let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+    write_log(&a, &sorted, false);
+    write_log(&b, &shuffled, false);
+    let (oa, ob) = (dir.path().join("oa.mcap"), dir.path().join("ob.mcap"));
+    probmot_ok(&["track", a.to_str().unwrap(), "-o", oa.to_str().unwrap(), "--quiet"]);
+    let run = probmot_ok(&["track", b.to_str().unwrap(), "-o", ob.to_str().unwrap(), "--json"]);
+    let s = json_summary(&run);
+    // 1 4 3 2 5 -> the stamp drops after 4 and after 3.
+    assert_eq!(s["stamps_backwards"]["/detections"], 2, "{s}");
+    let mut ta = tracks(&oa, "/tracks");
+    let mut tb = tracks(&ob, "/tracks");
+    ta.sort_by_key(|t| t.stamp);
+    tb.sort_by_key(|t| t.stamp);
+    assert_eq!(ta, tb);
+}
