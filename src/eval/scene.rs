@@ -3,11 +3,10 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
-use mcap::records::Record;
+use anyhow::{bail, Result};
 
-use crate::mcapio::reader::read_records;
-use crate::msgs::{self, Encoding, Track3D, Tracks3D};
+use crate::mcapio::topic::for_each_message;
+use crate::msgs::{self, Track3D, Tracks3D};
 
 /// One box as the evaluation sees it.
 #[derive(Debug, Clone, PartialEq)]
@@ -57,58 +56,25 @@ pub struct Scene {
     pub frames: Vec<(u64, Vec<EvalBox>, Vec<EvalBox>)>,
 }
 
-/// Reads the `Tracks3D` messages of one topic: `(stamp, boxes)` per message.
+/// Reads the `Tracks3D` messages of one topic: `(stamp, boxes)` per message (the stamp is the
+/// message's `stamp`, or its `log_time` when that is 0).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
-    let file = path.display().to_string();
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    let mut channels: BTreeMap<u16, Encoding> = BTreeMap::new();
-    let mut found = false;
     let mut out = Vec::new();
-    read_records(path, |rec, _| {
-        match rec {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
-            }
-            Record::Channel(c) if c.topic == topic => {
-                found = true;
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                if schema != msgs::TRACKS_SCHEMA {
-                    bail!(
-                        "{file}: topic {topic} has schema '{schema}', expected {}",
-                        msgs::TRACKS_SCHEMA
-                    );
-                }
-                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
-                    bail!(
-                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
-                        c.message_encoding
-                    );
-                };
-                channels.insert(c.id, enc);
-            }
-            Record::Message { header, data } => {
-                if let Some(enc) = channels.get(&header.channel_id) {
-                    let m: Tracks3D = msgs::decode(&data, *enc).with_context(|| {
-                        format!(
-                            "{file}: topic {topic}, message at log_time {}: cannot decode",
-                            header.log_time
-                        )
-                    })?;
-                    let stamp = if m.stamp != 0 {
-                        m.stamp
-                    } else {
-                        header.log_time
-                    };
-                    out.push((stamp, m.tracks.iter().map(EvalBox::from_track).collect()));
-                }
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
-    if !found {
-        bail!("{file}: no channel with topic {topic}");
-    }
+    for_each_message(
+        path,
+        topic,
+        msgs::TRACKS_SCHEMA,
+        |header, m: Tracks3D| {
+            let stamp = if m.stamp != 0 {
+                m.stamp
+            } else {
+                header.log_time
+            };
+            out.push((stamp, m.tracks.iter().map(EvalBox::from_track).collect()));
+            Ok(())
+        },
+        |_| Ok(()),
+    )?;
     Ok(out)
 }
 

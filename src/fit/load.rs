@@ -5,69 +5,32 @@ use std::collections::{BTreeMap, HashSet};
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use mcap::records::Record;
 
 use super::data::{assemble_frames, FitBox, FitLog};
 use crate::eval::scene::read_tracks_topic;
-use crate::mcapio::reader::read_records;
-use crate::msgs::{self, Detection3D, Detections3D, Encoding};
+use crate::mcapio::topic::for_each_message;
+use crate::msgs::{self, Detection3D, Detections3D};
 
 /// Reads the `Detections3D` messages of one topic: `(stamp, boxes)` per message, the stamp
 /// being the message's `stamp` or else its MCAP `log_time` (as `probmot track` does). Boxes
 /// without a centre or size are left out. Errors name the file and topic.
 pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<FitBox>)>> {
-    let file = path.display().to_string();
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    let mut channels: BTreeMap<u16, Encoding> = BTreeMap::new();
-    let mut found = false;
     let mut out = Vec::new();
-    read_records(path, |rec, _| {
-        match rec {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
-            }
-            Record::Channel(c) if c.topic == topic => {
-                found = true;
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                if schema != msgs::DETECTIONS_SCHEMA {
-                    bail!(
-                        "{file}: topic {topic} has schema '{schema}', expected {}",
-                        msgs::DETECTIONS_SCHEMA
-                    );
-                }
-                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
-                    bail!(
-                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
-                        c.message_encoding
-                    );
-                };
-                channels.insert(c.id, enc);
-            }
-            Record::Message { header, data } => {
-                if let Some(enc) = channels.get(&header.channel_id) {
-                    let m: Detections3D = msgs::decode(&data, *enc).with_context(|| {
-                        format!(
-                            "{file}: topic {topic}, message at log_time {} (sequence {}): cannot \
-                             decode {}",
-                            header.log_time,
-                            header.sequence,
-                            msgs::DETECTIONS_SCHEMA
-                        )
-                    })?;
-                    let stamp = m.stamp.unwrap_or(header.log_time);
-                    out.push((
-                        stamp,
-                        m.detections.iter().filter_map(detection_box).collect(),
-                    ));
-                }
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
-    if !found {
-        bail!("{file}: no channel with topic {topic} (detections)");
-    }
+    for_each_message(
+        path,
+        topic,
+        msgs::DETECTIONS_SCHEMA,
+        |header, m: Detections3D| {
+            let stamp = m.stamp.unwrap_or(header.log_time);
+            out.push((
+                stamp,
+                m.detections.iter().filter_map(detection_box).collect(),
+            ));
+            Ok(())
+        },
+        |_| Ok(()),
+    )
+    .with_context(|| format!("reading detections from {}", path.display()))?;
     Ok(out)
 }
 

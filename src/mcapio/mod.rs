@@ -1,6 +1,7 @@
 //! MCAP input and output: a streaming record reader over any file, and an atomic writer.
 
 pub mod reader;
+pub mod topic;
 pub mod writer;
 
 pub use reader::{read_records, ReadStats};

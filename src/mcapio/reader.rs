@@ -4,17 +4,32 @@
 //! A linear read is used for every file because it is the one read that is correct for all valid
 //! files: files without chunks, without a summary, or whose summary omits schema and channel
 //! records (see the MCAP conformance corpus).
+//!
+//! Malformed files are errors, never panics, and cost memory only for the bytes really in the
+//! file (or really decompressed from it), whatever their length fields claim. Three things here
+//! make it so, each found by fuzzing (`fuzz/README.md`):
+//! * the file is read in blocks of [`READ_BLOCK`], so a record header claiming gigabytes in a
+//!   short file fails at end of file instead of first allocating what it claims;
+//! * chunks are split into records here ([`split_chunk`]), not by the `LinearReader`, which
+//!   allocates a compressed record's buffer at its claimed length before decompressing, and does
+//!   not check a record in an uncompressed chunk against the chunk's end (overflow panic);
+//! * [`check_record`] walks the length fields `mcap::parse_record` trusts.
 
 use std::fs::File;
 use std::io::Read;
 use std::path::Path;
 
-use anyhow::{Context, Result};
-use mcap::records::Record;
+use anyhow::{bail, Context, Result};
+use mcap::records::{op, ChunkHeader, Record};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
-/// Largest non-chunk record accepted (protects against corrupted length fields).
+/// Largest record, and largest decompressed chunk, accepted (protects against corrupted length
+/// fields; memory is used only as bytes are really read or decompressed).
 const RECORD_LENGTH_LIMIT: usize = 1 << 32;
+
+/// Largest buffer given to the reader for one `read`. The reader asks for a whole record at once;
+/// reading in blocks makes its buffer grow only with bytes that are really in the file.
+const READ_BLOCK: usize = 1 << 20;
 
 /// Bytes consumed so far, for progress reporting.
 #[derive(Debug, Default, Clone, Copy)]
@@ -31,10 +46,11 @@ pub fn read_records(
 ) -> Result<()> {
     let mut file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let options = LinearReaderOptions::default()
-        .with_validate_chunk_crcs(true)
+        .with_emit_chunks(true)
         .with_record_length_limit(RECORD_LENGTH_LIMIT);
     let mut reader = LinearReader::new_with_options(options);
     let mut stats = ReadStats::default();
+    let mut chunk_buf = Vec::new();
     while let Some(event) = reader.next_event() {
         let event = event.with_context(|| {
             format!(
@@ -46,7 +62,7 @@ pub fn read_records(
         match event {
             LinearReadEvent::ReadRequest(need) => {
                 let n = loop {
-                    match file.read(reader.insert(need)) {
+                    match file.read(reader.insert(need.min(READ_BLOCK))) {
                         Ok(n) => break n,
                         Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
                         Err(e) => {
@@ -58,16 +74,204 @@ pub fn read_records(
                 stats.bytes_read += n as u64;
             }
             LinearReadEvent::Record { opcode, data } => {
-                let record = mcap::parse_record(opcode, data).with_context(|| {
+                let malformed = || {
                     format!(
                         "{}: malformed record (opcode {opcode:#04x}) near byte {}",
                         path.display(),
                         stats.bytes_read
                     )
-                })?;
-                f(record, stats)?;
+                };
+                let record = parse_record(opcode, data).with_context(malformed)?;
+                let Record::Chunk { header, data } = record else {
+                    f(record, stats)?;
+                    continue;
+                };
+                let records = decompress_chunk(&header, &data, &mut chunk_buf)
+                    .and_then(split_chunk)
+                    .with_context(|| {
+                        format!(
+                            "{}: malformed chunk near byte {}",
+                            path.display(),
+                            stats.bytes_read
+                        )
+                    })?;
+                for (opcode, body) in records {
+                    let record = parse_record(opcode, body).with_context(|| {
+                        format!(
+                            "{}: malformed record (opcode {opcode:#04x}) in the chunk near byte {}",
+                            path.display(),
+                            stats.bytes_read
+                        )
+                    })?;
+                    f(record, stats)?;
+                }
             }
         }
     }
     Ok(())
+}
+
+/// [`check_record`], then `mcap::parse_record`.
+fn parse_record(opcode: u8, body: &[u8]) -> Result<Record<'_>> {
+    check_record(opcode, body).map_err(anyhow::Error::msg)?;
+    Ok(mcap::parse_record(opcode, body)?)
+}
+
+/// The records of a chunk, uncompressed: `data` itself, or `data` decompressed into `buf`. The
+/// output grows only as decompression produces bytes, up to the size the header declares, which
+/// it must then reach; a nonzero CRC is checked.
+fn decompress_chunk<'a>(
+    header: &ChunkHeader,
+    data: &'a [u8],
+    buf: &'a mut Vec<u8>,
+) -> Result<&'a [u8]> {
+    let size = header.uncompressed_size;
+    if size > RECORD_LENGTH_LIMIT as u64 {
+        bail!("chunk of {size} bytes uncompressed, more than the limit of {RECORD_LENGTH_LIMIT}");
+    }
+    buf.clear();
+    let records: &[u8] = match header.compression.as_str() {
+        "" => data,
+        "zstd" => {
+            zstd::stream::read::Decoder::with_buffer(data)?
+                .take(size)
+                .read_to_end(buf)
+                .context("zstd")?;
+            buf
+        }
+        "lz4" => {
+            lz4::Decoder::new(data)?
+                .take(size)
+                .read_to_end(buf)
+                .context("lz4")?;
+            buf
+        }
+        other => bail!("unsupported chunk compression '{other}' (supported: zstd, lz4, none)"),
+    };
+    if !header.compression.is_empty() && (records.len() as u64) < size {
+        bail!(
+            "chunk decompresses to {} bytes, its header says {size}",
+            records.len()
+        );
+    }
+    if header.uncompressed_crc != 0 {
+        let crc = crc32fast::hash(records);
+        if crc != header.uncompressed_crc {
+            bail!(
+                "chunk CRC mismatch: header {:#010x}, data {crc:#010x}",
+                header.uncompressed_crc
+            );
+        }
+    }
+    Ok(records)
+}
+
+/// Splits uncompressed chunk records into `(opcode, body)`; every record must end inside the
+/// chunk.
+fn split_chunk(mut records: &[u8]) -> Result<Vec<(u8, &[u8])>> {
+    let mut out = Vec::new();
+    while let Some((&opcode, rest)) = records.split_first() {
+        let Some((len, rest)) = rest.split_first_chunk::<8>() else {
+            bail!("the chunk ends inside a record header");
+        };
+        let len = u64::from_le_bytes(*len);
+        let Some(body) = usize::try_from(len).ok().and_then(|n| rest.get(..n)) else {
+            bail!(
+                "a record (opcode {opcode:#04x}) of {len} bytes runs past the end of its chunk \
+                 ({} bytes left)",
+                rest.len()
+            );
+        };
+        out.push((opcode, body));
+        records = &rest[body.len()..];
+    }
+    Ok(out)
+}
+
+/// Checks what `mcap::parse_record` takes on trust, so that a malformed record is an error rather
+/// than a panic or a huge allocation:
+/// * every length-prefixed string fits in the rest of the record (the parser reserves the length
+///   a string claims, up to 4 GiB, before reading it);
+/// * an attachment has room for its CRC after its data length (the parser slices the data up to
+///   4 bytes before the record's end, and panics when that is before the data's start).
+///
+/// It refuses only records that `parse_record` cannot parse either.
+fn check_record(opcode: u8, body: &[u8]) -> Result<(), &'static str> {
+    let mut f = Fields(body);
+    let ok = match opcode {
+        op::HEADER => f.string() && f.string(),
+        op::SCHEMA => f.skip(2) && f.string() && f.string(),
+        op::CHANNEL => f.skip(4) && f.string() && f.string() && f.string_map(),
+        op::CHUNK => f.skip(28) && f.string(),
+        op::CHUNK_INDEX => f.skip(32) && f.int_map(2 + 8) && f.skip(8) && f.string(),
+        op::ATTACHMENT => {
+            if !(f.skip(16) && f.string() && f.string() && f.skip(8)) {
+                false
+            } else if f.0.len() < 4 {
+                return Err("attachment record too short for its CRC");
+            } else {
+                true
+            }
+        }
+        op::ATTACHMENT_INDEX => f.skip(40) && f.string() && f.string(),
+        op::METADATA => f.string() && f.string_map(),
+        op::METADATA_INDEX => f.skip(16) && f.string(),
+        _ => true,
+    };
+    if ok {
+        Ok(())
+    } else {
+        Err("a field runs past the end of the record")
+    }
+}
+
+/// The unread rest of a record, walked field by field the way `mcap::parse_record` reads it.
+struct Fields<'a>(&'a [u8]);
+
+impl Fields<'_> {
+    fn skip(&mut self, n: usize) -> bool {
+        match self.0.get(n..) {
+            Some(rest) => {
+                self.0 = rest;
+                true
+            }
+            None => false,
+        }
+    }
+
+    fn u32(&mut self) -> Option<u32> {
+        let (head, rest) = self.0.split_first_chunk::<4>()?;
+        self.0 = rest;
+        Some(u32::from_le_bytes(*head))
+    }
+
+    /// A string: `u32` byte length, then the bytes.
+    fn string(&mut self) -> bool {
+        match self.u32() {
+            Some(n) => self.skip(n as usize),
+            None => false,
+        }
+    }
+
+    /// A map: `u32` byte length, then entries until at least that many bytes were read.
+    fn map(&mut self, mut entry: impl FnMut(&mut Self) -> bool) -> bool {
+        let Some(len) = self.u32() else {
+            return false;
+        };
+        let start = self.0.len();
+        while start - self.0.len() < len as usize {
+            if !entry(self) {
+                return false;
+            }
+        }
+        true
+    }
+
+    fn string_map(&mut self) -> bool {
+        self.map(|f| f.string() && f.string())
+    }
+
+    fn int_map(&mut self, entry_len: usize) -> bool {
+        self.map(|f| f.skip(entry_len))
+    }
 }

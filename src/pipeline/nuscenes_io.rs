@@ -23,9 +23,9 @@ use mcap::records::{MessageHeader, Metadata, Record};
 use serde::de::{DeserializeOwned, DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor};
 use serde::{Deserialize, Deserializer, Serialize};
 
-use crate::mcapio::reader::read_records;
+use crate::mcapio::topic::for_each_message;
 use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
-use crate::msgs::{self, v3, Detection3D, Detections3D, Encoding, Track3D, Tracks3D};
+use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::config::NUSCENES_CLASSES;
 
@@ -1185,65 +1185,40 @@ struct ExportInput {
 
 fn read_export_input(path: &Path, topic: &str) -> Result<ExportInput> {
     let file = path.display().to_string();
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    let mut channels: BTreeMap<u16, Encoding> = BTreeMap::new();
-    let mut found = false;
     let mut scene = None;
     let mut samples = None;
     let mut frames = Vec::new();
-    read_records(path, |rec, _| {
-        match rec {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
-            }
-            Record::Channel(c) if c.topic == topic => {
-                found = true;
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                if schema != msgs::TRACKS_SCHEMA {
-                    bail!(
-                        "{file}: topic {topic} has schema '{schema}', expected {}",
-                        msgs::TRACKS_SCHEMA
-                    );
+    for_each_message(
+        path,
+        topic,
+        msgs::TRACKS_SCHEMA,
+        |header, m: Tracks3D| {
+            let stamp = if m.stamp != 0 {
+                m.stamp
+            } else {
+                header.log_time
+            };
+            frames.push((stamp, m.tracks));
+            Ok(())
+        },
+        |rec| {
+            match rec {
+                Record::Metadata(m) if m.name == NUSCENES_METADATA => scene = Some(m.metadata),
+                Record::Metadata(m) if m.name == SAMPLES_METADATA => {
+                    let mut map = BTreeMap::new();
+                    for (k, v) in m.metadata {
+                        let stamp: u64 = k.parse().with_context(|| {
+                            format!("{file}: metadata {SAMPLES_METADATA}: key '{k}' is not a stamp")
+                        })?;
+                        map.insert(stamp, v);
+                    }
+                    samples = Some(map);
                 }
-                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
-                    bail!(
-                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
-                        c.message_encoding
-                    );
-                };
-                channels.insert(c.id, enc);
+                _ => {}
             }
-            Record::Message { header, data } => {
-                if let Some(enc) = channels.get(&header.channel_id) {
-                    let m: Tracks3D = msgs::decode(&data, *enc).with_context(|| {
-                        format!(
-                            "{file}: topic {topic}, message at log_time {}: cannot decode",
-                            header.log_time
-                        )
-                    })?;
-                    let stamp = if m.stamp != 0 {
-                        m.stamp
-                    } else {
-                        header.log_time
-                    };
-                    frames.push((stamp, m.tracks));
-                }
-            }
-            Record::Metadata(m) if m.name == NUSCENES_METADATA => scene = Some(m.metadata),
-            Record::Metadata(m) if m.name == SAMPLES_METADATA => {
-                let mut map = BTreeMap::new();
-                for (k, v) in m.metadata {
-                    let stamp: u64 = k.parse().with_context(|| {
-                        format!("{file}: metadata {SAMPLES_METADATA}: key '{k}' is not a stamp")
-                    })?;
-                    map.insert(stamp, v);
-                }
-                samples = Some(map);
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
+            Ok(())
+        },
+    )?;
     let Some(samples) = samples else {
         bail!(
             "{file}: no metadata record {SAMPLES_METADATA} (the sample token of each frame); \
@@ -1251,9 +1226,6 @@ fn read_export_input(path: &Path, topic: &str) -> Result<ExportInput> {
              track` of one)"
         );
     };
-    if !found {
-        bail!("{file}: no channel with topic {topic}");
-    }
     Ok(ExportInput {
         scene: scene.unwrap_or_default(),
         samples,

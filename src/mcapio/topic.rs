@@ -1,0 +1,68 @@
+//! Reading the decoded messages of one topic of a probmot schema.
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use mcap::records::{MessageHeader, Record};
+
+use super::reader::read_records;
+use crate::msgs::{self, Encoding};
+
+/// Calls `on_message` for every message of `topic` (schema `schema`, protobuf or JSON) in file
+/// order, decoded as `M`, and `on_other` for every other record (e.g. metadata). Errors name the
+/// file, the topic and the message; a missing topic, another schema or encoding is an error.
+pub fn for_each_message<M>(
+    path: &Path,
+    topic: &str,
+    schema: &str,
+    mut on_message: impl FnMut(&MessageHeader, M) -> Result<()>,
+    mut on_other: impl FnMut(Record<'_>) -> Result<()>,
+) -> Result<()>
+where
+    M: prost::Message + Default + serde::de::DeserializeOwned,
+{
+    let file = path.display().to_string();
+    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
+    let mut channels: BTreeMap<u16, Encoding> = BTreeMap::new();
+    let mut found = false;
+    read_records(path, |rec, _| {
+        match rec {
+            Record::Schema { header, data } => {
+                schemas.insert(header.id, header.name.clone());
+                on_other(Record::Schema { header, data })?;
+            }
+            Record::Channel(c) if c.topic == topic => {
+                found = true;
+                let name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                if name != schema {
+                    bail!("{file}: topic {topic} has schema '{name}', expected {schema}");
+                }
+                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
+                    bail!(
+                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
+                        c.message_encoding
+                    );
+                };
+                channels.insert(c.id, enc);
+            }
+            Record::Message { header, data } if channels.contains_key(&header.channel_id) => {
+                let m: M =
+                    msgs::decode(&data, channels[&header.channel_id]).with_context(|| {
+                        format!(
+                            "{file}: topic {topic}, message at log_time {} (sequence {}): cannot \
+                         decode {schema}",
+                            header.log_time, header.sequence
+                        )
+                    })?;
+                on_message(&header, m)?;
+            }
+            other => on_other(other)?,
+        }
+        Ok(())
+    })?;
+    if !found {
+        bail!("{file}: no channel with topic {topic}");
+    }
+    Ok(())
+}
