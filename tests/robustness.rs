@@ -392,8 +392,20 @@ fn stamps_going_backwards_are_replayed_in_order_and_counted() {
     write_log(&a, &sorted, false);
     write_log(&b, &shuffled, false);
     let (oa, ob) = (dir.path().join("oa.mcap"), dir.path().join("ob.mcap"));
-    probmot_ok(&["track", a.to_str().unwrap(), "-o", oa.to_str().unwrap(), "--quiet"]);
-    let run = probmot_ok(&["track", b.to_str().unwrap(), "-o", ob.to_str().unwrap(), "--json"]);
+    probmot_ok(&[
+        "track",
+        a.to_str().unwrap(),
+        "-o",
+        oa.to_str().unwrap(),
+        "--quiet",
+    ]);
+    let run = probmot_ok(&[
+        "track",
+        b.to_str().unwrap(),
+        "-o",
+        ob.to_str().unwrap(),
+        "--json",
+    ]);
     let s = json_summary(&run);
     // 1 4 3 2 5 -> the stamp drops after 4 and after 3.
     assert_eq!(s["stamps_backwards"]["/detections"], 2, "{s}");
