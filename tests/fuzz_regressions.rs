@@ -259,8 +259,23 @@ fn sample_log_still_tracks() {
     assert!(Path::new(&out).is_file());
 }
 
-/// What the decode targets check, on the seeds' shapes: a message that decodes fully decodes as
-/// the first pass's envelope with the same stamp and box count, in both encodings.
+/// What the decode targets check: a message that decodes fully decodes as the first pass's
+/// envelope too, with the same stamp and box count.
+fn assert_envelope_agrees(bytes: &[u8], enc: Encoding) -> Detections3D {
+    let full: Detections3D = msgs::decode(bytes, enc).expect("decodes fully");
+    let env: DetectionsEnvelope = msgs::decode(bytes, enc).unwrap_or_else(|e| {
+        panic!(
+            "{:?} decodes fully but not as the envelope: {e}",
+            String::from_utf8_lossy(bytes)
+        )
+    });
+    assert_eq!(
+        (env.stamp, env.detections.len()),
+        (full.stamp, full.detections.len())
+    );
+    full
+}
+
 #[test]
 fn envelope_agrees_with_full_decode() {
     let msg = Detections3D {
@@ -268,11 +283,21 @@ fn envelope_agrees_with_full_decode() {
         frame_id: "map".into(),
         detections: vec![Default::default(); 4],
     };
-    let pb = prost::Message::encode_to_vec(&msg);
-    let js = serde_json::to_vec(&msg).unwrap();
-    for (bytes, enc) in [(&pb, Encoding::Protobuf), (&js, Encoding::Json)] {
-        let full: Detections3D = msgs::decode(bytes, enc).unwrap();
-        let env: DetectionsEnvelope = msgs::decode(bytes, enc).unwrap();
-        assert_eq!((env.stamp, env.detections.len()), (full.stamp, 4));
-    }
+    assert_envelope_agrees(&prost::Message::encode_to_vec(&msg), Encoding::Protobuf);
+    assert_envelope_agrees(&serde_json::to_vec(&msg).unwrap(), Encoding::Json);
+}
+
+/// Found by `decode_json` (11 bytes): serde also reads a struct from a JSON array of its fields
+/// by position, so this decoded as `Detections3D { stamp: 6, frame_id: "{" }` but not as the
+/// envelope, whose second field was `detections`: `track` would refuse in its first pass a
+/// message that `info` and its second pass read.
+#[test]
+fn fuzz_decode_json_positional_array() {
+    let full = assert_envelope_agrees(b"[6\n,\n\n\n\"{\"]", Encoding::Json);
+    assert_eq!((full.stamp, full.frame_id.as_str()), (Some(6), "{"));
+    let full = assert_envelope_agrees(
+        br#"[7, "map", [{"label": "car"}, [null, null, 0.5, "car"]]]"#,
+        Encoding::Json,
+    );
+    assert_eq!(full.detections.len(), 2);
 }

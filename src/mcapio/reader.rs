@@ -7,13 +7,13 @@
 //!
 //! Malformed files are errors, never panics, and cost memory only for the bytes really in the
 //! file (or really decompressed from it), whatever their length fields claim. Three things here
-//! make it so, each found by fuzzing (`fuzz/README.md`):
-//! * the file is read in blocks of [`READ_BLOCK`], so a record header claiming gigabytes in a
+//! make it so (see the findings in `fuzz/README.md`):
+//! * the file is read in blocks of `READ_BLOCK`, so a record header claiming gigabytes in a
 //!   short file fails at end of file instead of first allocating what it claims;
-//! * chunks are split into records here ([`split_chunk`]), not by the `LinearReader`, which
+//! * chunks are split into records here (`split_chunk`), not by the `LinearReader`, which
 //!   allocates a compressed record's buffer at its claimed length before decompressing, and does
 //!   not check a record in an uncompressed chunk against the chunk's end (overflow panic);
-//! * [`check_record`] walks the length fields `mcap::parse_record` trusts.
+//! * `check_record` walks the length fields `mcap::parse_record` trusts.
 
 use std::fs::File;
 use std::io::Read;

@@ -63,15 +63,37 @@ where
 /// What the first pass of `track` needs from a detections message: its stamp and the number of
 /// boxes, decoded without building the boxes (they are skipped, not allocated).
 #[derive(Clone, PartialEq, prost::Message, serde::Deserialize)]
+#[serde(from = "EnvelopeJson")]
 pub struct DetectionsEnvelope {
     /// `Detections3D.stamp`.
     #[prost(uint64, optional, tag = "1")]
-    #[serde(default)]
     pub stamp: Option<u64>,
     /// One (empty) entry per box.
     #[prost(message, repeated, tag = "3")]
-    #[serde(default)]
     pub detections: Vec<Skipped>,
+}
+
+/// The JSON form of [`DetectionsEnvelope`]: every field of `Detections3D`, in its order, with
+/// `frame_id` skipped. The order matters because serde also reads a struct from a JSON array of
+/// its fields by position (`[stamp, frame_id, detections]`), and every message that decodes as
+/// `Detections3D` must decode as the envelope too, with the same stamp and count (found by the
+/// `decode_json` fuzz target).
+#[derive(Default, serde::Deserialize)]
+#[serde(default)]
+struct EnvelopeJson {
+    stamp: Option<u64>,
+    #[allow(dead_code)]
+    frame_id: serde::de::IgnoredAny,
+    detections: Vec<Skipped>,
+}
+
+impl From<EnvelopeJson> for DetectionsEnvelope {
+    fn from(j: EnvelopeJson) -> Self {
+        DetectionsEnvelope {
+            stamp: j.stamp,
+            detections: j.detections,
+        }
+    }
 }
 
 /// A message whose content is skipped (zero-sized: a `Vec` of these never allocates).

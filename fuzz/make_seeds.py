@@ -1,0 +1,150 @@
+#!/usr/bin/env python3
+"""Writes the seed corpora of the fuzz targets into fuzz/corpus/ (not committed).
+
+read_path:        the sample logs of at most 64 KiB, plus small MCAP files made here (unchunked, lz4 chunks, a JSON
+                  detections channel, stamps out of order, attachments and metadata).
+decode_protobuf:  /detections payloads of the sample logs, and a few hand-made messages.
+decode_json:      the same messages in probmot's JSON form (serde, proto field names).
+
+Needs the Python packages of scripts/requirements.txt (mcap, protobuf, lz4, zstandard).
+Run from anywhere: python3 fuzz/make_seeds.py
+"""
+
+import hashlib
+import io
+import json
+import pathlib
+import shutil
+
+from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
+from mcap.reader import make_reader
+from mcap.writer import CompressionType, Writer
+
+ROOT = pathlib.Path(__file__).resolve().parent.parent
+CORPUS = ROOT / "fuzz" / "corpus"
+SAMPLES = sorted((ROOT / "sample_logs").glob("*.mcap"))
+
+
+def put(target: str, data: bytes) -> None:
+    d = CORPUS / target
+    d.mkdir(parents=True, exist_ok=True)
+    (d / hashlib.sha1(data).hexdigest()).write_bytes(data)
+
+
+def load_types():
+    """Detections3D class from the FileDescriptorSet in a sample log's schema record."""
+    with open(SAMPLES[0], "rb") as f:
+        summary = make_reader(f).get_summary()
+    schema = next(s for s in summary.schemas.values() if s.name == "probmot.Detections3D")
+    fds = descriptor_pb2.FileDescriptorSet.FromString(schema.data)
+    pool = descriptor_pool.DescriptorPool()
+    for fd in fds.file:
+        pool.Add(fd)
+    cls = message_factory.GetMessageClass(pool.FindMessageTypeByName("probmot.Detections3D"))
+    return schema.data, cls
+
+
+def to_json(msg) -> bytes:
+    """probmot's JSON form (serde of the prost types: proto field names, numbers as numbers)."""
+    def v(m, names):
+        return {n: getattr(m, n) for n in names}
+
+    out = {"frame_id": msg.frame_id, "detections": []}
+    if msg.HasField("stamp"):
+        out["stamp"] = msg.stamp
+    for d in msg.detections:
+        j = {"yaw": d.yaw, "label": d.label, "score": d.score, "attributes": dict(d.attributes)}
+        if d.HasField("center"):
+            j["center"] = v(d.center, "xyz")
+        if d.HasField("size"):
+            j["size"] = v(d.size, ["length", "width", "height"])
+        if d.HasField("velocity"):
+            j["velocity"] = v(d.velocity, "xyz")
+        if d.HasField("image_box"):
+            j["image_box"] = v(d.image_box, ["x1", "y1", "x2", "y2"])
+        out["detections"].append(j)
+    return json.dumps(out).encode()
+
+
+def small_mcap(descriptor: bytes, payloads, encoding="protobuf", compression=None,
+               chunked=True, extras=False) -> bytes:
+    buf = io.BytesIO()
+    w = Writer(buf, compression=compression or CompressionType.NONE, use_chunking=chunked,
+               chunk_size=512)
+    w.start(profile="", library="probmot-fuzz-seeds")
+    if encoding == "json":
+        sid = w.register_schema("probmot.Detections3D", "jsonschema", b"{}")
+    else:
+        sid = w.register_schema("probmot.Detections3D", "protobuf", descriptor)
+    ch = w.register_channel("/detections", encoding, sid)
+    for seq, (log_time, data) in enumerate(payloads):
+        w.add_message(ch, log_time=log_time, data=data, publish_time=log_time, sequence=seq)
+    if extras:
+        w.add_attachment(create_time=1, log_time=1, name="a.txt", media_type="text/plain",
+                         data=b"hello")
+        w.add_metadata("meta", {"k": "v"})
+    w.finish()
+    return buf.getvalue()
+
+
+def main() -> None:
+    if CORPUS.exists():
+        for t in ("read_path", "decode_protobuf", "decode_json"):
+            shutil.rmtree(CORPUS / t, ignore_errors=True)
+    descriptor, Detections3D = load_types()
+
+    samples = []
+    for path in SAMPLES:
+        if path.stat().st_size <= 64 * 1024:  # small logs only: big inputs slow every run
+            put("read_path", path.read_bytes())
+        with open(path, "rb") as f:
+            for _, channel, message in make_reader(f).iter_messages(topics=["/detections"]):
+                samples.append((message.log_time, message.data))
+
+    # A few payloads from each log: first, middle, last.
+    picked = []
+    per_log = len(samples) // len(SAMPLES)
+    for i in range(len(SAMPLES)):
+        for j in (0, per_log // 2, per_log - 1):
+            picked.append(samples[i * per_log + j])
+
+    hand = []
+    m = Detections3D()
+    hand.append(m)  # empty message
+    m = Detections3D(stamp=1_000_000_000, frame_id="map")
+    d = m.detections.add(label="car", score=0.9, yaw=0.3)
+    d.center.x, d.center.y, d.center.z = 1.0, 2.0, 0.5
+    d.size.length, d.size.width, d.size.height = 4.5, 1.9, 1.6
+    d.attributes["id"] = "7"
+    d = m.detections.add(label="pedestrian", score=1.5, yaw=-3.0)  # score outside [0, 1]
+    d.center.x, d.center.y = -3.0, 4.0
+    d.size.length, d.size.width, d.size.height = 0.7, 0.7, 1.8
+    d.image_box.x1, d.image_box.y1, d.image_box.x2, d.image_box.y2 = 1, 2, 30, 40
+    d = m.detections.add(label="truck")  # missing size
+    d.center.x = 5.0
+    d = m.detections.add(label="unknown-label", score=0.2)
+    d.center.x = 9.0
+    d.size.length, d.size.width, d.size.height = 1.0, 0.0, 1.0  # non-positive size
+    hand.append(m)
+
+    for _, data in picked:
+        put("decode_protobuf", data)
+        put("decode_json", to_json(Detections3D.FromString(data)))
+    for msg in hand:
+        put("decode_protobuf", msg.SerializeToString())
+        put("decode_json", to_json(msg))
+
+    pb = [(i * 500_000_000, msg.SerializeToString()) for i, msg in enumerate(hand)]
+    pb += picked[:1]
+    js = [(t, to_json(Detections3D.FromString(d))) for t, d in picked[:2]]
+    put("read_path", small_mcap(descriptor, pb, chunked=False))
+    put("read_path", small_mcap(descriptor, pb, compression=CompressionType.LZ4, extras=True))
+    put("read_path", small_mcap(descriptor, list(reversed(pb)), compression=CompressionType.ZSTD))
+    put("read_path", small_mcap(descriptor, js, encoding="json"))
+    for t in ("read_path", "decode_protobuf", "decode_json"):
+        files = list((CORPUS / t).iterdir())
+        print(f"{t}: {len(files)} seeds, {sum(f.stat().st_size for f in files)} bytes")
+
+
+if __name__ == "__main__":
+    main()
