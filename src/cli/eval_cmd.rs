@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
-use probmot::eval::nuscenes::{evaluate, Metrics, NuscenesParams, NuscenesResult};
+use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_with, Scene};
 use rayon::prelude::*;
@@ -187,6 +187,36 @@ fn load_logs(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)], kitti: bool) -> Result<
         .collect()
 }
 
+/// The regression gate: what fell by more than `max_drop` percentage points, as
+/// `(baseline, this)` values of the main metric, overall and (with `per_class`) per class. An
+/// overall value that has become undefined (no ground truth that counts) also fails.
+fn gate_failures<'a>(
+    metric: &str,
+    (old, new): (f64, f64),
+    classes: impl Iterator<Item = (&'a str, f64, f64)>,
+    max_drop: f64,
+    per_class: bool,
+) -> Vec<String> {
+    let mut failures = Vec::new();
+    let d = (old - new) * 100.0;
+    if d > max_drop || (d.is_nan() && old.is_finite()) {
+        failures.push(format!(
+            "overall {metric} fell by {d:.2} points ({old:.4} -> {new:.4}), more than --max-drop {max_drop}"
+        ));
+    }
+    if per_class {
+        for (c, old, new) in classes {
+            let d = (old - new) * 100.0;
+            if d > max_drop {
+                failures.push(format!(
+                    "{c}: {metric} fell by {d:.2} points ({old:.4} -> {new:.4})"
+                ));
+            }
+        }
+    }
+    failures
+}
+
 /// "file" or "N logs" for the report's header.
 fn describe(pairs: &[(PathBuf, PathBuf)], tracks: bool) -> String {
     match pairs {
@@ -244,31 +274,20 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         Some(evaluate(&load_logs(&a, &base_pairs, false)?, &params))
     };
 
-    // The gate.
-    let mut failures = Vec::new();
-    if let (Some(base), Some(max_drop)) = (&baseline, a.max_drop) {
-        let drop = |new: &Metrics, old: &Metrics| (old.amota - new.amota) * 100.0;
-        let d = drop(&result.overall, &base.overall);
-        if d > max_drop {
-            failures.push(format!(
-                "overall AMOTA fell by {d:.2} points ({:.4} -> {:.4}), more than --max-drop {max_drop}",
-                base.overall.amota, result.overall.amota
-            ));
-        }
-        if a.per_class {
-            for (c, m) in &result.classes {
-                if let Some(o) = base.classes.get(c) {
-                    let d = drop(m, o);
-                    if d > max_drop {
-                        failures.push(format!(
-                            "{c}: AMOTA fell by {d:.2} points ({:.4} -> {:.4})",
-                            o.amota, m.amota
-                        ));
-                    }
-                }
-            }
-        }
-    }
+    // The gate, on AMOTA.
+    let failures = match (&baseline, a.max_drop) {
+        (Some(base), Some(max_drop)) => gate_failures(
+            "AMOTA",
+            (base.overall.amota, result.overall.amota),
+            result
+                .classes
+                .iter()
+                .filter_map(|(c, m)| base.classes.get(c).map(|o| (c.as_str(), o.amota, m.amota))),
+            max_drop,
+            a.per_class,
+        ),
+        _ => Vec::new(),
+    };
 
     if a.json {
         // Per-log breakdown when several logs were scored together.
@@ -392,31 +411,20 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     };
 
     // The gate, on sAMOTA.
-    let mut failures = Vec::new();
-    if let (Some(base), Some(max_drop)) = (&baseline, a.max_drop) {
-        let drop = |new: &KittiMetrics, old: &KittiMetrics| (old.samota - new.samota) * 100.0;
-        let d = drop(&result.overall, &base.overall);
-        // A result that has become undefined (no ground truth that counts) also fails.
-        if d > max_drop || (d.is_nan() && base.overall.samota.is_finite()) {
-            failures.push(format!(
-                "overall sAMOTA fell by {d:.2} points ({:.4} -> {:.4}), more than --max-drop {max_drop}",
-                base.overall.samota, result.overall.samota
-            ));
-        }
-        if a.per_class {
-            for (c, m) in &result.classes {
-                if let Some(o) = base.classes.get(c) {
-                    let d = drop(m, o);
-                    if d > max_drop {
-                        failures.push(format!(
-                            "{c}: sAMOTA fell by {d:.2} points ({:.4} -> {:.4})",
-                            o.samota, m.samota
-                        ));
-                    }
-                }
-            }
-        }
-    }
+    let failures = match (&baseline, a.max_drop) {
+        (Some(base), Some(max_drop)) => gate_failures(
+            "sAMOTA",
+            (base.overall.samota, result.overall.samota),
+            result.classes.iter().filter_map(|(c, m)| {
+                base.classes
+                    .get(c)
+                    .map(|o| (c.as_str(), o.samota, m.samota))
+            }),
+            max_drop,
+            a.per_class,
+        ),
+        _ => Vec::new(),
+    };
 
     if a.json {
         let v = serde_json::json!({
