@@ -8,6 +8,8 @@ mod generated {
 
 pub use generated::*;
 
+pub mod ros2_common;
+
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
 /// the data of each MCAP schema record (schema encoding `protobuf`).
 pub const DESCRIPTOR_SET: &[u8] =
