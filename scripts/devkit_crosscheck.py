@@ -16,7 +16,13 @@ What is handed to the devkit (only glue is written here; all evaluation logic is
     tracking_id = str(id), tracking_name = label, tracking_score = score (GT: -1.0, like load_gt);
     boxes keep their order inside a message. Predicted boxes go through the devkit's own
     `load_prediction` (submission JSON written to a temporary file, including the 500-box check);
-  * NO range filter, bike-rack or lidar-points filter (`filter_eval_boxes`): there is no ego pose;
+  * no range, bike-rack or lidar-points filter by default; with --max-range, the devkit's own
+    `add_center_dist` and `filter_eval_boxes` with the config's `class_range` (40/50 m), run on GT
+    and predictions before `create_tracks` exactly where `TrackingEval.__init__` runs them. The ego
+    pose of each sample comes from the truth file's /ego_pose channel (JSON {stamp, translation,
+    rotation}, as `probmot import nuscenes` writes it), at the sample's stamp; no sample has
+    annotations, so the bike-rack filter removes nothing, and boxes keep num_pts = -1 (no points
+    filter);
   * `nuscenes.eval.tracking.loaders.create_tracks` itself (mean track score, `interpolate_tracks`,
     chronological order) with a minimal stand-in for the NuScenes table object and a temporary
     custom split file naming our scenes;
@@ -114,12 +120,21 @@ class SceneTables:
         self.version = version
         self.tables = {"sample": {}, "scene": {}}
 
+    def add_ego_poses(self, tokens, translations):
+        """Ego pose per sample, reached as the devkit's add_center_dist does (sample -> LIDAR_TOP
+        sample_data -> ego_pose)."""
+        for tok, tr in zip(tokens, translations):
+            self.tables["sample"][tok]["data"] = {"LIDAR_TOP": "sd_" + tok}
+            self.tables.setdefault("sample_data", {})["sd_" + tok] = {"ego_pose_token": "ep_" + tok}
+            self.tables.setdefault("ego_pose", {})["ep_" + tok] = {"translation": list(tr)}
+
     def add_scene(self, name, tokens, timestamps_us):
         self.tables["scene"][name] = {"token": name, "name": name,
                                       "first_sample_token": tokens[0], "last_sample_token": tokens[-1],
                                       "nbr_samples": len(tokens)}
         for i, (tok, t) in enumerate(zip(tokens, timestamps_us)):
             self.tables["sample"][tok] = {"token": tok, "timestamp": t, "scene_token": name,
+                                          "anns": [],
                                           "prev": tokens[i - 1] if i > 0 else "",
                                           "next": tokens[i + 1] if i + 1 < len(tokens) else ""}
 
@@ -127,7 +142,23 @@ class SceneTables:
         return self.tables[table_name][token]
 
 
-def build_inputs(pairs, truth_topic, tracks_topic):
+def read_ego_poses(path, topic):
+    """{stamp_ns: translation} of the JSON ego pose channel of an MCAP file."""
+    from mcap.reader import make_reader
+
+    poses = {}
+    with open(path, "rb") as f:
+        for schema, channel, message in make_reader(f).iter_messages(topics=[topic]):
+            if schema is None or schema.name != "probmot.EgoPose" or channel.message_encoding != "json":
+                raise SystemExit(f"{path}: topic {topic} is not a probmot.EgoPose JSON channel")
+            m = json.loads(message.data)
+            poses[int(m["stamp"])] = [float(v) for v in m["translation"]]
+    if not poses:
+        raise SystemExit(f"{path}: no messages on {topic} (needed by --max-range)")
+    return poses
+
+
+def build_inputs(pairs, truth_topic, tracks_topic, ego_topic=None):
     """Reads all scenes. Returns (scene tables info, gt submission dict, pred submission dict, info)."""
     scenes = []
     used_names = set()
@@ -172,8 +203,16 @@ def build_inputs(pairs, truth_topic, tracks_topic):
                         n_pred[trk.label] += 1
                     else:
                         ignored["tracks:" + trk.label] += 1
+        ego = None
+        if ego_topic is not None:
+            poses = read_ego_poses(truth_path, ego_topic)
+            missing = [ns_list[0] for ns_list in by_us.values() if ns_list[0] not in poses]
+            if missing:
+                raise SystemExit(f"{truth_path}: no ego pose at stamps {missing[:5]} ...")
+            ego = [poses[ns_list[0]] for ns_list in by_us.values()]
         scenes.append({
             "name": name,
+            "ego_translations": ego,
             "truth_file": os.path.basename(truth_path),
             "tracks_file": os.path.basename(tracks_path),
             "truth_messages": gt_msgs,
@@ -251,7 +290,7 @@ def to_json(x, indent=0):
     return json.dumps(x, allow_nan=False)
 
 
-def evaluate(scenes, keep_devkit_scene_order, verbose):
+def evaluate(scenes, keep_devkit_scene_order, verbose, max_range=False):
     from nuscenes.eval.common.config import config_factory
     from nuscenes.eval.common.loaders import load_prediction
     from nuscenes.eval.common.data_classes import EvalBoxes
@@ -294,6 +333,22 @@ def evaluate(scenes, keep_devkit_scene_order, verbose):
         assert set(pred_boxes.sample_tokens) == set(gt_boxes.sample_tokens), \
             "Samples in split don't match samples in predicted tracks."
 
+        range_counts = None
+        if max_range:
+            # What TrackingEval.__init__ does after loading, with the devkit's own functions.
+            from nuscenes.eval.common.loaders import add_center_dist, filter_eval_boxes
+            for s in scenes:
+                nusc.add_ego_poses(s["sample_tokens"], s["ego_translations"])
+            before = (sum(len(b) for b in gt_boxes.boxes.values()),
+                      sum(len(b) for b in pred_boxes.boxes.values()))
+            gt_boxes = filter_eval_boxes(nusc, add_center_dist(nusc, gt_boxes), cfg.class_range)
+            pred_boxes = filter_eval_boxes(nusc, add_center_dist(nusc, pred_boxes), cfg.class_range)
+            range_counts = {
+                "class_range": dict(sorted(cfg.class_range.items())),
+                "removed_truth_boxes": before[0] - sum(len(b) for b in gt_boxes.boxes.values()),
+                "removed_track_boxes": before[1] - sum(len(b) for b in pred_boxes.boxes.values()),
+            }
+
         tracks_gt = create_tracks(gt_boxes, nusc, CUSTOM_SPLIT, gt=True)
         tracks_pred = create_tracks(pred_boxes, nusc, CUSTOM_SPLIT, gt=False)
         devkit_scene_order = list(tracks_gt.keys())
@@ -323,6 +378,7 @@ def evaluate(scenes, keep_devkit_scene_order, verbose):
         interp = {k: dict(sorted(v.items())) for k, v in interp.items()}
 
         out = {"scene_order_used": list(tracks_gt.keys()),
+               "range_filter": range_counts,
                "devkit_scene_order": devkit_scene_order,
                "interpolation": interp,
                "distance_check": distance_check(tracks_gt, tracks_pred)}
@@ -383,6 +439,10 @@ def main(argv=None):
     ap.add_argument("--tracks-topic", default="/tracks")
     ap.add_argument("--keep-devkit-scene-order", action="store_true",
                     help="keep create_tracks' hash-seed-dependent scene order")
+    ap.add_argument("--max-range", action="store_true",
+                    help="apply the devkit's range filter (class_range of tracking_nips_2019) with "
+                         "the ego poses of --ego-topic in each truth file")
+    ap.add_argument("--ego-topic", default="/ego_pose")
     ap.add_argument("-v", "--verbose", action="store_true", help="let the devkit print")
     ap.add_argument("-o", "--output", required=True, help="output JSON file ('-' for stdout)")
     args = ap.parse_args(argv)
@@ -391,8 +451,9 @@ def main(argv=None):
         ap.error("give --tracks once per --truth, or not at all")
     pairs = list(zip(args.truth, args.tracks or args.truth))
 
-    scenes = build_inputs(pairs, args.truth_topic, args.tracks_topic)
-    result = evaluate(scenes, args.keep_devkit_scene_order, args.verbose)
+    scenes = build_inputs(pairs, args.truth_topic, args.tracks_topic,
+                          args.ego_topic if args.max_range else None)
+    result = evaluate(scenes, args.keep_devkit_scene_order, args.verbose, args.max_range)
 
     doc = OrderedDict()
     doc["protocol"] = "nuscenes"
@@ -408,13 +469,18 @@ def main(argv=None):
     doc["inputs"] = {
         "truth_topic": args.truth_topic,
         "tracks_topic": args.tracks_topic,
-        "filters": "none (no range / bike-rack / lidar-points filter)",
+        "filters": ("range filter (devkit filter_eval_boxes with class_range; no annotations, so "
+                    "no bike-rack filter; num_pts -1, so no points filter)" if args.max_range
+                    else "none (no range / bike-rack / lidar-points filter)"),
         "scenes": [{k: v for k, v in s.items()
-                    if k not in ("gt_results", "pred_results", "timestamps_us", "sample_tokens")}
+                    if k not in ("gt_results", "pred_results", "timestamps_us", "sample_tokens",
+                                 "ego_translations")}
                    for s in scenes],
         "scene_order_used": result["scene_order_used"],
         "interpolation": result["interpolation"],
     }
+    if args.max_range:
+        doc["inputs"]["range_filter"] = result["range_filter"]
     doc["distance_check"] = result["distance_check"]
     doc["environment"] = {p: pkg_version(p) for p in ("numpy", "pandas", "scipy", "scikit-learn",
                                                       "pyquaternion")}

@@ -14,6 +14,7 @@ Usage:
 The golden numbers are then made with scripts/devkit_crosscheck.py (see tests/fixtures/eval/README.md).
 """
 
+import json
 import math
 import os
 import subprocess
@@ -34,6 +35,12 @@ SIZES = {
     "motorcycle": (2.1, 0.8, 1.5), "truck": (7.0, 2.5, 3.0), "bus": (11.0, 2.9, 3.5),
     "trailer": (10.0, 2.5, 3.8),
 }
+
+EGO_POSE_JSON_SCHEMA = (
+    '{"title":"probmot.EgoPose","type":"object","properties":{"stamp":{"type":"integer"},'
+    '"translation":{"type":"array","items":{"type":"number"}},'
+    '"rotation":{"type":"array","items":{"type":"number"}}},'
+    '"required":["stamp","translation","rotation"]}')
 
 
 def descriptor_set_bytes():
@@ -76,6 +83,8 @@ class Scene:
         # Frames that have a message on each topic (default: all).
         self.gt_frames = set(range(n_frames))
         self.pred_frames = set(range(n_frames))
+        # Ego vehicle position per frame (global x, y, z), written to /ego_pose when set.
+        self.ego = None
 
     @staticmethod
     def _box(track_id, label, pos, vel, yaw, score):
@@ -129,6 +138,20 @@ class Scene:
                                               metadata={"probmot.fixture": self.name}),
             }
             seq = {"/ground_truth": 0, "/tracks": 0}
+            if self.ego is not None:
+                # The channel `probmot import nuscenes` writes: JSON {stamp, translation, rotation}.
+                ego_schema = w.register_schema(name="probmot.EgoPose", encoding="jsonschema",
+                                               data=EGO_POSE_JSON_SCHEMA.encode())
+                ego_channel = w.register_channel(topic="/ego_pose", message_encoding="json",
+                                                 schema_id=ego_schema,
+                                                 metadata={"probmot.fixture": self.name})
+                for fr in range(self.n):
+                    pose = {"stamp": self.stamp(fr),
+                            "translation": [float(v) for v in self.ego[fr]],
+                            "rotation": [1.0, 0.0, 0.0, 0.0]}
+                    w.add_message(channel_id=ego_channel, log_time=self.stamp(fr),
+                                  publish_time=self.stamp(fr), sequence=fr,
+                                  data=json.dumps(pose, separators=(",", ":")).encode())
             for fr in range(self.n):
                 for topic, boxes, present in (("/ground_truth", self.gt[fr], self.gt_frames),
                                               ("/tracks", self.pred[fr], self.pred_frames)):
@@ -388,7 +411,47 @@ def ties():
     return s
 
 
-FIXTURES = [perfect, idswitch_frag, false_positives, gaps_multiclass, ties]
+def range_filter():
+    s = Scene("range_filter", 30, 1006,
+              "ego drives along x at 8 m/s; objects enter and leave the 40/50 m class ranges; "
+              "/ego_pose channel for the range filter")
+    s.ego = [(8.0 * DT * f, 1.0, 0.0) for f in range(s.n)]
+    ego_x = np.array([e[0] for e in s.ego])
+    # Parked cars along the road: they come into the 50 m range and fall out of it behind.
+    for i, x in enumerate((20.0, 55.0, 90.0, 125.0, 160.0)):
+        p = s.path((x, 6.0 if i % 2 else -5.0), (0.0, 0.0))
+        s.add_gt(1 + i, "car", p, range(s.n))
+        s.add_track(101 + i, "car", p, range(s.n), 0.6 + 0.05 * i, noise=0.15)
+    # A car ahead whose distance oscillates across 50 m: the devkit drops it in the frames where
+    # it is out of range, then interpolation fills those frames again (GT and track alike).
+    ahead = (np.stack([ego_x + 50.0 + 1.5 * np.sin(np.arange(s.n) * 0.9), np.full(s.n, 1.0)], 1),
+             np.tile([8.0, 0.0], (s.n, 1)))
+    s.add_gt(10, "car", ahead, range(s.n))
+    s.add_track(110, "car", ahead, range(s.n), 0.7, noise=0.1)
+    # A truck ahead at 47-53 m, tracked with a lag (2.5 m behind: FN + FP when both are in range).
+    truck = (np.stack([ego_x + 50.0 + 3.0 * np.cos(np.arange(s.n) * 0.4), np.full(s.n, -3.0)], 1),
+             np.tile([8.0, 0.0], (s.n, 1)))
+    lagged = (truck[0] - np.array([2.5, 0.0]), truck[1])
+    s.add_gt(20, "truck", truck, range(s.n))
+    s.add_track(120, "truck", lagged, range(s.n), 0.5, noise=0.05)
+    # Pedestrians standing at the roadside: in the 40 m range only while the ego passes.
+    for i, x in enumerate((35.0, 70.0, 105.0)):
+        p = s.path((x, 8.0), (0.0, 0.3))
+        s.add_gt(30 + i, "pedestrian", p, range(s.n))
+        s.add_track(130 + i, "pedestrian", p, range(4, s.n), 0.55, noise=0.1)
+    # A bicycle riding ahead at 38-44 m (range 40 m).
+    bike = (np.stack([ego_x + 41.0 + 3.0 * np.sin(np.arange(s.n) * 0.5), np.full(s.n, 3.0)], 1),
+            np.tile([8.0, 0.0], (s.n, 1)))
+    s.add_gt(40, "bicycle", bike, range(s.n))
+    s.add_track(140, "bicycle", bike, range(s.n), 0.45, noise=0.1)
+    # False tracks: far away (removed by the filter) and near (kept: FP).
+    s.add_track(150, "car", s.path((60.0, 70.0), (0.0, 0.0)), range(s.n), 0.3, noise=0.05)
+    s.add_track(151, "pedestrian", (np.stack([ego_x + 10.0, np.full(s.n, -12.0)], 1),
+                                    np.tile([8.0, 0.0], (s.n, 1))), range(5, 15), 0.2, noise=0.05)
+    return s
+
+
+FIXTURES = [perfect, idswitch_frag, false_positives, gaps_multiclass, ties, range_filter]
 
 
 def main(argv):

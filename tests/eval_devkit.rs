@@ -299,3 +299,108 @@ fn many_logs_are_scored_together_like_the_devkit_scores_scenes() {
     );
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
+
+#[test]
+fn range_filter_equals_the_devkits_filter_eval_boxes() {
+    // `range_filter.mcap` carries an /ego_pose channel; the ego drives past parked cars and
+    // pedestrians, and objects ahead oscillate across the 40/50 m ranges. The devkit JSON with
+    // `.range` was made with its own add_center_dist + filter_eval_boxes (class_range).
+    let fixture = repo("tests/fixtures/eval/range_filter.mcap");
+    let fixture = fixture.to_str().unwrap();
+    let mut failures = Vec::new();
+    for (json, extra) in [
+        ("range_filter.devkit.json", None),
+        ("range_filter.range.devkit.json", Some("--max-range")),
+    ] {
+        let devkit: Value = serde_json::from_slice(
+            &std::fs::read(repo(&format!("tests/fixtures/eval/{json}"))).unwrap(),
+        )
+        .unwrap();
+        let mut args = vec!["eval", "--truth", fixture, "--json"];
+        args.extend(extra);
+        let ours: Value = serde_json::from_slice(&probmot_ok(&args).stdout).unwrap();
+        for (class, d) in devkit["classes"].as_object().unwrap() {
+            compare(
+                json,
+                class,
+                &ours["result"]["classes"][class],
+                d,
+                &mut failures,
+            );
+        }
+        compare(
+            json,
+            "overall",
+            &ours["result"]["overall"],
+            &devkit["overall"],
+            &mut failures,
+        );
+        if extra.is_some() {
+            let d = &devkit["inputs"]["range_filter"];
+            let o = &ours["range_filter"];
+            assert!(d["removed_truth_boxes"].as_u64().unwrap() > 0);
+            assert_eq!(o["removed_truth_boxes"], d["removed_truth_boxes"]);
+            assert_eq!(o["removed_track_boxes"], d["removed_track_boxes"]);
+        } else {
+            assert!(ours["range_filter"].is_null());
+        }
+    }
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    // The explicit spec of the devkit's table gives the same numbers as the default.
+    let table = probmot_ok(&[
+        "eval",
+        "--truth",
+        fixture,
+        "--json",
+        "--max-range",
+        "car=50,bus=50,trailer=50,truck=50,pedestrian=40,bicycle=40,motorcycle=40",
+    ]);
+    let table: Value = serde_json::from_slice(&table.stdout).unwrap();
+    let default: Value = serde_json::from_slice(
+        &probmot_ok(&["eval", "--truth", fixture, "--json", "--max-range"]).stdout,
+    )
+    .unwrap();
+    assert_eq!(table["result"], default["result"]);
+    // A tighter range removes more and changes the result.
+    let tight: Value = serde_json::from_slice(
+        &probmot_ok(&["eval", "--truth", fixture, "--json", "--max-range", "30"]).stdout,
+    )
+    .unwrap();
+    assert!(
+        tight["range_filter"]["removed_truth_boxes"].as_u64()
+            > default["range_filter"]["removed_truth_boxes"].as_u64()
+    );
+    assert_ne!(tight["result"]["overall"], default["result"]["overall"]);
+}
+
+#[test]
+fn range_filter_needs_an_ego_pose_and_the_nuscenes_protocol() {
+    let no_pose = repo("tests/fixtures/eval/perfect.mcap");
+    let r = probmot(&["eval", "--truth", no_pose.to_str().unwrap(), "--max-range"]);
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("perfect.mcap: no channel with topic /ego_pose")
+            && err.contains("--max-range"),
+        "{err}"
+    );
+    let with_pose = repo("tests/fixtures/eval/range_filter.mcap");
+    for (args, want) in [
+        (
+            vec!["--protocol", "kitti", "--max-range"],
+            "--max-range is a nuScenes option",
+        ),
+        (vec!["--max-range", "car=-1"], "not a positive number"),
+        (
+            vec!["--max-range", "--ego-topic", "/tracks"],
+            "the range filter needs probmot.EgoPose",
+        ),
+    ] {
+        let mut a = vec!["eval", "--truth", with_pose.to_str().unwrap()];
+        a.extend(args);
+        let r = probmot(&a);
+        assert_eq!(r.status.code(), Some(2), "{a:?}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(want), "{a:?}: {err}");
+    }
+}

@@ -5,6 +5,7 @@ pub mod kitti;
 pub mod mot_accumulator;
 pub mod numpy_compat;
 pub mod nuscenes;
+pub mod range;
 pub mod report;
 pub mod scene;
 

@@ -20,6 +20,10 @@ pub const DETECTIONS_SCHEMA: &str = "probmot.Detections3D";
 /// Schema name of a tracks (or ground truth) channel.
 pub const TRACKS_SCHEMA: &str = "probmot.Tracks3D";
 
+/// Schema name of an ego pose channel (`/ego_pose`, JSON messages `{stamp, translation,
+/// rotation}` in the global frame), as `probmot import nuscenes` writes it.
+pub const EGO_POSE_SCHEMA: &str = "probmot.EgoPose";
+
 /// How a message is encoded, from the MCAP channel's `message_encoding`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Encoding {

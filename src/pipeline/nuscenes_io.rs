@@ -34,8 +34,7 @@ use crate::tracker::config::NUSCENES_CLASSES;
 pub const NUSCENES_METADATA: &str = "probmot.nuscenes";
 /// Metadata record mapping each frame stamp (ns, decimal) to its sample token.
 pub const SAMPLES_METADATA: &str = "probmot.nuscenes.samples";
-/// Schema name of the `/ego_pose` channel (JSON messages).
-pub const EGO_POSE_SCHEMA: &str = "probmot.EgoPose";
+pub use crate::msgs::EGO_POSE_SCHEMA;
 /// JSON schema of an `/ego_pose` message.
 pub const EGO_POSE_JSON_SCHEMA: &str = r#"{"$schema":"https://json-schema.org/draft/2020-12/schema","title":"probmot.EgoPose","description":"Ego vehicle pose of a nuScenes sample, from the ego_pose record of the sample's LIDAR_TOP key frame (global frame).","type":"object","properties":{"stamp":{"type":"integer","description":"Frame stamp, ns (sample timestamp * 1000)"},"translation":{"type":"array","items":{"type":"number"},"minItems":3,"maxItems":3,"description":"x, y, z, metres"},"rotation":{"type":"array","items":{"type":"number"},"minItems":4,"maxItems":4,"description":"quaternion w, x, y, z"}},"required":["stamp","translation","rotation"]}"#;
 /// Coordinate frame of every box written by the import.
