@@ -831,3 +831,73 @@ fn export_refuses_nan_scores_foreign_files_and_repeated_scenes() {
     let e = String::from_utf8_lossy(&o.stderr);
     assert!(e.contains("scene_token") && e.contains("ok.mcap"), "{e}");
 }
+
+#[test]
+fn eval_range_filter_reads_the_imported_ego_poses() {
+    // Import, track, and evaluate with --max-range: the filter takes the ego position of each
+    // frame from the /ego_pose channel that the import wrote (kept in the tracked file).
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("imported");
+    import(&out);
+    let input = out.join("scene-0001.mcap");
+    let tracked = dir.path().join("scene-0001.tracked.mcap");
+    probmot_ok(&["track", s(&input), "-o", s(&tracked), "--quiet"]);
+    let ego: HashMap<u64, [f64; 3]> = messages(&tracked)
+        .iter()
+        .filter(|m| m.topic == "/ego_pose")
+        .map(|m| {
+            let v: Value = serde_json::from_slice(&m.data).unwrap();
+            let t = &v["translation"];
+            (
+                v["stamp"].as_u64().unwrap(),
+                [0, 1, 2].map(|k| t[k].as_f64().unwrap()),
+            )
+        })
+        .collect();
+    let truth = tracks(&tracked, "/ground_truth");
+    let dists: Vec<f64> = truth
+        .iter()
+        .flat_map(|f| {
+            let p = ego[&f.stamp];
+            f.tracks
+                .iter()
+                .filter(|t| CLASSES.contains(&t.label.as_str()))
+                .map(move |t| {
+                    let c = t.center.unwrap();
+                    (c.x - p[0]).hypot(c.y - p[1])
+                })
+        })
+        .collect();
+    assert!(!dists.is_empty());
+    let mut sorted = dists.clone();
+    sorted.sort_by(f64::total_cmp);
+    // Three ranges: beyond every box, through the middle, below every box.
+    for range in [
+        sorted[sorted.len() - 1] + 1.0,
+        sorted[sorted.len() / 2],
+        sorted[0] * 0.5,
+    ] {
+        let want = dists.iter().filter(|d| **d >= range).count() as u64;
+        let r = probmot(&[
+            "eval",
+            "--truth",
+            s(&tracked),
+            "--json",
+            "--max-range",
+            &format!("{range}"),
+        ]);
+        if want == dists.len() as u64 {
+            // Nothing left to evaluate: a clear error, not numbers.
+            assert_eq!(r.status.code(), Some(2));
+            assert!(String::from_utf8_lossy(&r.stderr).contains("no ground-truth box"));
+            continue;
+        }
+        assert!(r.status.success(), "{}", String::from_utf8_lossy(&r.stderr));
+        let v: Value = serde_json::from_slice(&r.stdout).unwrap();
+        assert_eq!(
+            v["range_filter"]["removed_truth_boxes"],
+            json!(want),
+            "range {range}"
+        );
+    }
+}
