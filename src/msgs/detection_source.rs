@@ -95,6 +95,15 @@ impl DetectionSource {
         unsupported("")
     }
 
+    /// The schema name of this kind of input (one name per kind, whatever the encoding).
+    pub fn schema_name(&self) -> &'static str {
+        match self {
+            DetectionSource::Probmot(_) => DETECTIONS_SCHEMA,
+            DetectionSource::Ros2Vision(_) => ros2_vision::SCHEMA_NAMES[0],
+            DetectionSource::FoxgloveScene => foxglove_scene::SCHEMA_NAME,
+        }
+    }
+
     /// What the channel holds, e.g. `vision_msgs/msg/Detection3DArray (cdr, vision_msgs 4.x
     /// layout)`.
     pub fn describe(&self) -> String {

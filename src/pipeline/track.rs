@@ -248,6 +248,23 @@ pub fn track_file(
                 detection_source::SUPPORTED
             ));
         }
+        let mut kinds: Vec<(&str, &str)> = s
+            .det_channels
+            .values()
+            .map(|(src, topic)| (src.schema_name(), topic.as_str()))
+            .collect();
+        kinds.sort();
+        if opts.detection_topics.is_empty()
+            && kinds.first().map(|k| &k.0) != kinds.last().map(|k| &k.0)
+        {
+            let list: Vec<String> = kinds.iter().map(|(k, t)| format!("{t} ({k})")).collect();
+            summary.warnings.push(format!(
+                "{file}: detection channels of different kinds are merged into one frame \
+                 sequence: {}; if some carry the same boxes (e.g. a visualization), choose with \
+                 --detections-topic",
+                list.join(", ")
+            ));
+        }
         Some(s)
     };
 
