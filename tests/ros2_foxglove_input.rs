@@ -921,3 +921,78 @@ fn default_selection_merges_detection_kinds_with_a_warning() {
     assert_eq!(v["detection_topics"], serde_json::json!(["/scene"]));
     assert_eq!(v["warnings"], serde_json::json!([]));
 }
+
+#[test]
+fn unreadable_channels_are_left_out_of_the_default_selection_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("mixed.mcap");
+    {
+        let mut w = mcap::Writer::new(std::io::BufWriter::new(
+            std::fs::File::create(&path).unwrap(),
+        ))
+        .unwrap();
+        let bytes = std::fs::read(repo(ROS2_FIXTURE)).unwrap();
+        let mut ch = None;
+        for m in mcap::MessageStream::new(&bytes).unwrap() {
+            let m = m.unwrap();
+            let id = *ch.get_or_insert_with(|| {
+                let s = m.channel.schema.as_ref().unwrap();
+                let sid = w.add_schema(&s.name, &s.encoding, &s.data).unwrap();
+                w.add_channel(sid, "/objects", "cdr", &BTreeMap::new())
+                    .unwrap()
+            });
+            let h = mcap::records::MessageHeader {
+                channel_id: id,
+                sequence: m.sequence,
+                log_time: m.log_time,
+                publish_time: m.publish_time,
+            };
+            w.write_to_known_channel(&h, &m.data).unwrap();
+        }
+        // A SceneUpdate in JSON: a detection schema in an encoding probmot does not read.
+        let sid = w
+            .add_schema("foxglove.SceneUpdate", "jsonschema", b"{}")
+            .unwrap();
+        let cid = w
+            .add_channel(sid, "/scene_json", "json", &BTreeMap::new())
+            .unwrap();
+        let h = mcap::records::MessageHeader {
+            channel_id: cid,
+            sequence: 0,
+            log_time: 1,
+            publish_time: 1,
+        };
+        w.write_to_known_channel(&h, b"{}").unwrap();
+        w.finish().unwrap();
+    }
+    let out = dir.path().join("out.mcap");
+    let r = probmot_ok(&[
+        "track",
+        path.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(v["detection_topics"], serde_json::json!(["/objects"]));
+    assert_eq!(v["frames"], 40);
+    let warnings: Vec<&str> = v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    assert!(
+        warnings[0].contains("/scene_json")
+            && warnings[0].contains("jsonschema")
+            && warnings[0].contains("not tracked"),
+        "{warnings:?}"
+    );
+    // Asked for by topic, the same channel is an error.
+    let err = track_err(&path, &["--detections-topic", "/scene_json"]);
+    assert!(
+        err.contains("/scene_json") && err.contains(SUPPORTED),
+        "{err}"
+    );
+}

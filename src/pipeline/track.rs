@@ -95,6 +95,8 @@ struct Scan {
     entries: Vec<(u64, u64)>,
     stamps_backwards: BTreeMap<String, u64>,
     topics: HashSet<String>,
+    /// Channels of a detection schema left out of the default selection, with the reason.
+    unreadable: BTreeMap<u16, String>,
 }
 
 /// Stamp of a detection message: its own `stamp`, else the MCAP `log_time`.
@@ -120,6 +122,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         entries: Vec::new(),
         stamps_backwards: BTreeMap::new(),
         topics: HashSet::new(),
+        unreadable: BTreeMap::new(),
     };
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     let mut ordinal = 0u64;
@@ -147,16 +150,25 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                     } else {
                         &schema_name
                     };
-                    let source = DetectionSource::for_channel(
+                    match DetectionSource::for_channel(
                         name,
                         &schema_enc,
                         &schema_data,
                         &c.message_encoding,
-                    )
-                    .map_err(|why| {
-                        anyhow::anyhow!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
-                    })?;
-                    s.det_channels.insert(c.id, (source, c.topic.clone()));
+                    ) {
+                        Ok(source) => {
+                            s.det_channels.insert(c.id, (source, c.topic.clone()));
+                        }
+                        // Chosen by topic: the user asked for it, so it is an error.
+                        Err(why) if !opts.detection_topics.is_empty() => {
+                            bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
+                        }
+                        // Chosen by default: left out, and reported below.
+                        Err(why) => {
+                            let why = format!("channel {} (topic {}): {why}", c.id, c.topic);
+                            s.unreadable.insert(c.id, why);
+                        }
+                    }
                 }
             }
             Record::Message { header, data } => {
@@ -194,6 +206,16 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         }
         Ok(())
     })?;
+    if s.det_channels.is_empty() && !s.unreadable.is_empty() {
+        bail!(
+            "{file}: no readable detection channel: {}",
+            s.unreadable
+                .values()
+                .cloned()
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
     for t in &opts.detection_topics {
         if !s.topics.contains(t) {
             bail!("{file}: no channel with topic {t} (given with --detections-topic)");
@@ -247,6 +269,11 @@ pub fn track_file(
                  without a tracks channel",
                 detection_source::SUPPORTED
             ));
+        }
+        for why in s.unreadable.values() {
+            summary
+                .warnings
+                .push(format!("{file}: {why}; this channel is not tracked"));
         }
         let mut kinds: Vec<(&str, &str)> = s
             .det_channels
