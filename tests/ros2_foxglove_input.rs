@@ -25,6 +25,9 @@ use serde::Serialize;
 const ROS2_FIXTURE: &str = "tests/fixtures/ros2/city.mcap";
 const FOXGLOVE_FIXTURE: &str = "tests/fixtures/foxglove/city.mcap";
 const PROBMOT_LOG: &str = "sample_logs/city.mcap";
+/// vision_msgs 2.x (Foxy) layout, from `sample_logs/turning-car.mcap`.
+const ROS2_V2_FIXTURE: &str = "tests/fixtures/ros2/turning-car-vision_msgs2.mcap";
+const PROBMOT_V2_LOG: &str = "sample_logs/turning-car.mcap";
 
 fn track(input: &Path, output: &Path) {
     probmot_ok(&[
@@ -41,7 +44,7 @@ fn close(a: f64, b: f64, what: &str) {
 }
 
 /// Same frames, same track ids and labels, boxes and states to 1e-9.
-fn assert_same_tracks(a: &[Tracks3D], b: &[Tracks3D], name: &str) {
+fn assert_same_tracks(a: &[Tracks3D], b: &[Tracks3D], name: &str, min_reports: usize) {
     assert_eq!(a.len(), b.len(), "{name}: number of frames");
     let mut n = 0;
     for (fa, fb) in a.iter().zip(b) {
@@ -79,20 +82,24 @@ fn assert_same_tracks(a: &[Tracks3D], b: &[Tracks3D], name: &str) {
             n += 1;
         }
     }
-    assert!(n > 500, "{name}: only {n} track reports compared");
+    assert!(n >= min_reports, "{name}: only {n} track reports compared");
 }
 
 #[test]
 fn ros2_and_foxglove_fixtures_track_exactly_like_the_probmot_log() {
     let dir = tempfile::tempdir().unwrap();
-    let reference = dir.path().join("probmot.mcap");
-    track(&repo(PROBMOT_LOG), &reference);
-    let want = tracks(&reference, "/tracks");
-    for (name, fixture) in [("ros2", ROS2_FIXTURE), ("foxglove", FOXGLOVE_FIXTURE)] {
-        let out = dir.path().join(format!("{name}.mcap"));
+    for (name, fixture, log, min_reports) in [
+        ("ros2", ROS2_FIXTURE, PROBMOT_LOG, 500),
+        ("foxglove", FOXGLOVE_FIXTURE, PROBMOT_LOG, 500),
+        ("ros2 vision_msgs 2.x", ROS2_V2_FIXTURE, PROBMOT_V2_LOG, 150),
+    ] {
+        let reference = dir.path().join("probmot.mcap");
+        track(&repo(log), &reference);
+        let want = tracks(&reference, "/tracks");
+        let out = dir.path().join("other.mcap");
         track(&repo(fixture), &out);
         let got = tracks(&out, "/tracks");
-        assert_same_tracks(&got, &want, name);
+        assert_same_tracks(&got, &want, name, min_reports);
         // The input messages are kept byte for byte.
         let before = messages(&repo(fixture));
         let after: Vec<Msg> = messages(&out)
@@ -105,8 +112,12 @@ fn ros2_and_foxglove_fixtures_track_exactly_like_the_probmot_log() {
 
 #[test]
 fn fixtures_decode_to_the_boxes_of_the_probmot_log() {
-    let want = detections(&repo(PROBMOT_LOG), "/detections");
-    for (name, fixture) in [("ros2", ROS2_FIXTURE), ("foxglove", FOXGLOVE_FIXTURE)] {
+    for (name, fixture, log) in [
+        ("ros2", ROS2_FIXTURE, PROBMOT_LOG),
+        ("foxglove", FOXGLOVE_FIXTURE, PROBMOT_LOG),
+        ("ros2 vision_msgs 2.x", ROS2_V2_FIXTURE, PROBMOT_V2_LOG),
+    ] {
+        let want = detections(&repo(log), "/detections");
         let bytes = std::fs::read(repo(fixture)).unwrap();
         let mut frames = vec![];
         for m in mcap::MessageStream::new(&bytes).unwrap() {
@@ -131,6 +142,9 @@ fn fixtures_decode_to_the_boxes_of_the_probmot_log() {
                 assert_eq!(a.score, b.score, "{name}: scores are copied exactly");
                 assert_eq!(a.center, b.center, "{name}: centres are copied exactly");
                 assert_eq!(a.size, b.size, "{name}: sizes are copied exactly");
+                if name.starts_with("ros2") {
+                    assert_eq!(a.attributes.get("id"), b.attributes.get("sim_truth_id"));
+                }
                 close(a.yaw, b.yaw, name);
             }
         }
@@ -139,9 +153,10 @@ fn fixtures_decode_to_the_boxes_of_the_probmot_log() {
 
 #[test]
 fn info_names_the_detection_channels() {
-    for (fixture, how) in [
-        (ROS2_FIXTURE, "vision_msgs 4.x layout"),
-        (FOXGLOVE_FIXTURE, "one box per cube"),
+    for (fixture, how, cars) in [
+        (ROS2_FIXTURE, "vision_msgs 4.x layout", 475),
+        (FOXGLOVE_FIXTURE, "one box per cube", 475),
+        (ROS2_V2_FIXTURE, "vision_msgs 2.x layout", 202),
     ] {
         let out = probmot_ok(&["info", repo(fixture).to_str().unwrap(), "--json"]);
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
@@ -151,7 +166,7 @@ fn info_names_the_detection_channels() {
             ch["detections_note"].as_str().unwrap().contains(how),
             "{ch}"
         );
-        assert_eq!(ch["per_label"]["car"], 475, "{fixture}");
+        assert_eq!(ch["per_label"]["car"], cars, "{fixture}");
         assert_eq!(ch["undecodable"], 0, "{fixture}");
         let text = probmot_ok(&["info", repo(fixture).to_str().unwrap()]);
         let text = String::from_utf8(text.stdout).unwrap();
@@ -166,7 +181,11 @@ fn info_names_the_detection_channels() {
 
 /// The schema text of the fixture (written by mcap-ros2-support's user, scripts/).
 fn fixture_schema_text() -> String {
-    let bytes = std::fs::read(repo(ROS2_FIXTURE)).unwrap();
+    schema_text_of(ROS2_FIXTURE)
+}
+
+fn schema_text_of(fixture: &str) -> String {
+    let bytes = std::fs::read(repo(fixture)).unwrap();
     let m = mcap::MessageStream::new(&bytes)
         .unwrap()
         .next()
@@ -343,6 +362,16 @@ fn vision_layout_is_read_from_the_schema_text() {
         err.contains("Detection3D") && err.contains("source_cloud") && err.contains("string id"),
         "{err}"
     );
+    // The 2.x layout as the fixture writer wrote it.
+    let v2 = schema_text_of(ROS2_V2_FIXTURE);
+    assert_eq!(
+        ros2_vision::detect_layout(v2.as_bytes()),
+        Ok(VisionLayout::V2)
+    );
+    // A 2.x Detection3D with a hypothesis of neither layout is refused.
+    let bad_v2 = v2.replace("string id\n\nfloat64 score", "int64 id\n\nfloat64 score");
+    let err = ros2_vision::detect_layout(bad_v2.as_bytes()).unwrap_err();
+    assert!(err.contains("int64 id") && err.contains("2.x"), "{err}");
     // The older hypothesis (`string id`, score) is refused too.
     let old_hyp = text.replace("string class_id", "string id");
     let err = ros2_vision::detect_layout(old_hyp.as_bytes()).unwrap_err();
@@ -766,14 +795,31 @@ fn fixtures_regenerate_byte_identical() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
-    for (script, fixture) in [
-        ("scripts/make_ros2_fixture.py", ROS2_FIXTURE),
-        ("scripts/make_foxglove_fixture.py", FOXGLOVE_FIXTURE),
+    for (script, log, extra, fixture) in [
+        (
+            "scripts/make_ros2_fixture.py",
+            PROBMOT_LOG,
+            None,
+            ROS2_FIXTURE,
+        ),
+        (
+            "scripts/make_ros2_fixture.py",
+            PROBMOT_V2_LOG,
+            Some(["--layout", "2"]),
+            ROS2_V2_FIXTURE,
+        ),
+        (
+            "scripts/make_foxglove_fixture.py",
+            PROBMOT_LOG,
+            None,
+            FOXGLOVE_FIXTURE,
+        ),
     ] {
         let out: PathBuf = dir.path().join("fixture.mcap");
         let r = Command::new("python3")
             .arg(repo(script))
-            .arg(repo(PROBMOT_LOG))
+            .arg(repo(log))
+            .args(extra.iter().flatten())
             .arg("-o")
             .arg(&out)
             .output()
@@ -824,7 +870,7 @@ fn corrupted_messages_never_panic() {
     };
     let mut errors = 0;
     let mut runs = 0;
-    for fixture in [ROS2_FIXTURE, FOXGLOVE_FIXTURE] {
+    for fixture in [ROS2_FIXTURE, FOXGLOVE_FIXTURE, ROS2_V2_FIXTURE] {
         for (source, data) in fixture_messages(fixture).into_iter().take(4) {
             for _ in 0..300 {
                 let mut d = data.clone();

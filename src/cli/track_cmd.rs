@@ -23,8 +23,8 @@ use super::show_progress;
 ///
 /// Detection inputs, chosen by each channel's schema and encodings (no flag needed):
 ///   probmot.Detections3D               protobuf or json
-///   vision_msgs/msg/Detection3DArray   ROS 2: ros2msg schema + cdr, vision_msgs 4.x layout
-///                                      (checked against the schema text); label and score
+///   vision_msgs/msg/Detection3DArray   ROS 2: ros2msg schema + cdr, vision_msgs 4.x or 2.x
+///                                      layout (read from the schema text); label and score
 ///                                      of the best-scoring hypothesis, yaw from the bbox
 ///                                      orientation, stamp from header.stamp
 ///   foxglove.SceneUpdate               protobuf; one box per cube; label from the entity

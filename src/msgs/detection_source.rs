@@ -16,7 +16,7 @@ use super::{
 /// The supported detection inputs, for error messages and help texts.
 pub const SUPPORTED: &str = "probmot.Detections3D (message encoding protobuf or json), \
      vision_msgs/msg/Detection3DArray (schema encoding ros2msg, message encoding cdr, \
-     vision_msgs 4.x), foxglove.SceneUpdate (schema and message encoding protobuf; one box per \
+     vision_msgs 4.x or 2.x layout), foxglove.SceneUpdate (schema and message encoding protobuf; one box per \
      cube)";
 
 /// How the messages of one detection channel are decoded.
