@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
+use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
 use probmot::pipeline::info::file_info;
 
 /// Show the channels of an MCAP file: schema, encodings, message counts, time range, and for
@@ -76,9 +77,28 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
                 .collect();
             println!("        boxes per class: {}", parts.join(", "));
         }
+        if c.role == "detections" {
+            println!("        detections: {}", c.detections_note);
+        } else if is_detection_schema(&c.schema) {
+            println!("        not usable as detections: {}", c.detections_note);
+        }
         if c.undecodable > 0 {
             println!("        {} messages could not be decoded", c.undecodable);
         }
+    }
+    let det: Vec<&str> = info
+        .channels
+        .iter()
+        .filter(|c| c.role == "detections")
+        .map(|c| c.topic.as_str())
+        .collect();
+    if det.is_empty() {
+        println!("detection channels: none (supported: {SUPPORTED})");
+    } else {
+        println!(
+            "detection channels (read by `track` by default): {}",
+            det.join(", ")
+        );
     }
     Ok(ExitCode::SUCCESS)
 }

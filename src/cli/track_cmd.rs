@@ -21,6 +21,17 @@ use super::show_progress;
 /// detection stamps, replayed in stamp order. The output is written to a temporary file and
 /// renamed at the end; the input is never modified.
 ///
+/// Detection inputs, chosen by each channel's schema and encodings (no flag needed):
+///   probmot.Detections3D               protobuf or json
+///   vision_msgs/msg/Detection3DArray   ROS 2: ros2msg schema + cdr, vision_msgs 4.x or 2.x
+///                                      layout (read from the schema text); label and score
+///                                      of the best-scoring hypothesis, yaw from the bbox
+///                                      orientation, stamp from header.stamp
+///   foxglove.SceneUpdate               protobuf; one box per cube; label from the entity
+///                                      metadata key `label` (else `class`, else `class_id`,
+///                                      else empty: the config's default entry), score from
+///                                      `score` (else 1); other metadata become attributes
+///
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot
@@ -41,7 +52,8 @@ pub struct TrackArgs {
     /// Files processed in parallel with --out-dir (default: number of cores).
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
-    /// Detection topic(s); default: every channel with schema probmot.Detections3D.
+    /// Detection topic(s); default: every channel of a supported detection schema
+    /// (probmot.Detections3D, vision_msgs/msg/Detection3DArray, foxglove.SceneUpdate).
     #[arg(long = "detections-topic", value_name = "TOPIC")]
     detections_topics: Vec<String>,
     /// Topic of the tracks channel to write.

@@ -8,7 +8,10 @@ mod generated {
 
 pub use generated::*;
 
+pub mod detection_source;
+pub mod foxglove_scene;
 pub mod ros2_common;
+pub mod ros2_vision;
 
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
 /// the data of each MCAP schema record (schema encoding `protobuf`).
@@ -53,6 +56,12 @@ pub enum DecodeError {
     /// Bad JSON.
     #[error("json: {0}")]
     Json(#[from] serde_json::Error),
+    /// Bad CDR (ROS 2) bytes.
+    #[error("cdr: {0}")]
+    Cdr(#[from] cdr::Error),
+    /// Well-formed bytes whose content cannot be used (e.g. a timestamp out of range).
+    #[error("{0}")]
+    Content(String),
 }
 
 /// Decodes a message of either encoding.

@@ -31,7 +31,26 @@ pub struct Header {
     /// Acquisition time.
     pub stamp: Time,
     /// Coordinate frame of the data.
+    #[serde(deserialize_with = "cdr_string")]
     pub frame_id: String,
+}
+
+/// Reads a ROS 2 CDR `string` (a `uint32` length that counts the terminating NUL, the bytes, the
+/// NUL) for `#[serde(deserialize_with = "cdr_string")]`.
+///
+/// The `cdr` crate's own `String` reader allocates and zero-fills the declared length before it
+/// checks that the bytes are there, so a corrupted length of 4 GiB costs 4 GiB of memory before
+/// the error. Read as a byte sequence instead, serde reserves at most 1 MiB up front and the
+/// read fails at the end of the data. A zero length (no NUL, written by some non-ROS writers) is
+/// read as the empty string; otherwise the last byte must be NUL and the rest UTF-8.
+pub fn cdr_string<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
+    use serde::de::Error as _;
+    let mut bytes = Vec::<u8>::deserialize(d)?;
+    match bytes.pop() {
+        None => Ok(String::new()),
+        Some(0) => String::from_utf8(bytes).map_err(|e| D::Error::custom(format!("string: {e}"))),
+        Some(_) => Err(D::Error::custom("string without its terminating NUL")),
+    }
 }
 
 /// `geometry_msgs/msg/Vector3` (also the layout of `geometry_msgs/msg/Point`).

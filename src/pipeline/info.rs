@@ -7,7 +7,8 @@ use anyhow::Result;
 use mcap::records::Record;
 
 use crate::mcapio::reader::read_records;
-use crate::msgs::{self, Detections3D, Encoding, Tracks3D};
+use crate::msgs::detection_source::{is_detection_schema, DetectionSource};
+use crate::msgs::{self, Encoding, Tracks3D};
 
 /// One channel of a recording.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -28,6 +29,9 @@ pub struct ChannelSummary {
     pub log_time_range: Option<(u64, u64)>,
     /// What probmot can do with it: "detections", "tracks", or empty.
     pub role: String,
+    /// Detection channels: how they are read (e.g. `vision_msgs/msg/Detection3DArray (cdr,
+    /// vision_msgs 4.x layout)`); other channels: why they are not read as detections.
+    pub detections_note: String,
     /// For detection and track channels: boxes per label.
     pub per_label: BTreeMap<String, u64>,
     /// Messages of a detections/tracks channel that failed to decode.
@@ -59,27 +63,41 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
         path: path.display().to_string(),
         ..Default::default()
     };
-    let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
+    let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
     let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
+    let mut sources: HashMap<u16, DetectionSource> = HashMap::new();
     read_records(path, |rec, _| {
         match rec {
             Record::Header(h) => {
                 out.profile = h.profile;
                 out.library = h.library;
             }
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, (header.name, header.encoding));
+            Record::Schema { header, data } => {
+                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
             }
             Record::Channel(c) => {
-                let (schema, schema_encoding) =
+                let (schema, schema_encoding, schema_data) =
                     schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let role = match (
-                    schema.as_str(),
-                    Encoding::from_message_encoding(&c.message_encoding),
-                ) {
-                    (msgs::DETECTIONS_SCHEMA, Some(_)) => "detections",
-                    (msgs::TRACKS_SCHEMA, Some(_)) => "tracks",
-                    _ => "",
+                let source = DetectionSource::for_channel(
+                    &schema,
+                    &schema_encoding,
+                    &schema_data,
+                    &c.message_encoding,
+                );
+                let detections_note = match &source {
+                    Ok(s) => s.describe(),
+                    Err(_) if !is_detection_schema(&schema) => "not a detection schema".to_string(),
+                    Err(why) => why.clone(),
+                };
+                let tracks = schema == msgs::TRACKS_SCHEMA
+                    && Encoding::from_message_encoding(&c.message_encoding).is_some();
+                let role = match source {
+                    Ok(s) => {
+                        sources.insert(c.id, s);
+                        "detections"
+                    }
+                    Err(_) if tracks => "tracks",
+                    Err(_) => "",
                 };
                 channels.entry(c.id).or_insert(ChannelSummary {
                     id: c.id,
@@ -88,6 +106,7 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                     schema_encoding,
                     message_encoding: c.message_encoding,
                     role: role.into(),
+                    detections_note,
                     ..Default::default()
                 });
             }
@@ -101,9 +120,9 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                         None => (t, t),
                     });
                     let enc = Encoding::from_message_encoding(&ch.message_encoding);
-                    match (ch.role.as_str(), enc) {
-                        ("detections", Some(enc)) => match msgs::decode::<Detections3D>(&data, enc)
-                        {
+                    let source = sources.get(&header.channel_id);
+                    match (ch.role.as_str(), enc, source) {
+                        ("detections", _, Some(source)) => match source.decode(&data) {
                             Ok(m) => {
                                 for d in m.detections {
                                     *ch.per_label.entry(d.label).or_default() += 1;
@@ -111,7 +130,7 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                             }
                             Err(_) => ch.undecodable += 1,
                         },
-                        ("tracks", Some(enc)) => match msgs::decode::<Tracks3D>(&data, enc) {
+                        ("tracks", Some(enc), _) => match msgs::decode::<Tracks3D>(&data, enc) {
                             Ok(m) => {
                                 for t in m.tracks {
                                     *ch.per_label.entry(t.label).or_default() += 1;

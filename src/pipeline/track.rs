@@ -19,16 +19,16 @@ use mcap::records::{MessageHeader, Record};
 use super::detections::{convert, InputCounters, Origin};
 use crate::mcapio::reader::read_records;
 use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputOptions};
-use crate::msgs::{
-    self, v3, Detections3D, DetectionsEnvelope, Encoding, ImageBox, Track3D, Tracks3D,
-};
+use crate::msgs::detection_source::{self, DetectionSource};
+use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
 
 /// Settings of one `track` run.
 #[derive(Debug, Clone)]
 pub struct TrackOptions {
-    /// Detection topics; empty: every channel whose schema is `probmot.Detections3D`.
+    /// Detection topics; empty: every channel of a supported detection schema
+    /// ([`detection_source::is_detection_schema`]).
     pub detection_topics: Vec<String>,
     /// Topic of the tracks channel written.
     pub tracks_topic: String,
@@ -90,11 +90,13 @@ struct Scan {
     profile: String,
     schema_ids: HashSet<u16>,
     channel_ids: HashSet<u16>,
-    det_channels: HashMap<u16, (Encoding, String)>,
+    det_channels: HashMap<u16, (DetectionSource, String)>,
     /// `(stamp, ordinal)` of every detection message.
     entries: Vec<(u64, u64)>,
     stamps_backwards: BTreeMap<String, u64>,
     topics: HashSet<String>,
+    /// Channels of a detection schema left out of the default selection, with the reason.
+    unreadable: BTreeMap<u16, String>,
 }
 
 /// Stamp of a detection message: its own `stamp`, else the MCAP `log_time`.
@@ -111,7 +113,7 @@ fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
 
 fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
     let file = input.display().to_string();
-    let mut schemas: HashMap<u16, String> = HashMap::new();
+    let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
     let mut s = Scan {
         profile: String::new(),
         schema_ids: HashSet::new(),
@@ -120,67 +122,74 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         entries: Vec::new(),
         stamps_backwards: BTreeMap::new(),
         topics: HashSet::new(),
+        unreadable: BTreeMap::new(),
     };
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     let mut ordinal = 0u64;
     read_records(input, |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
-            Record::Schema { header, .. } => {
+            Record::Schema { header, data } => {
                 s.schema_ids.insert(header.id);
-                schemas.insert(header.id, header.name);
+                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
             }
             Record::Channel(c) => {
                 s.channel_ids.insert(c.id);
                 s.topics.insert(c.topic.clone());
-                let schema_name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let (schema_name, schema_enc, schema_data) =
+                    schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 let wanted = if opts.detection_topics.is_empty() {
-                    schema_name == msgs::DETECTIONS_SCHEMA
+                    detection_source::is_detection_schema(&schema_name)
                 } else {
                     opts.detection_topics.contains(&c.topic)
                 };
                 if wanted {
-                    let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
-                        bail!(
-                            "{file}: channel {} ({}) has message encoding '{}' with schema '{}'; \
-                             detections are read as {} with encoding protobuf or json",
-                            c.id,
-                            c.topic,
-                            c.message_encoding,
-                            schema_name,
-                            msgs::DETECTIONS_SCHEMA
-                        );
+                    // A schemaless channel given by topic is read as probmot.Detections3D.
+                    let name = if schema_name.is_empty() {
+                        msgs::DETECTIONS_SCHEMA
+                    } else {
+                        &schema_name
                     };
-                    if !schema_name.is_empty() && schema_name != msgs::DETECTIONS_SCHEMA {
-                        bail!(
-                            "{file}: topic {} has schema '{}'; supported detection schemas: {}",
-                            c.topic,
-                            schema_name,
-                            msgs::DETECTIONS_SCHEMA
-                        );
+                    match DetectionSource::for_channel(
+                        name,
+                        &schema_enc,
+                        &schema_data,
+                        &c.message_encoding,
+                    ) {
+                        Ok(source) => {
+                            s.det_channels.insert(c.id, (source, c.topic.clone()));
+                        }
+                        // Chosen by topic: the user asked for it, so it is an error.
+                        Err(why) if !opts.detection_topics.is_empty() => {
+                            bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
+                        }
+                        // Chosen by default: left out, and reported below.
+                        Err(why) => {
+                            let why = format!("channel {} (topic {}): {why}", c.id, c.topic);
+                            s.unreadable.insert(c.id, why);
+                        }
                     }
-                    s.det_channels.insert(c.id, (enc, c.topic.clone()));
                 }
             }
             Record::Message { header, data } => {
-                if let Some((enc, topic)) = s.det_channels.get(&header.channel_id) {
-                    let msg: DetectionsEnvelope = msgs::decode(&data, *enc).with_context(|| {
+                if let Some((source, topic)) = s.det_channels.get(&header.channel_id) {
+                    let (msg_stamp, count) = source.stamp_and_count(&data).with_context(|| {
                         format!(
                             "{}: cannot decode {}",
                             describe_message(&file, topic, &header),
-                            msgs::DETECTIONS_SCHEMA
+                            source.describe()
                         )
                     })?;
-                    if msg.detections.len() > opts.max_detections_per_message {
+                    if count > opts.max_detections_per_message {
                         bail!(
                             "{}: {} detections in one message, more than the limit of {} \
                              (--max-detections)",
                             describe_message(&file, topic, &header),
-                            msg.detections.len(),
+                            count,
                             opts.max_detections_per_message
                         );
                     }
-                    let stamp = msg.stamp.unwrap_or(header.log_time);
+                    let stamp = msg_stamp.unwrap_or(header.log_time);
                     if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
                         if stamp < prev {
                             *s.stamps_backwards.entry(topic.clone()).or_default() += 1;
@@ -197,6 +206,16 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         }
         Ok(())
     })?;
+    if s.det_channels.is_empty() && !s.unreadable.is_empty() {
+        bail!(
+            "{file}: no readable detection channel: {}",
+            s.unreadable
+                .values()
+                .cloned()
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
+    }
     for t in &opts.detection_topics {
         if !s.topics.contains(t) {
             bail!("{file}: no channel with topic {t} (given with --detections-topic)");
@@ -246,9 +265,31 @@ pub fn track_file(
         }
         if s.det_channels.is_empty() {
             summary.warnings.push(format!(
-                "{file}: no detection channel (schema {}); the log is copied unchanged without a \
-                 tracks channel",
-                msgs::DETECTIONS_SCHEMA
+                "{file}: no detection channel (supported: {}); the log is copied unchanged \
+                 without a tracks channel",
+                detection_source::SUPPORTED
+            ));
+        }
+        for why in s.unreadable.values() {
+            summary
+                .warnings
+                .push(format!("{file}: {why}; this channel is not tracked"));
+        }
+        let mut kinds: Vec<(&str, &str)> = s
+            .det_channels
+            .values()
+            .map(|(src, topic)| (src.schema_name(), topic.as_str()))
+            .collect();
+        kinds.sort();
+        if opts.detection_topics.is_empty()
+            && kinds.first().map(|k| &k.0) != kinds.last().map(|k| &k.0)
+        {
+            let list: Vec<String> = kinds.iter().map(|(k, t)| format!("{t} ({k})")).collect();
+            summary.warnings.push(format!(
+                "{file}: detection channels of different kinds are merged into one frame \
+                 sequence: {}; if some carry the same boxes (e.g. a visualization), choose with \
+                 --detections-topic",
+                list.join(", ")
             ));
         }
         Some(s)
@@ -258,7 +299,7 @@ pub fn track_file(
     let mut frames: Vec<(u64, u32)> = Vec::new();
     let mut profile = String::new();
     let mut topics: Vec<String> = Vec::new();
-    let mut det_channels: HashMap<u16, (Encoding, usize)> = HashMap::new();
+    let mut det_channels: HashMap<u16, (DetectionSource, usize)> = HashMap::new();
     let mut ids = None;
     if let Some(mut s) = scan {
         s.entries.sort_unstable();
@@ -272,7 +313,7 @@ pub fn track_file(
         summary.detection_messages = s.entries.len() as u64;
         summary.stamps_backwards = s.stamps_backwards;
         profile = s.profile;
-        let mut det: Vec<(u16, (Encoding, String))> = s.det_channels.into_iter().collect();
+        let mut det: Vec<(u16, (DetectionSource, String))> = s.det_channels.into_iter().collect();
         det.sort_by_key(|(id, _)| *id);
         for (id, (enc, topic)) in det {
             if !topics.contains(&topic) {
@@ -356,8 +397,9 @@ pub fn track_file(
                         )
                     })?;
                 summary.messages_copied += 1;
-                if let Some(&(enc, topic_idx)) = det_channels.get(&header.channel_id) {
-                    let msg: Detections3D = msgs::decode(&data, enc)
+                if let Some(&(source, topic_idx)) = det_channels.get(&header.channel_id) {
+                    let msg: Detections3D = source
+                        .decode(&data)
                         .with_context(|| describe_message(&file, &topics[topic_idx], &header))?;
                     let stamp = stamp_of(&msg, header.log_time);
                     pending.entry(stamp).or_default().push(Pending {

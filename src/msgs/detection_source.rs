@@ -1,0 +1,150 @@
+//! Which channels probmot reads detections from, and how: the input kind is chosen from the
+//! channel's schema name, schema encoding and message encoding, with no flag, and every kind
+//! decodes to probmot's own [`Detections3D`] (stamp, frame_id, boxes).
+//!
+//! | schema name | schema encoding | message encoding |
+//! |---|---|---|
+//! | `probmot.Detections3D` | any (`protobuf` as probmot writes it) | `protobuf` or `json` |
+//! | `vision_msgs/msg/Detection3DArray` | `ros2msg` | `cdr` |
+//! | `foxglove.SceneUpdate` | `protobuf` | `protobuf` |
+
+use super::{
+    decode as decode_probmot, foxglove_scene, ros2_vision, DecodeError, Detections3D,
+    DetectionsEnvelope, Encoding, DETECTIONS_SCHEMA,
+};
+
+/// The supported detection inputs, for error messages and help texts.
+pub const SUPPORTED: &str = "probmot.Detections3D (message encoding protobuf or json), \
+     vision_msgs/msg/Detection3DArray (schema encoding ros2msg, message encoding cdr, \
+     vision_msgs 4.x or 2.x layout), foxglove.SceneUpdate (schema and message encoding protobuf; one box per \
+     cube)";
+
+/// How the messages of one detection channel are decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DetectionSource {
+    /// `probmot.Detections3D` in protobuf or JSON.
+    Probmot(Encoding),
+    /// ROS 2 `vision_msgs/msg/Detection3DArray` in CDR, with the layout its schema text gives.
+    Ros2Vision(ros2_vision::VisionLayout),
+    /// `foxglove.SceneUpdate` in protobuf; one box per cube.
+    FoxgloveScene,
+}
+
+/// True for the schema names of the supported detection inputs (whatever their encodings):
+/// the channels `track` reads by default.
+pub fn is_detection_schema(schema_name: &str) -> bool {
+    schema_name == DETECTIONS_SCHEMA
+        || ros2_vision::SCHEMA_NAMES.contains(&schema_name)
+        || schema_name == foxglove_scene::SCHEMA_NAME
+}
+
+impl DetectionSource {
+    /// The decoder for a channel, or why its messages cannot be read as detections (the reason
+    /// names the channel's schema and encodings and lists the supported ones).
+    pub fn for_channel(
+        schema_name: &str,
+        schema_encoding: &str,
+        schema_data: &[u8],
+        message_encoding: &str,
+    ) -> Result<DetectionSource, String> {
+        let unsupported = |why: &str| {
+            Err(format!(
+                "{why}; supported detection inputs: {SUPPORTED}",
+                why = if why.is_empty() {
+                    format!(
+                        "schema '{schema_name}' (schema encoding '{schema_encoding}', message \
+                         encoding '{message_encoding}') is not a detection schema probmot reads"
+                    )
+                } else {
+                    why.to_string()
+                }
+            ))
+        };
+        if schema_name == DETECTIONS_SCHEMA {
+            return match Encoding::from_message_encoding(message_encoding) {
+                Some(enc) => Ok(DetectionSource::Probmot(enc)),
+                None => unsupported(&format!(
+                    "schema '{schema_name}' with message encoding '{message_encoding}' (probmot \
+                     reads protobuf or json)"
+                )),
+            };
+        }
+        if ros2_vision::SCHEMA_NAMES.contains(&schema_name) {
+            if schema_encoding != "ros2msg" || message_encoding != "cdr" {
+                return unsupported(&format!(
+                    "schema '{schema_name}' with schema encoding '{schema_encoding}' and message \
+                     encoding '{message_encoding}' (probmot reads ros2msg + cdr)"
+                ));
+            }
+            return match ros2_vision::detect_layout(schema_data) {
+                Ok(layout) => Ok(DetectionSource::Ros2Vision(layout)),
+                Err(why) => Err(format!(
+                    "schema '{schema_name}': unsupported field layout: {why}"
+                )),
+            };
+        }
+        if schema_name == foxglove_scene::SCHEMA_NAME {
+            if schema_encoding != "protobuf" || message_encoding != "protobuf" {
+                return unsupported(&format!(
+                    "schema '{schema_name}' with schema encoding '{schema_encoding}' and message \
+                     encoding '{message_encoding}' (probmot reads protobuf)"
+                ));
+            }
+            return Ok(DetectionSource::FoxgloveScene);
+        }
+        unsupported("")
+    }
+
+    /// The schema name of this kind of input (one name per kind, whatever the encoding).
+    pub fn schema_name(&self) -> &'static str {
+        match self {
+            DetectionSource::Probmot(_) => DETECTIONS_SCHEMA,
+            DetectionSource::Ros2Vision(_) => ros2_vision::SCHEMA_NAMES[0],
+            DetectionSource::FoxgloveScene => foxglove_scene::SCHEMA_NAME,
+        }
+    }
+
+    /// What the channel holds, e.g. `vision_msgs/msg/Detection3DArray (cdr, vision_msgs 4.x
+    /// layout)`.
+    pub fn describe(&self) -> String {
+        match self {
+            DetectionSource::Probmot(Encoding::Protobuf) => {
+                format!("{DETECTIONS_SCHEMA} (protobuf)")
+            }
+            DetectionSource::Probmot(Encoding::Json) => format!("{DETECTIONS_SCHEMA} (json)"),
+            DetectionSource::Ros2Vision(l) => {
+                format!("{} (cdr, {})", ros2_vision::SCHEMA_NAMES[0], l.describe())
+            }
+            DetectionSource::FoxgloveScene => {
+                format!(
+                    "{} (protobuf, one box per cube)",
+                    foxglove_scene::SCHEMA_NAME
+                )
+            }
+        }
+    }
+
+    /// Decodes one message.
+    pub fn decode(&self, bytes: &[u8]) -> Result<Detections3D, DecodeError> {
+        match *self {
+            DetectionSource::Probmot(enc) => decode_probmot(bytes, enc),
+            DetectionSource::Ros2Vision(layout) => ros2_vision::decode(bytes, layout),
+            DetectionSource::FoxgloveScene => foxglove_scene::decode(bytes),
+        }
+    }
+
+    /// The stamp and the number of boxes of one message, for the first pass of `track`:
+    /// probmot messages are read without building their boxes, the other kinds fully.
+    pub fn stamp_and_count(&self, bytes: &[u8]) -> Result<(Option<u64>, usize), DecodeError> {
+        match *self {
+            DetectionSource::Probmot(enc) => {
+                let e: DetectionsEnvelope = decode_probmot(bytes, enc)?;
+                Ok((e.stamp, e.detections.len()))
+            }
+            _ => {
+                let m = self.decode(bytes)?;
+                Ok((m.stamp, m.detections.len()))
+            }
+        }
+    }
+}
