@@ -36,6 +36,8 @@ fn bench(c: &mut Criterion) {
         no_track: false,
         strict: false,
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
+        ego: Default::default(),
+        scene_topic: None,
     };
     let mut g = c.benchmark_group("track_path");
     g.sample_size(10);

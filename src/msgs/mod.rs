@@ -9,6 +9,7 @@ mod generated {
 pub use generated::*;
 
 pub mod ros2_common;
+pub mod ros2_tf;
 
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
 /// the data of each MCAP schema record (schema encoding `protobuf`).

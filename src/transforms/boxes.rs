@@ -1,0 +1,78 @@
+//! Moving boxes between frames with a rigid transform.
+//!
+//! The centre goes through the full 3D transform. The heading is the direction of the box's
+//! x axis projected on the ground: its yaw after the transform is the direction of the rotated
+//! heading vector, which is `yaw + rotation's yaw` when the rotation is about z. That is the
+//! assumption for boxes (the ego frame's z axis stays vertical, as for a car on level ground);
+//! under roll or pitch the box is still upright in the target frame, not tilted.
+//! Velocities are rotated (not translated), so they keep meaning "over ground, in these axes".
+
+use nalgebra::{Isometry3, Point3, Vector3};
+
+use crate::msgs::{self, Detections3D, Track3D, Tracks3D};
+use crate::tracker::angle::wrap;
+
+/// Yaw after rotating a heading of `yaw` by `iso`.
+pub fn transform_yaw(iso: &Isometry3<f64>, yaw: f64) -> f64 {
+    let h = iso.rotation * Vector3::new(yaw.cos(), yaw.sin(), 0.0);
+    if h.x == 0.0 && h.y == 0.0 {
+        // The heading became vertical (a 90-degree pitch): keep the input.
+        return yaw;
+    }
+    wrap(h.y.atan2(h.x))
+}
+
+fn point(iso: &Isometry3<f64>, v: &msgs::Vector3) -> msgs::Vector3 {
+    let p = iso * Point3::new(v.x, v.y, v.z);
+    msgs::v3([p.x, p.y, p.z])
+}
+
+fn rotate(iso: &Isometry3<f64>, v: &msgs::Vector3) -> msgs::Vector3 {
+    let r = iso.rotation * Vector3::new(v.x, v.y, v.z);
+    msgs::v3([r.x, r.y, r.z])
+}
+
+/// Moves every box of a detection message by `iso` (source to target frame) and sets its
+/// `frame_id` to `target`.
+pub fn transform_detections(msg: &mut Detections3D, iso: &Isometry3<f64>, target: &str) {
+    for d in &mut msg.detections {
+        if let Some(c) = &mut d.center {
+            *c = point(iso, c);
+        }
+        d.yaw = transform_yaw(iso, d.yaw);
+        if let Some(v) = &mut d.velocity {
+            *v = rotate(iso, v);
+        }
+    }
+    msg.frame_id.clear();
+    msg.frame_id.push_str(target);
+}
+
+/// Moves one track by `iso`: centre, yaw and velocity (the variances, yaw rate and size are
+/// kept as they are).
+pub fn transform_track(t: &mut Track3D, iso: &Isometry3<f64>) {
+    if let Some(c) = &mut t.center {
+        *c = point(iso, c);
+    }
+    t.yaw = transform_yaw(iso, t.yaw);
+    if let Some(v) = &mut t.velocity {
+        *v = rotate(iso, v);
+    }
+}
+
+/// Writes into `out` the tracks of `src` moved by `iso`, in frame `frame_id` (reusing `out`'s
+/// allocations).
+pub fn transform_tracks_into(
+    src: &Tracks3D,
+    iso: &Isometry3<f64>,
+    frame_id: &str,
+    out: &mut Tracks3D,
+) {
+    out.stamp = src.stamp;
+    out.frame_id.clear();
+    out.frame_id.push_str(frame_id);
+    out.tracks.clone_from(&src.tracks);
+    for t in &mut out.tracks {
+        transform_track(t, iso);
+    }
+}
