@@ -8,6 +8,8 @@ use mcap::records::Record;
 
 use crate::mcapio::reader::read_records;
 use crate::msgs::{self, Detections3D, Encoding, Tracks3D};
+use crate::transforms::buffer::EdgeSummary;
+use crate::transforms::TransformCollector;
 
 /// One channel of a recording.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -51,6 +53,8 @@ pub struct FileSummary {
     pub metadata: u64,
     /// All messages.
     pub messages: u64,
+    /// The transform tree read from the transform channels (see [`crate::transforms`]).
+    pub transform_tree: Vec<EdgeSummary>,
 }
 
 /// Reads the whole file and summarises it.
@@ -61,6 +65,8 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
     };
     let mut schemas: HashMap<u16, (String, String)> = HashMap::new();
     let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
+    let mut transforms = TransformCollector::new();
+    let file = path.display().to_string();
     read_records(path, |rec, _| {
         match rec {
             Record::Header(h) => {
@@ -73,12 +79,14 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
             Record::Channel(c) => {
                 let (schema, schema_encoding) =
                     schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let is_transform = transforms.on_channel(&c, &schema).is_some();
                 let role = match (
                     schema.as_str(),
                     Encoding::from_message_encoding(&c.message_encoding),
                 ) {
                     (msgs::DETECTIONS_SCHEMA, Some(_)) => "detections",
                     (msgs::TRACKS_SCHEMA, Some(_)) => "tracks",
+                    _ if is_transform => "transforms",
                     _ => "",
                 };
                 channels.entry(c.id).or_insert(ChannelSummary {
@@ -100,6 +108,12 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                         Some((a, b)) => (a.min(t), b.max(t)),
                         None => (t, t),
                     });
+                    if transforms.on_message(&file, &header, &data) {
+                        ch.undecodable = transforms
+                            .per_topic
+                            .get(&ch.topic)
+                            .map_or(0, |c| c.undecodable);
+                    }
                     let enc = Encoding::from_message_encoding(&ch.message_encoding);
                     match (ch.role.as_str(), enc) {
                         ("detections", Some(enc)) => match msgs::decode::<Detections3D>(&data, enc)
@@ -130,5 +144,7 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
         Ok(())
     })?;
     out.channels = channels.into_values().collect();
+    transforms.finish();
+    out.transform_tree = transforms.buffer.summary();
     Ok(out)
 }

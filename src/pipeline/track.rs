@@ -419,7 +419,6 @@ pub fn track_file(
                         extra.write_frame(
                             &mut out.writer,
                             &frame_state.out,
-                            tracker.deleted(),
                             ego.take_ego(stamp),
                             next_frame as u32,
                         )?;

@@ -28,6 +28,9 @@ pub struct ExtraOutputs {
     ego_msg: Tracks3D,
     buf: Vec<u8>,
     ego_sequence: u32,
+    /// Track ids with an entity in the scene (sorted), and the ids to delete this frame.
+    shown: Vec<u64>,
+    gone: Vec<u64>,
 }
 
 type ScanIds = (HashSet<u16>, HashSet<u16>, HashSet<String>);
@@ -52,6 +55,8 @@ impl ExtraOutputs {
             ego_msg: Tracks3D::default(),
             buf: Vec::new(),
             ego_sequence: 0,
+            shown: Vec::new(),
+            gone: Vec::new(),
         };
         let (Some((schemas, channels, topics)), Some((tracks_schema, tracks_channel))) =
             (scan, tracks_ids)
@@ -106,12 +111,12 @@ impl ExtraOutputs {
     }
 
     /// Writes one frame's extra messages: the tracks in the ego frame (when its transform is
-    /// known; `ego` = detection frame and fixed-to-ego transform) and the scene update.
+    /// known; `ego` = detection frame and fixed-to-ego transform) and the scene update (with
+    /// deletions for the tracks shown before and not reported now).
     pub fn write_frame(
         &mut self,
         w: &mut Writer<BufWriter<File>>,
         tracks: &Tracks3D,
-        deleted: &[u64],
         ego: Option<(String, Isometry3<f64>)>,
         sequence: u32,
     ) -> Result<()> {
@@ -130,7 +135,18 @@ impl ExtraOutputs {
             w.write_to_known_channel(&h, &self.buf)?;
         }
         if let Some((_, _, id)) = &self.scene {
-            msgs::encode_into(&scene_update(tracks, deleted), &mut self.buf);
+            // Delete the entities of the tracks no longer reported (dead, or not reported in
+            // this frame), so that the scene shows exactly the tracks of the tracks channel.
+            self.gone.clear();
+            for &old in &self.shown {
+                if !tracks.tracks.iter().any(|t| t.id == old) {
+                    self.gone.push(old);
+                }
+            }
+            self.shown.clear();
+            self.shown.extend(tracks.tracks.iter().map(|t| t.id));
+            self.shown.sort_unstable();
+            msgs::encode_into(&scene_update(tracks, &self.gone), &mut self.buf);
             w.write_to_known_channel(&header(*id), &self.buf)?;
         }
         Ok(())

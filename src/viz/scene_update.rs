@@ -5,7 +5,9 @@
 //! the track id's stable colour, [`crate::viz::plot::id_color`]), a text above it (`<id>
 //! <label>`), and an arrow from the centre along the velocity (length = 1 s of travel) when
 //! the track moves faster than [`MIN_ARROW_SPEED`]. Entities have no lifetime (they stay until
-//! replaced); the update of a frame deletes the entities of the tracks that died in it.
+//! replaced or deleted); the update of a frame deletes the entities of the tracks that are no
+//! longer reported (a track that died, or one not reported in this frame), so the scene shows
+//! exactly the tracks of the tracks channel.
 
 use foxglove::schemas::{
     scene_entity_deletion, ArrowPrimitive, Color, CubePrimitive, Pose, Quaternion, SceneEntity,
@@ -65,7 +67,7 @@ pub fn track_color(id: u64, alpha: f64) -> Color {
 }
 
 /// Builds the scene update of one frame: entities for the tracks of `tracks` (in its
-/// `frame_id`) and deletions for the ids in `deleted`.
+/// `frame_id`) and deletions for the track ids in `deleted`.
 pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
     let ts = timestamp(tracks.stamp);
     let deletions = deleted
