@@ -76,3 +76,47 @@ pub fn transform_tracks_into(
         transform_track(t, iso);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msgs::Detection3D;
+
+    #[test]
+    fn boxes_move_with_the_full_rotation_and_yaw_adds_the_rotation_yaw() {
+        let iso = Isometry3::new(
+            Vector3::new(10.0, 5.0, 1.0),
+            Vector3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2),
+        );
+        let mut m = Detections3D {
+            stamp: Some(1),
+            frame_id: "base_link".into(),
+            detections: vec![Detection3D {
+                center: Some(msgs::v3([2.0, 0.0, 0.5])),
+                yaw: 3.0,
+                velocity: Some(msgs::v3([1.0, 0.0, 0.0])),
+                ..Default::default()
+            }],
+        };
+        transform_detections(&mut m, &iso, "map");
+        let d = &m.detections[0];
+        let c = d.center.unwrap();
+        assert!(
+            (c.x - 10.0).abs() < 1e-12 && (c.y - 7.0).abs() < 1e-12 && (c.z - 1.5).abs() < 1e-12
+        );
+        assert!((d.yaw - wrap(3.0 + std::f64::consts::FRAC_PI_2)).abs() < 1e-12);
+        let v = d.velocity.unwrap();
+        assert!(v.x.abs() < 1e-12 && (v.y - 1.0).abs() < 1e-12);
+        assert_eq!(m.frame_id, "map");
+        // And back.
+        let mut t = Track3D {
+            center: Some(c),
+            yaw: d.yaw,
+            ..Default::default()
+        };
+        transform_track(&mut t, &iso.inverse());
+        let b = t.center.unwrap();
+        assert!((b.x - 2.0).abs() < 1e-12 && b.y.abs() < 1e-12);
+        assert!((t.yaw - 3.0).abs() < 1e-12);
+    }
+}

@@ -354,3 +354,129 @@ pub fn rigid(translation: [f64; 3], quaternion: [f64; 4]) -> Option<Isometry3<f6
         UnitQuaternion::from_quaternion(q),
     ))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use nalgebra::Point3;
+    use std::f64::consts::FRAC_PI_2;
+
+    fn yaw_iso(x: f64, y: f64, yaw: f64) -> Isometry3<f64> {
+        Isometry3::new(Vector3::new(x, y, 0.0), Vector3::new(0.0, 0.0, yaw))
+    }
+
+    #[test]
+    fn interpolates_translation_linearly_and_rotation_by_slerp() {
+        let mut b = TransformBuffer::new();
+        b.add("map", "base_link", 1000, yaw_iso(0.0, 0.0, 0.0), false);
+        b.add(
+            "map",
+            "base_link",
+            3000,
+            yaw_iso(4.0, 2.0, FRAC_PI_2),
+            false,
+        );
+        b.finish();
+        let t = b.lookup("map", "base_link", 1500).unwrap();
+        assert!((t.translation.vector - Vector3::new(1.0, 0.5, 0.0)).norm() < 1e-12);
+        assert!((t.rotation.euler_angles().2 - FRAC_PI_2 / 4.0).abs() < 1e-12);
+        // Exact samples are returned as they are.
+        assert_eq!(
+            b.lookup("map", "base_link", 3000).unwrap(),
+            yaw_iso(4.0, 2.0, FRAC_PI_2)
+        );
+        // The inverse direction maps back.
+        let inv = b.lookup("base_link", "map", 1500).unwrap();
+        let p = Point3::new(3.0, -1.0, 2.0);
+        assert!((inv * (t * p) - p).norm() < 1e-12);
+    }
+
+    #[test]
+    fn outside_the_time_range_holds_within_the_tolerance_and_refuses_beyond() {
+        let mut b = TransformBuffer::new();
+        b.tolerance_ns = 100;
+        b.add("map", "base_link", 1000, yaw_iso(1.0, 0.0, 0.0), false);
+        b.add("map", "base_link", 2000, yaw_iso(2.0, 0.0, 0.0), false);
+        b.finish();
+        assert_eq!(
+            b.lookup("map", "base_link", 2100).unwrap(),
+            yaw_iso(2.0, 0.0, 0.0)
+        );
+        assert_eq!(
+            b.lookup("map", "base_link", 900).unwrap(),
+            yaw_iso(1.0, 0.0, 0.0)
+        );
+        let e = b.lookup("map", "base_link", 2101).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                LookupError::OutOfRange {
+                    first: 1000,
+                    last: 2000,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(b.lookup("map", "base_link", 899).is_err());
+        assert!(matches!(
+            b.lookup("map", "lidar", 1500),
+            Err(LookupError::UnknownFrame(_))
+        ));
+    }
+
+    #[test]
+    fn chains_static_and_dynamic_edges_and_finds_the_common_ancestor() {
+        let mut b = TransformBuffer::new();
+        b.add("map", "odom", 0, yaw_iso(10.0, 0.0, 0.0), true);
+        b.add("odom", "base_link", 0, yaw_iso(0.0, 0.0, 0.0), false);
+        b.add(
+            "odom",
+            "base_link",
+            10,
+            yaw_iso(0.0, 10.0, FRAC_PI_2),
+            false,
+        );
+        b.add("base_link", "lidar", 0, yaw_iso(1.0, 0.0, 0.0), true);
+        b.add("base_link", "camera", 0, yaw_iso(0.0, 1.0, 0.0), true);
+        b.add("world", "other", 0, yaw_iso(0.0, 0.0, 0.0), true);
+        b.finish();
+        assert_eq!(b.root_of("lidar"), Some("map"));
+        // At t=10 base_link is at odom (0, 10) facing +y; the lidar 1 m ahead is at (0, 11).
+        let t = b.lookup("map", "lidar", 10).unwrap();
+        assert!((t * Point3::origin() - Point3::new(10.0, 11.0, 0.0)).norm() < 1e-12);
+        // Sibling frames: lidar -> camera does not depend on the dynamic edge above them.
+        let s = b.lookup("camera", "lidar", 1_000_000_000).unwrap();
+        assert!((s * Point3::origin() - Point3::new(1.0, -1.0, 0.0)).norm() < 1e-12);
+        assert!(matches!(
+            b.lookup("map", "other", 0),
+            Err(LookupError::NotConnected(..))
+        ));
+    }
+
+    #[test]
+    fn a_second_parent_or_a_cycle_is_dropped_and_counted() {
+        let mut b = TransformBuffer::new();
+        b.add("map", "odom", 0, Isometry3::identity(), true);
+        b.add("world", "odom", 0, Isometry3::identity(), true);
+        b.add("odom", "map", 0, Isometry3::identity(), true);
+        b.add("a", "a", 0, Isometry3::identity(), true);
+        assert_eq!(b.conflicting_parent, 3);
+        assert_eq!(b.root_of("odom"), Some("map"));
+        // Equal stamps: the last one added wins.
+        b.add("odom", "base", 5, yaw_iso(1.0, 0.0, 0.0), false);
+        b.add("odom", "base", 5, yaw_iso(2.0, 0.0, 0.0), false);
+        b.finish();
+        assert_eq!(
+            b.summary()
+                .iter()
+                .find(|e| e.child == "base")
+                .unwrap()
+                .transforms,
+            1
+        );
+        assert_eq!(b.lookup("odom", "base", 5).unwrap(), yaw_iso(2.0, 0.0, 0.0));
+        assert!(rigid([0.0; 3], [0.0; 4]).is_none());
+        assert!(rigid([f64::NAN, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]).is_none());
+    }
+}
