@@ -18,6 +18,7 @@ fn bench(c: &mut Criterion) {
         frames: 600,
         objects: Some(200),
         rate_hz: 2.0,
+        ego_frame: false,
     };
     let s = write_simulation(&sim, &input).unwrap();
     let bytes = std::fs::metadata(&input).unwrap().len();

@@ -139,12 +139,12 @@ fn the_collector_builds_the_tree_and_looks_up_through_static_and_dynamic_edges()
     let file = fixture("tf.mcap");
     let bytes = std::fs::read(&file).unwrap();
     let mut c = TransformCollector::new();
-    let mut schemas = std::collections::HashMap::new();
+    let mut seen = std::collections::HashSet::new();
     // Feed the collector the way `track` does: channel records, then messages.
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         let ch = &m.channel;
-        if !schemas.contains_key(&ch.id) {
+        if seen.insert(ch.id) {
             let schema = ch.schema.as_ref().unwrap().name.clone();
             let rec = mcap::records::Channel {
                 id: ch.id,
@@ -154,7 +154,6 @@ fn the_collector_builds_the_tree_and_looks_up_through_static_and_dynamic_edges()
                 metadata: Default::default(),
             };
             assert!(c.on_channel(&rec, &schema).is_some(), "{}", ch.topic);
-            schemas.insert(ch.id, schema);
         }
         let h = mcap::records::MessageHeader {
             channel_id: ch.id,
