@@ -187,17 +187,23 @@ fn without_transforms_tracking_is_visibly_worse() {
 
 /// Copies an MCAP, dropping the messages of `topic` with log_time after `after`.
 fn drop_messages(input: &Path, output: &Path, topic: &str, after: u64) {
+    rewrite(input, output, |m| {
+        !(m.channel.topic == topic && m.log_time > after)
+    });
+}
+
+/// Copies an MCAP through `keep`, which may change a message or drop it (false).
+fn rewrite(input: &Path, output: &Path, mut keep: impl FnMut(&mut mcap::Message) -> bool) {
     let bytes = std::fs::read(input).unwrap();
     let mut w = mcap::Writer::new(std::io::BufWriter::new(
         std::fs::File::create(output).unwrap(),
     ))
     .unwrap();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
-        let m = m.unwrap();
-        if m.channel.topic == topic && m.log_time > after {
-            continue;
+        let mut m = m.unwrap();
+        if keep(&mut m) {
+            w.write(&m).unwrap();
         }
-        w.write(&m).unwrap();
     }
     w.finish().unwrap();
 }
@@ -271,4 +277,42 @@ fn info_prints_the_transform_tree() {
     let v: Value = serde_json::from_slice(&json.stdout).unwrap();
     assert_eq!(v["transform_tree"][0]["parent"], "map");
     assert_eq!(v["transform_tree"][0]["child"], "base_link");
+}
+
+#[test]
+fn an_undecodable_transform_message_is_a_warning_or_a_strict_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let ego = simulate(dir.path(), "ego.mcap", &["--ego-frame"]);
+    let bad = dir.path().join("bad.mcap");
+    let mut n = 0;
+    rewrite(&ego, &bad, |m| {
+        if m.channel.topic == "/tf" && m.sequence == 12 {
+            m.data = std::borrow::Cow::Owned(vec![0xff, 0xff, 0xff]);
+            n += 1;
+        }
+        true
+    });
+    assert_eq!(n, 1);
+    let s = track(&bad, &dir.path().join("out.mcap"), &[]);
+    assert_eq!(s["ego"]["undecodable_transform_messages"], 1);
+    // The other transforms still cover every frame.
+    assert_eq!(s["ego"]["messages_without_transform"], 0);
+    let w = s["warnings"].to_string();
+    assert!(
+        w.contains("could not be decoded") && w.contains("/tf"),
+        "{w}"
+    );
+    let strict = probmot(&[
+        "track",
+        bad.to_str().unwrap(),
+        "-o",
+        dir.path().join("strict.mcap").to_str().unwrap(),
+        "--strict",
+    ]);
+    assert!(!strict.status.success());
+    let err = String::from_utf8_lossy(&strict.stderr);
+    assert!(
+        err.contains("topic /tf") && err.contains("foxglove.FrameTransform"),
+        "{err}"
+    );
 }

@@ -3,7 +3,8 @@
 //! `.msg` definitions (`scripts/make_ros2_tf_fixture.py`), and `expected.json` holds the values
 //! it wrote. The frame names have odd lengths, so the `float64` fields after them are decoded
 //! right only if CDR alignment is counted from the end of the encapsulation header and the
-//! strings' NUL terminators are handled.
+//! strings' NUL terminators are handled. Both decoders are checked: probmot's bounds-checked
+//! one and the `cdr` crate's.
 
 use std::path::PathBuf;
 
@@ -50,7 +51,9 @@ fn tf_and_odometry_decode_to_the_values_written() {
         saw_nul_terminated |= m.data.windows(needle.len()).any(|w| w == needle);
         match topic {
             "/tf" | "/tf_static" => {
-                let tf: TfMessage = decode_cdr(&m.data).unwrap();
+                let tf = TfMessage::decode(&m.data).unwrap();
+                // The `cdr` crate reads the same values.
+                assert_eq!(decode_cdr::<TfMessage>(&m.data).unwrap(), tf);
                 for t in tf.transforms {
                     let tr = t.transform.translation;
                     let q = t.transform.rotation;
@@ -65,7 +68,8 @@ fn tf_and_odometry_decode_to_the_values_written() {
                 }
             }
             "/odom" => {
-                let o: Odometry = decode_cdr(&m.data).unwrap();
+                let o = Odometry::decode(&m.data).unwrap();
+                assert_eq!(decode_cdr::<Odometry>(&m.data).unwrap(), o);
                 let e = want
                     .iter()
                     .find(|e| {

@@ -8,6 +8,7 @@ mod generated {
 
 pub use generated::*;
 
+pub mod cdr_cursor;
 pub mod ros2_common;
 pub mod ros2_tf;
 

@@ -9,7 +9,7 @@ use mcap::records::{Channel, MessageHeader};
 use prost::Message as _;
 
 use super::buffer::{rigid, TransformBuffer};
-use crate::msgs::ros2_tf::{decode_cdr, Odometry, TfMessage, ODOMETRY_SCHEMA, TF_MESSAGE_SCHEMA};
+use crate::msgs::ros2_tf::{Odometry, TfMessage, ODOMETRY_SCHEMA, TF_MESSAGE_SCHEMA};
 
 /// Schema name of a Foxglove single-transform channel.
 pub const FOXGLOVE_FRAME_TRANSFORM: &str = "foxglove.FrameTransform";
@@ -125,7 +125,7 @@ impl TransformCollector {
                 _ => counters.invalid += 1,
             };
         let result: Result<(), String> = match ch.kind {
-            SourceKind::Ros2Tf => match decode_cdr::<TfMessage>(data) {
+            SourceKind::Ros2Tf => match TfMessage::decode(data) {
                 Ok(m) => {
                     for ts in &m.transforms {
                         let tr = ts.transform.translation;
@@ -142,7 +142,7 @@ impl TransformCollector {
                 }
                 Err(e) => Err(format!("{TF_MESSAGE_SCHEMA}: {e}")),
             },
-            SourceKind::Ros2Odometry => match decode_cdr::<Odometry>(data) {
+            SourceKind::Ros2Odometry => match Odometry::decode(data) {
                 Ok(m) => {
                     let p = m.pose.pose.position;
                     let q = m.pose.pose.orientation;
