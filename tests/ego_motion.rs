@@ -316,3 +316,19 @@ fn an_undecodable_transform_message_is_a_warning_or_a_strict_error() {
         "{err}"
     );
 }
+
+#[test]
+fn without_transforms_the_ego_channel_equals_the_tracks() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.mcap");
+    let s = track(
+        &repo("sample_logs/turning-car.mcap"),
+        &out,
+        &["--tracks-frame", "ego"],
+    );
+    assert!(s["ego"]["fixed_frame"].is_null());
+    let a = tracks(&out, "/tracks");
+    let b = tracks(&out, "/tracks/ego");
+    assert_eq!(a.len(), 40);
+    assert!(a == b, "the ego channel differs from the tracks channel");
+}

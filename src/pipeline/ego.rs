@@ -124,6 +124,10 @@ impl EgoMotion {
             return Ok(());
         }
         let Some(fixed) = self.fixed_for(&msg.frame_id) else {
+            // Tracked in the detections' own frame: the ego frame is the tracking frame.
+            self.ego_of_stamp
+                .entry(stamp)
+                .or_insert_with(|| (msg.frame_id.clone(), Isometry3::identity()));
             return Ok(());
         };
         match self.collector.buffer.lookup(&fixed, &msg.frame_id, stamp) {

@@ -7,13 +7,17 @@
 //! under roll or pitch the box is still upright in the target frame, not tilted.
 //! Velocities are rotated (not translated), so they keep meaning "over ground, in these axes".
 
-use nalgebra::{Isometry3, Point3, Vector3};
+use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
 use crate::msgs::{self, Detections3D, Track3D, Tracks3D};
 use crate::tracker::angle::wrap;
 
 /// Yaw after rotating a heading of `yaw` by `iso`.
 pub fn transform_yaw(iso: &Isometry3<f64>, yaw: f64) -> f64 {
+    if iso.rotation == UnitQuaternion::identity() {
+        // Exactly the input (atan2 of sin and cos can differ in the last bit).
+        return yaw;
+    }
     let h = iso.rotation * Vector3::new(yaw.cos(), yaw.sin(), 0.0);
     if h.x == 0.0 && h.y == 0.0 {
         // The heading became vertical (a 90-degree pitch): keep the input.
