@@ -18,6 +18,7 @@ fn bench(c: &mut Criterion) {
         frames: 600,
         objects: Some(200),
         rate_hz: 2.0,
+        ego_frame: false,
     };
     let s = write_simulation(&sim, &input).unwrap();
     let bytes = std::fs::metadata(&input).unwrap().len();
@@ -36,6 +37,8 @@ fn bench(c: &mut Criterion) {
         no_track: false,
         strict: false,
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
+        ego: Default::default(),
+        scene_topic: None,
     };
     let mut g = c.benchmark_group("track_path");
     g.sample_size(10);

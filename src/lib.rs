@@ -11,4 +11,5 @@ pub mod msgs;
 pub mod pipeline;
 pub mod sim;
 pub mod tracker;
+pub mod transforms;
 pub mod viz;

@@ -209,6 +209,8 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
         no_track: false,
         strict: false,
         max_detections_per_message: 100_000,
+        ego: Default::default(),
+        scene_topic: None,
     };
     let mut failures = Vec::new();
     for (i, f) in files.iter().enumerate() {

@@ -32,6 +32,7 @@ fn sim_options(seed: u64) -> SimOptions {
         frames: FRAMES,
         objects: Some(OBJECTS),
         rate_hz: RATE_HZ,
+        ego_frame: false,
     }
 }
 

@@ -71,6 +71,8 @@ fn options() -> TrackOptions {
         no_track: false,
         strict: false,
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
+        ego: Default::default(),
+        scene_topic: None,
     }
 }
 

@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::Args;
 use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
 use probmot::pipeline::info::file_info;
+use probmot::transforms::buffer::EdgeSummary;
 
 /// Show the channels of an MCAP file: schema, encodings, message counts, time range, and for
 /// detection and track channels the boxes per class.
@@ -100,5 +101,42 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
             det.join(", ")
         );
     }
+    print_transform_tree(&info.transform_tree);
     Ok(ExitCode::SUCCESS)
+}
+
+/// Prints the frame tree, each child indented under its parent, roots first.
+fn print_transform_tree(edges: &[EdgeSummary]) {
+    if edges.is_empty() {
+        return;
+    }
+    println!("transform tree:");
+    let children = |parent: &str| -> Vec<&EdgeSummary> {
+        edges.iter().filter(|e| e.parent == parent).collect()
+    };
+    let mut roots: Vec<&str> = edges
+        .iter()
+        .map(|e| e.parent.as_str())
+        .filter(|p| !edges.iter().any(|e| e.child == *p))
+        .collect();
+    roots.sort_unstable();
+    roots.dedup();
+    fn walk<'a>(e: &'a EdgeSummary, depth: usize, children: &dyn Fn(&str) -> Vec<&'a EdgeSummary>) {
+        let what = if e.is_static {
+            "static".to_string()
+        } else {
+            let (a, b) = e.stamp_range.unwrap_or_default();
+            format!("{} transforms, {} .. {}", e.transforms, secs(a), secs(b))
+        };
+        println!("  {}{}  ({what})", "  ".repeat(depth), e.child);
+        for c in children(&e.child) {
+            walk(c, depth + 1, children);
+        }
+    }
+    for r in roots {
+        println!("  {r}");
+        for e in children(r) {
+            walk(e, 1, &children);
+        }
+    }
 }

@@ -32,6 +32,12 @@ pub struct SimulateArgs {
     /// Frame rate, Hz (2 = nuScenes keyframes).
     #[arg(long, default_value_t = 2.0)]
     rate: f64,
+    /// Write the detections in the frame `base_link` of a simulated ego vehicle that drives a
+    /// slalom of 90-degree turns, with its pose as foxglove.FrameTransform on /tf (map ->
+    /// base_link), and the ground truth also in base_link on /ground_truth/ego. The detections
+    /// are those of the same run without this option, moved into base_link.
+    #[arg(long)]
+    ego_frame: bool,
     /// Output MCAP file.
     #[arg(short, long)]
     output: PathBuf,
@@ -53,6 +59,7 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
         frames: a.frames,
         objects: a.objects,
         rate_hz: a.rate,
+        ego_frame: a.ego_frame,
     };
     let s = write_simulation(&opts, &a.output)?;
     if a.json {

@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use rayon::prelude::*;
 
@@ -37,6 +38,7 @@ use super::show_progress;
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
+///   probmot track drive.mcap -o out.mcap --fixed-frame map --tracks-frame ego --scene-topic /tracks/scene
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct TrackArgs {
@@ -70,6 +72,23 @@ pub struct TrackArgs {
     /// Largest number of boxes accepted in one detection message (more is an error).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DETECTIONS)]
     max_detections: usize,
+    /// Frame to track in when detections are in a moving frame (e.g. base_link); default: the
+    /// root of the transform tree read from /tf, /tf_static (tf2_msgs/msg/TFMessage),
+    /// nav_msgs/msg/Odometry or foxglove.FrameTransform(s) channels.
+    #[arg(long, value_name = "FRAME")]
+    fixed_frame: Option<String>,
+    /// Frame(s) of the written tracks: `fixed` (the tracks channel only), or `ego` to also
+    /// write them in each frame's detection frame on <tracks-topic>/ego.
+    #[arg(long, value_enum, default_value_t = TracksFrame::Fixed)]
+    tracks_frame: TracksFrame,
+    /// Largest gap, in seconds, between a detection stamp and the nearest transform outside
+    /// the transforms' time range (that transform is held; further is a missing transform).
+    #[arg(long, value_name = "SECONDS", default_value_t = 0.1)]
+    tf_tolerance: f64,
+    /// Also write a foxglove.SceneUpdate channel on this topic (boxes, ids, velocity arrows)
+    /// for the Foxglove 3D panel.
+    #[arg(long, value_name = "TOPIC")]
+    scene_topic: Option<String>,
     /// Also write a Rerun recording of the run (needs the `rerun` cargo feature).
     #[arg(long, value_name = "OUT.rrd")]
     rerun: Option<PathBuf>,
@@ -79,6 +98,15 @@ pub struct TrackArgs {
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+/// Frames the tracks are written in.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum TracksFrame {
+    /// The fixed frame.
+    Fixed,
+    /// The fixed frame, and the detection (ego) frame on <tracks-topic>/ego.
+    Ego,
 }
 
 fn bar_style() -> ProgressStyle {
@@ -120,6 +148,9 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
              scripts/to_rerun.py"
         );
     }
+    if !(a.tf_tolerance.is_finite() && a.tf_tolerance >= 0.0) {
+        bail!("--tf-tolerance must be a number of seconds >= 0");
+    }
     let config = a.tracker.resolve()?;
     let opts = TrackOptions {
         detection_topics: a.detections_topics.clone(),
@@ -128,6 +159,12 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         no_track: a.no_track,
         strict: a.strict,
         max_detections_per_message: a.max_detections,
+        ego: EgoOptions {
+            fixed_frame: a.fixed_frame.clone(),
+            tolerance_ns: (a.tf_tolerance * 1e9) as u64,
+            tracks_in_ego_frame: a.tracks_frame == TracksFrame::Ego,
+        },
+        scene_topic: a.scene_topic.clone(),
     };
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {

@@ -8,9 +8,11 @@ mod generated {
 
 pub use generated::*;
 
+pub mod cdr_cursor;
 pub mod detection_source;
 pub mod foxglove_scene;
 pub mod ros2_common;
+pub mod ros2_tf;
 pub mod ros2_vision;
 
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in

@@ -9,6 +9,8 @@ use mcap::records::Record;
 use crate::mcapio::reader::read_records;
 use crate::msgs::detection_source::{is_detection_schema, DetectionSource};
 use crate::msgs::{self, Encoding, Tracks3D};
+use crate::transforms::buffer::EdgeSummary;
+use crate::transforms::TransformCollector;
 
 /// One channel of a recording.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -55,6 +57,8 @@ pub struct FileSummary {
     pub metadata: u64,
     /// All messages.
     pub messages: u64,
+    /// The transform tree read from the transform channels (see [`crate::transforms`]).
+    pub transform_tree: Vec<EdgeSummary>,
 }
 
 /// Reads the whole file and summarises it.
@@ -66,6 +70,8 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
     let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
     let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
     let mut sources: HashMap<u16, DetectionSource> = HashMap::new();
+    let mut transforms = TransformCollector::new();
+    let file = path.display().to_string();
     read_records(path, |rec, _| {
         match rec {
             Record::Header(h) => {
@@ -91,12 +97,14 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                 };
                 let tracks = schema == msgs::TRACKS_SCHEMA
                     && Encoding::from_message_encoding(&c.message_encoding).is_some();
+                let is_transform = transforms.on_channel(&c, &schema).is_some();
                 let role = match source {
                     Ok(s) => {
                         sources.insert(c.id, s);
                         "detections"
                     }
                     Err(_) if tracks => "tracks",
+                    Err(_) if is_transform => "transforms",
                     Err(_) => "",
                 };
                 channels.entry(c.id).or_insert(ChannelSummary {
@@ -119,6 +127,12 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                         Some((a, b)) => (a.min(t), b.max(t)),
                         None => (t, t),
                     });
+                    if transforms.on_message(&file, &header, &data) {
+                        ch.undecodable = transforms
+                            .per_topic
+                            .get(&ch.topic)
+                            .map_or(0, |c| c.undecodable);
+                    }
                     let enc = Encoding::from_message_encoding(&ch.message_encoding);
                     let source = sources.get(&header.channel_id);
                     match (ch.role.as_str(), enc, source) {
@@ -149,5 +163,7 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
         Ok(())
     })?;
     out.channels = channels.into_values().collect();
+    transforms.finish();
+    out.transform_tree = transforms.buffer.summary();
     Ok(out)
 }

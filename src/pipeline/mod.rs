@@ -1,7 +1,9 @@
 //! The jobs behind the subcommands, built on the tracker core and the MCAP adapters.
 
 pub mod detections;
+pub mod ego;
 pub mod info;
 pub mod kitti_io;
 pub mod nuscenes_io;
 pub mod track;
+pub mod track_outputs;

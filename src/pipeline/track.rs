@@ -17,12 +17,15 @@ use indicatif::ProgressBar;
 use mcap::records::{MessageHeader, Record};
 
 use super::detections::{convert, InputCounters, Origin};
+use super::ego::{EgoMotion, EgoOptions, EgoSummary};
+use super::track_outputs::ExtraOutputs;
 use crate::mcapio::reader::read_records;
 use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputOptions};
 use crate::msgs::detection_source::{self, DetectionSource};
 use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
+use crate::transforms::TransformCollector;
 
 /// Settings of one `track` run.
 #[derive(Debug, Clone)]
@@ -41,6 +44,10 @@ pub struct TrackOptions {
     /// Largest number of boxes accepted in one detection message; more is an error (a frame
     /// that large is a corrupted or misrouted message, and would stall the tracker).
     pub max_detections_per_message: usize,
+    /// Ego motion: the fixed frame and the `--tracks-frame ego` output (see [`super::ego`]).
+    pub ego: EgoOptions,
+    /// Topic of the `foxglove.SceneUpdate` output channel, if any.
+    pub scene_topic: Option<String>,
 }
 
 /// Default of [`TrackOptions::max_detections_per_message`].
@@ -79,6 +86,8 @@ pub struct TrackSummary {
     pub stamps_backwards: BTreeMap<String, u64>,
     /// Detection messages that sharing a stamp with a message of another topic were merged.
     pub merged_messages: u64,
+    /// Ego-motion compensation: fixed frame, transforms, messages moved or skipped.
+    pub ego: EgoSummary,
     /// Warnings for the user.
     pub warnings: Vec<String>,
     /// Wall time in seconds.
@@ -97,6 +106,7 @@ struct Scan {
     topics: HashSet<String>,
     /// Channels of a detection schema left out of the default selection, with the reason.
     unreadable: BTreeMap<u16, String>,
+    transforms: TransformCollector,
 }
 
 /// Stamp of a detection message: its own `stamp`, else the MCAP `log_time`.
@@ -123,6 +133,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         stamps_backwards: BTreeMap::new(),
         topics: HashSet::new(),
         unreadable: BTreeMap::new(),
+        transforms: TransformCollector::new(),
     };
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     let mut ordinal = 0u64;
@@ -138,6 +149,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                 s.topics.insert(c.topic.clone());
                 let (schema_name, schema_enc, schema_data) =
                     schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                s.transforms.on_channel(&c, &schema_name);
                 let wanted = if opts.detection_topics.is_empty() {
                     detection_source::is_detection_schema(&schema_name)
                 } else {
@@ -172,6 +184,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                 }
             }
             Record::Message { header, data } => {
+                s.transforms.on_message(&file, &header, &data);
                 if let Some((source, topic)) = s.det_channels.get(&header.channel_id) {
                     let (msg_stamp, count) = source.stamp_and_count(&data).with_context(|| {
                         format!(
@@ -301,7 +314,10 @@ pub fn track_file(
     let mut topics: Vec<String> = Vec::new();
     let mut det_channels: HashMap<u16, (DetectionSource, usize)> = HashMap::new();
     let mut ids = None;
+    let mut scan_ids = None;
+    let mut transforms = TransformCollector::new();
     if let Some(mut s) = scan {
+        transforms = std::mem::take(&mut s.transforms);
         s.entries.sort_unstable();
         for &(stamp, _) in &s.entries {
             match frames.last_mut() {
@@ -331,8 +347,11 @@ pub fn track_file(
                 .context("no free channel id in the output")?;
             ids = Some((schema_id, channel_id));
         }
+        scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
     }
     summary.detection_topics = topics.clone();
+    let mut ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
+    let mut extra = ExtraOutputs::new(opts, &file, scan_ids.as_ref(), ids)?;
 
     let mut out = AtomicOutput::create(
         output,
@@ -355,6 +374,7 @@ pub fn track_file(
             "protobuf",
             &BTreeMap::new(),
         )?;
+        extra.add_channels(&mut out.writer, schema_id)?;
     }
 
     let mut tracker = Tracker::new(opts.config.clone())?;
@@ -398,10 +418,13 @@ pub fn track_file(
                     })?;
                 summary.messages_copied += 1;
                 if let Some(&(source, topic_idx)) = det_channels.get(&header.channel_id) {
-                    let msg: Detections3D = source
+                    let mut msg: Detections3D = source
                         .decode(&data)
                         .with_context(|| describe_message(&file, &topics[topic_idx], &header))?;
                     let stamp = stamp_of(&msg, header.log_time);
+                    ego.to_fixed(&mut msg, stamp, || {
+                        describe_message(&file, &topics[topic_idx], &header)
+                    })?;
                     pending.entry(stamp).or_default().push(Pending {
                         ordinal,
                         log_time: header.log_time,
@@ -434,6 +457,12 @@ pub fn track_file(
                                 publish_time: stamp,
                             },
                             &frame_state.buf,
+                        )?;
+                        extra.write_frame(
+                            &mut out.writer,
+                            &frame_state.out,
+                            ego.take_ego(stamp),
+                            next_frame as u32,
                         )?;
                         frame_state.finish(tracker.deleted());
                         summary.tracks_messages += 1;
@@ -512,6 +541,7 @@ pub fn track_file(
         ));
     }
     summary.detections = counters;
+    summary.ego = ego.finish(&file, &mut summary.warnings);
     summary.wall_time_s = started.elapsed().as_secs_f64();
     Ok(summary)
 }

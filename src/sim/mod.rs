@@ -4,6 +4,7 @@
 //! truth into noisy detections with misses, false positives and heading flips ([`sensor`]);
 //! [`write`] stores both as MCAP channels `/detections` and `/ground_truth`.
 
+pub mod ego;
 pub mod scenario;
 pub mod sensor;
 pub mod write;

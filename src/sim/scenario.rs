@@ -44,6 +44,9 @@ pub struct SimOptions {
     pub objects: Option<u32>,
     /// Frame rate in Hz.
     pub rate_hz: f64,
+    /// Write the detections in the moving `base_link` frame of a simulated ego vehicle, with
+    /// its transforms on `/tf` (see [`super::ego`]); the ground truth stays in `map`.
+    pub ego_frame: bool,
 }
 
 impl SimOptions {

@@ -8,10 +8,12 @@ use anyhow::Result;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use super::ego::{self, ego_pose, EgoPose};
 use super::scenario::{objects, SimOptions};
 use super::sensor::detect;
 use crate::mcapio::writer::{AtomicOutput, OutputOptions};
 use crate::msgs::{self, v3, Detection3D, Detections3D, Size3, Track3D, Tracks3D};
+use crate::transforms::sources::FOXGLOVE_FRAME_TRANSFORM;
 
 /// First frame's stamp: 2026-01-01T00:00:00Z in nanoseconds.
 pub const START_NS: u64 = 1_767_225_600_000_000_000;
@@ -45,6 +47,18 @@ pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
     );
     let ch_det = w.add_channel(schema_det, "/detections", "protobuf", &meta)?;
     let ch_gt = w.add_channel(schema_trk, "/ground_truth", "protobuf", &meta)?;
+    let ego_channels = if opts.ego_frame {
+        let schema_tf = w.add_schema(
+            FOXGLOVE_FRAME_TRANSFORM,
+            "protobuf",
+            &frame_transform_descriptor(),
+        )?;
+        let ch_tf = w.add_channel(schema_tf, "/tf", "protobuf", &meta)?;
+        let ch_gt_ego = w.add_channel(schema_trk, "/ground_truth/ego", "protobuf", &meta)?;
+        Some((ch_tf, ch_gt_ego))
+    } else {
+        None
+    };
     let period_ns = (1e9 / opts.rate_hz).round() as u64;
     let mut summary = SimSummary {
         frames: opts.frames,
@@ -55,7 +69,7 @@ pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
     for f in 0..opts.frames as usize {
         let stamp = START_NS + f as u64 * period_ns;
         let dets = detect(opts.scenario, &objs, f, &mut rng);
-        let msg = Detections3D {
+        let mut msg = Detections3D {
             stamp: Some(stamp),
             frame_id: "map".into(),
             detections: dets
@@ -75,6 +89,26 @@ pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
                 .collect(),
         };
         summary.detections += dets.len() as u64;
+        let pose = ego_pose(f as f64 * opts.dt());
+        if let Some((ch_tf, _)) = ego_channels {
+            // The transforms up to and including this frame's stamp, then the detections.
+            let per = ego::TRANSFORMS_PER_FRAME as u64;
+            let first = if f == 0 { per - 1 } else { 0 };
+            for k in first..per {
+                let t_ns = stamp - (per - 1 - k) * period_ns / per;
+                let t = (t_ns - START_NS) as f64 * 1e-9;
+                let p = if k == per - 1 { pose } else { ego_pose(t) };
+                msgs::encode_into(&frame_transform(t_ns, &p), &mut buf);
+                let seq = (f as u64 * per + k) as usize;
+                w.write_to_known_channel(&header(ch_tf, seq, t_ns), &buf)?;
+            }
+            msg.frame_id = ego::EGO_FRAME.into();
+            for d in &mut msg.detections {
+                let c = d.center.expect("set above");
+                d.center = Some(v3(pose.to_ego([c.x, c.y, c.z])));
+                d.yaw = pose.yaw_to_ego(d.yaw);
+            }
+        }
         msgs::encode_into(&msg, &mut buf);
         w.write_to_known_channel(&header(ch_det, f, stamp), &buf)?;
 
@@ -102,9 +136,54 @@ pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
         summary.truth_boxes += gt.tracks.len() as u64;
         msgs::encode_into(&gt, &mut buf);
         w.write_to_known_channel(&header(ch_gt, f, stamp), &buf)?;
+        if let Some((_, ch_gt_ego)) = ego_channels {
+            let mut gt_ego = gt;
+            gt_ego.frame_id = ego::EGO_FRAME.into();
+            for t in &mut gt_ego.tracks {
+                let c = t.center.expect("set above");
+                let v = t.velocity.expect("set above");
+                t.center = Some(v3(pose.to_ego([c.x, c.y, c.z])));
+                t.velocity = Some(v3(pose.rotate_to_ego([v.x, v.y, v.z])));
+                t.yaw = pose.yaw_to_ego(t.yaw);
+            }
+            msgs::encode_into(&gt_ego, &mut buf);
+            w.write_to_known_channel(&header(ch_gt_ego, f, stamp), &buf)?;
+        }
     }
     output.commit()?;
     Ok(summary)
+}
+
+/// The `FileDescriptorSet` of `foxglove.FrameTransform`.
+fn frame_transform_descriptor() -> Vec<u8> {
+    use foxglove::Encode as _;
+    foxglove::schemas::FrameTransform::get_schema()
+        .expect("foxglove.FrameTransform has a schema")
+        .data
+        .into_owned()
+}
+
+/// The ego pose as the transform map -> base_link at `stamp`.
+fn frame_transform(stamp: u64, p: &EgoPose) -> foxglove::schemas::FrameTransform {
+    foxglove::schemas::FrameTransform {
+        timestamp: Some(foxglove::schemas::Timestamp::new(
+            (stamp / 1_000_000_000) as u32,
+            (stamp % 1_000_000_000) as u32,
+        )),
+        parent_frame_id: ego::FIXED_FRAME.into(),
+        child_frame_id: ego::EGO_FRAME.into(),
+        translation: Some(foxglove::schemas::Vector3 {
+            x: p.x,
+            y: p.y,
+            z: 0.0,
+        }),
+        rotation: Some(foxglove::schemas::Quaternion {
+            x: 0.0,
+            y: 0.0,
+            z: (p.yaw / 2.0).sin(),
+            w: (p.yaw / 2.0).cos(),
+        }),
+    }
 }
 
 fn header(channel_id: u16, frame: usize, stamp: u64) -> mcap::records::MessageHeader {

@@ -4,6 +4,7 @@
 //! per-frame box lists and selects a class and a time window; [`plot`] draws them, with no I/O.
 
 pub mod plot;
+pub mod scene_update;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;

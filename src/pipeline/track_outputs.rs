@@ -1,0 +1,154 @@
+//! The optional output channels of `probmot track` beside the tracks channel:
+//! `<tracks-topic>/ego` (`--tracks-frame ego`: the same tracks moved into each frame's
+//! detection frame) and `--scene-topic` (`foxglove.SceneUpdate` for the Foxglove 3D panel).
+
+use std::collections::{BTreeMap, HashSet};
+use std::fs::File;
+use std::io::BufWriter;
+
+use anyhow::{bail, Context, Result};
+use mcap::records::MessageHeader;
+use mcap::Writer;
+use nalgebra::Isometry3;
+
+use super::track::TrackOptions;
+use crate::msgs::{self, Tracks3D};
+use crate::transforms::boxes::transform_tracks_into;
+use crate::viz::scene_update::{scene_update, scene_update_descriptor, SCENE_UPDATE_SCHEMA};
+
+/// Suffix of the tracks topic for the tracks in the ego frame.
+pub const EGO_TOPIC_SUFFIX: &str = "/ego";
+
+/// Ids and buffers of the extra output channels.
+pub struct ExtraOutputs {
+    /// `(topic, channel id)` of the ego-frame tracks channel.
+    ego: Option<(String, u16)>,
+    /// `(topic, schema id, channel id)` of the scene channel.
+    scene: Option<(String, u16, u16)>,
+    ego_msg: Tracks3D,
+    buf: Vec<u8>,
+    ego_sequence: u32,
+    /// Track ids with an entity in the scene (sorted), and the ids to delete this frame.
+    shown: Vec<u64>,
+    gone: Vec<u64>,
+}
+
+type ScanIds = (HashSet<u16>, HashSet<u16>, HashSet<String>);
+
+fn free(used: &HashSet<u16>, taken: &[u16]) -> Option<u16> {
+    (1..=u16::MAX).find(|i| !used.contains(i) && !taken.contains(i))
+}
+
+impl ExtraOutputs {
+    /// Plans the extra channels: their topics must not exist in the input, and their ids are
+    /// the first free ones after `tracks_ids` (the tracks channel's schema and channel ids).
+    /// Nothing is planned without a tracks channel.
+    pub fn new(
+        opts: &TrackOptions,
+        file: &str,
+        scan: Option<&ScanIds>,
+        tracks_ids: Option<(u16, u16)>,
+    ) -> Result<Self> {
+        let mut x = ExtraOutputs {
+            ego: None,
+            scene: None,
+            ego_msg: Tracks3D::default(),
+            buf: Vec::new(),
+            ego_sequence: 0,
+            shown: Vec::new(),
+            gone: Vec::new(),
+        };
+        let (Some((schemas, channels, topics)), Some((tracks_schema, tracks_channel))) =
+            (scan, tracks_ids)
+        else {
+            return Ok(x);
+        };
+        let mut taken_channels = vec![tracks_channel];
+        let check_topic = |topic: &str, option: &str| -> Result<()> {
+            if topics.contains(topic) || topic == opts.tracks_topic {
+                bail!(
+                    "{file}: already has a channel on {topic}; choose another topic with {option}"
+                );
+            }
+            Ok(())
+        };
+        if opts.ego.tracks_in_ego_frame {
+            let topic = format!("{}{EGO_TOPIC_SUFFIX}", opts.tracks_topic);
+            check_topic(&topic, "--tracks-topic")?;
+            let id = free(channels, &taken_channels).context("no free channel id in the output")?;
+            taken_channels.push(id);
+            x.ego = Some((topic, id));
+        }
+        if let Some(topic) = &opts.scene_topic {
+            check_topic(topic, "--scene-topic")?;
+            if x.ego.as_ref().is_some_and(|(t, _)| t == topic) {
+                bail!("--scene-topic {topic} is the topic of the ego-frame tracks");
+            }
+            let schema =
+                free(schemas, &[tracks_schema]).context("no free schema id in the output")?;
+            let id = free(channels, &taken_channels).context("no free channel id in the output")?;
+            x.scene = Some((topic.clone(), schema, id));
+        }
+        Ok(x)
+    }
+
+    /// Adds the planned channels to the output (`tracks_schema`: the `probmot.Tracks3D` schema
+    /// id already added).
+    pub fn add_channels(&self, w: &mut Writer<BufWriter<File>>, tracks_schema: u16) -> Result<()> {
+        if let Some((topic, id)) = &self.ego {
+            w.add_channel_with_id(*id, tracks_schema, topic, "protobuf", &BTreeMap::new())?;
+        }
+        if let Some((topic, schema, id)) = &self.scene {
+            w.add_schema_with_id(
+                *schema,
+                SCENE_UPDATE_SCHEMA,
+                "protobuf",
+                &scene_update_descriptor(),
+            )?;
+            w.add_channel_with_id(*id, *schema, topic, "protobuf", &BTreeMap::new())?;
+        }
+        Ok(())
+    }
+
+    /// Writes one frame's extra messages: the tracks in the ego frame (when its transform is
+    /// known; `ego` = detection frame and fixed-to-ego transform) and the scene update (with
+    /// deletions for the tracks shown before and not reported now).
+    pub fn write_frame(
+        &mut self,
+        w: &mut Writer<BufWriter<File>>,
+        tracks: &Tracks3D,
+        ego: Option<(String, Isometry3<f64>)>,
+        sequence: u32,
+    ) -> Result<()> {
+        let header = |channel_id| MessageHeader {
+            channel_id,
+            sequence,
+            log_time: tracks.stamp,
+            publish_time: tracks.stamp,
+        };
+        if let (Some((_, id)), Some((frame, iso))) = (&self.ego, ego) {
+            transform_tracks_into(tracks, &iso, &frame, &mut self.ego_msg);
+            msgs::encode_into(&self.ego_msg, &mut self.buf);
+            let mut h = header(*id);
+            h.sequence = self.ego_sequence;
+            self.ego_sequence += 1;
+            w.write_to_known_channel(&h, &self.buf)?;
+        }
+        if let Some((_, _, id)) = &self.scene {
+            // Delete the entities of the tracks no longer reported (dead, or not reported in
+            // this frame), so that the scene shows exactly the tracks of the tracks channel.
+            self.gone.clear();
+            for &old in &self.shown {
+                if !tracks.tracks.iter().any(|t| t.id == old) {
+                    self.gone.push(old);
+                }
+            }
+            self.shown.clear();
+            self.shown.extend(tracks.tracks.iter().map(|t| t.id));
+            self.shown.sort_unstable();
+            msgs::encode_into(&scene_update(tracks, &self.gone), &mut self.buf);
+            w.write_to_known_channel(&header(*id), &self.buf)?;
+        }
+        Ok(())
+    }
+}
