@@ -902,7 +902,7 @@ fn corrupted_messages_never_panic() {
 }
 
 #[test]
-fn default_selection_merges_detection_kinds_with_a_warning() {
+fn default_selection_leaves_a_sceneupdate_beside_other_detections_out_with_a_warning() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("both.mcap");
     {
@@ -951,18 +951,30 @@ fn default_selection_merges_detection_kinds_with_a_warning() {
         let _ = std::fs::remove_file(&out);
         serde_json::from_slice(&probmot_ok(&args).stdout).unwrap()
     };
+    // A SceneUpdate is often a drawing of the same boxes: by default it is read only when the
+    // log has no other detection channel.
     let v = run(&[]);
+    assert_eq!(v["detection_topics"], serde_json::json!(["/detections"]));
+    assert_eq!(v["merged_messages"], 0);
+    assert_eq!(v["detection_messages"], 40);
+    let warned = v["warnings"].as_array().unwrap().iter().any(|w| {
+        let w = w.as_str().unwrap();
+        w.contains("topic /scene, foxglove.SceneUpdate) is left out")
+            && w.contains("--detections-topic")
+    });
+    assert!(warned, "{v}");
+    // Both named: merged, with the warning about different kinds.
+    let v = run(&[
+        "--detections-topic",
+        "/detections",
+        "--detections-topic",
+        "/scene",
+    ]);
     assert_eq!(
         v["detection_topics"],
         serde_json::json!(["/detections", "/scene"])
     );
     assert_eq!(v["merged_messages"], 40, "the two topics share every stamp");
-    let warned = v["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .any(|w| w.as_str().unwrap().contains("different kinds are merged"));
-    assert!(warned, "{v}");
     let v = run(&["--detections-topic", "/scene"]);
     assert_eq!(v["detection_topics"], serde_json::json!(["/scene"]));
     assert_eq!(v["warnings"], serde_json::json!([]));

@@ -66,6 +66,21 @@ fn scene_updates_mirror_the_tracks_channel() {
             let tc = t.center.unwrap();
             assert_eq!((c.x, c.y, c.z), (tc.x, tc.y, tc.z));
             assert_eq!(e.texts[0].text, format!("{} {}", t.id, t.label));
+            // The metadata convention probmot reads SceneUpdate detections with.
+            let meta: Vec<(&str, &str)> = e
+                .metadata
+                .iter()
+                .map(|kv| (kv.key.as_str(), kv.value.as_str()))
+                .collect();
+            let (score, id) = (t.score.to_string(), t.id.to_string());
+            assert_eq!(
+                meta,
+                [
+                    ("label", t.label.as_str()),
+                    ("score", &score),
+                    ("track_id", &id)
+                ]
+            );
         }
         let dels: BTreeSet<String> = u.deletions.iter().map(|d| d.id.clone()).collect();
         assert_eq!(dels, expected_deletions(&prev, f));
@@ -73,6 +88,59 @@ fn scene_updates_mirror_the_tracks_channel() {
         prev = f.tracks.iter().map(|t| t.id).collect();
     }
     assert!(deleted > 0, "some tracks die in the city log");
+}
+
+#[test]
+fn tracking_a_tracked_log_again_does_not_read_its_scene_output() {
+    // The scene channel is marked as probmot's output: by default the second run reads only
+    // /detections and gives the same tracks; named with --detections-topic it is read, and its
+    // boxes (the tracks) carry the labels and scores of the metadata.
+    let dir = tempfile::tempdir().unwrap();
+    let first = tracked_with_scene(dir.path());
+    let again = dir.path().join("again.mcap");
+    let out = probmot_ok(&[
+        "track",
+        first.to_str().unwrap(),
+        "-o",
+        again.to_str().unwrap(),
+        "--tracks-topic",
+        "/tracks2",
+        "--json",
+    ]);
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["detection_topics"], serde_json::json!(["/detections"]));
+    assert_eq!(tracks(&again, "/tracks2"), tracks(&first, "/tracks"));
+    let info = probmot_ok(&["info", first.to_str().unwrap(), "--json"]);
+    let info: Value = serde_json::from_slice(&info.stdout).unwrap();
+    let scene = info["channels"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["topic"] == "/tracks/scene")
+        .unwrap();
+    assert_eq!(scene["role"], "detections");
+    assert_eq!(scene["default_detections"], false);
+    let from_scene = dir.path().join("scene.mcap");
+    probmot_ok(&[
+        "track",
+        first.to_str().unwrap(),
+        "-o",
+        from_scene.to_str().unwrap(),
+        "--tracks-topic",
+        "/tracks3",
+        "--detections-topic",
+        "/tracks/scene",
+        "--quiet",
+    ]);
+    let labels: BTreeSet<String> = tracks(&from_scene, "/tracks3")
+        .iter()
+        .flat_map(|f| f.tracks.iter().map(|t| t.label.clone()))
+        .collect();
+    let want: BTreeSet<String> = tracks(&first, "/tracks")
+        .iter()
+        .flat_map(|f| f.tracks.iter().map(|t| t.label.clone()))
+        .collect();
+    assert_eq!(labels, want);
 }
 
 #[test]

@@ -79,7 +79,12 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
             println!("        boxes per class: {}", parts.join(", "));
         }
         if c.role == "detections" {
-            println!("        detections: {}", c.detections_note);
+            let how = if c.default_detections {
+                ""
+            } else {
+                " (read only when named with --detections-topic)"
+            };
+            println!("        detections: {}{how}", c.detections_note);
         } else if is_detection_schema(&c.schema) {
             println!("        not usable as detections: {}", c.detections_note);
         }
@@ -90,7 +95,7 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
     let det: Vec<&str> = info
         .channels
         .iter()
-        .filter(|c| c.role == "detections")
+        .filter(|c| c.default_detections)
         .map(|c| c.topic.as_str())
         .collect();
     if det.is_empty() {

@@ -11,6 +11,7 @@ use crate::msgs::detection_source::{is_detection_schema, DetectionSource};
 use crate::msgs::{self, Encoding, Tracks3D};
 use crate::transforms::buffer::EdgeSummary;
 use crate::transforms::TransformCollector;
+use crate::viz::scene_update::{OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA};
 
 /// One channel of a recording.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -34,6 +35,9 @@ pub struct ChannelSummary {
     /// Detection channels: how they are read (e.g. `vision_msgs/msg/Detection3DArray (cdr,
     /// vision_msgs 4.x layout)`); other channels: why they are not read as detections.
     pub detections_note: String,
+    /// Detection channels: whether `track` reads it without `--detections-topic` (not for
+    /// probmot's own outputs, nor for a SceneUpdate beside other detection channels).
+    pub default_detections: bool,
     /// For detection and track channels: boxes per label.
     pub per_label: BTreeMap<String, u64>,
     /// Messages of a detections/tracks channel that failed to decode.
@@ -107,7 +111,9 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                     Err(_) if is_transform => "transforms",
                     Err(_) => "",
                 };
+                let own_output = c.metadata.contains_key(OUTPUT_METADATA_KEY);
                 channels.entry(c.id).or_insert(ChannelSummary {
+                    default_detections: role == "detections" && !own_output,
                     id: c.id,
                     topic: c.topic,
                     schema,
@@ -163,6 +169,17 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
         Ok(())
     })?;
     out.channels = channels.into_values().collect();
+    // The rule of `track`'s default selection: a SceneUpdate only when nothing else is there.
+    let is_scene = |c: &ChannelSummary| c.schema == SCENE_UPDATE_SCHEMA;
+    if out
+        .channels
+        .iter()
+        .any(|c| c.default_detections && !is_scene(c))
+    {
+        for c in out.channels.iter_mut().filter(|c| is_scene(c)) {
+            c.default_detections = false;
+        }
+    }
     transforms.finish();
     out.transform_tree = transforms.buffer.summary();
     Ok(out)

@@ -26,6 +26,7 @@ use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
 use crate::transforms::TransformCollector;
+use crate::viz::scene_update::OUTPUT_METADATA_KEY;
 
 /// Settings of one `track` run.
 #[derive(Debug, Clone)]
@@ -106,6 +107,11 @@ struct Scan {
     topics: HashSet<String>,
     /// Channels of a detection schema left out of the default selection, with the reason.
     unreadable: BTreeMap<u16, String>,
+    /// Readable detection channels left out of the default selection (SceneUpdates beside other
+    /// detection channels), as warnings.
+    left_out: Vec<String>,
+    /// Channel of each entry of `entries`.
+    entry_channels: Vec<u16>,
     transforms: TransformCollector,
 }
 
@@ -133,6 +139,8 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         stamps_backwards: BTreeMap::new(),
         topics: HashSet::new(),
         unreadable: BTreeMap::new(),
+        left_out: Vec::new(),
+        entry_channels: Vec::new(),
         transforms: TransformCollector::new(),
     };
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
@@ -151,7 +159,9 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                     schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 s.transforms.on_channel(&c, &schema_name);
                 let wanted = if opts.detection_topics.is_empty() {
+                    // probmot's own outputs (e.g. a --scene-topic SceneUpdate) are not input.
                     detection_source::is_detection_schema(&schema_name)
+                        && !c.metadata.contains_key(OUTPUT_METADATA_KEY)
                 } else {
                     opts.detection_topics.contains(&c.topic)
                 };
@@ -209,6 +219,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                         }
                     }
                     s.entries.push((stamp, ordinal));
+                    s.entry_channels.push(header.channel_id);
                     ordinal += 1;
                 }
                 if ordinal % 256 == 0 {
@@ -219,6 +230,36 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         }
         Ok(())
     })?;
+    // By default a SceneUpdate (a visualization, often of the same boxes) is read only when the
+    // log has no other detection channel.
+    if opts.detection_topics.is_empty()
+        && s.det_channels
+            .values()
+            .any(|(src, _)| !matches!(src, DetectionSource::FoxgloveScene))
+    {
+        let scenes: BTreeMap<u16, String> = s
+            .det_channels
+            .iter()
+            .filter(|(_, (src, _))| matches!(src, DetectionSource::FoxgloveScene))
+            .map(|(id, (_, topic))| (*id, topic.clone()))
+            .collect();
+        if !scenes.is_empty() {
+            let keep: Vec<bool> = s
+                .entry_channels
+                .iter()
+                .map(|c| !scenes.contains_key(c))
+                .collect();
+            let mut k = keep.iter();
+            s.entries.retain(|_| *k.next().unwrap());
+            for (id, topic) in scenes {
+                s.det_channels.remove(&id);
+                s.stamps_backwards.remove(&topic);
+                s.left_out.push(format!(
+                    "channel {id} (topic {topic}, foxglove.SceneUpdate) is left out because the                      log has other detection channels; name it with --detections-topic to track it"
+                ));
+            }
+        }
+    }
     if s.det_channels.is_empty() && !s.unreadable.is_empty() {
         bail!(
             "{file}: no readable detection channel: {}",
@@ -287,6 +328,9 @@ pub fn track_file(
             summary
                 .warnings
                 .push(format!("{file}: {why}; this channel is not tracked"));
+        }
+        for why in &s.left_out {
+            summary.warnings.push(format!("{file}: {why}"));
         }
         let mut kinds: Vec<(&str, &str)> = s
             .det_channels

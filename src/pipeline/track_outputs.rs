@@ -14,7 +14,9 @@ use nalgebra::Isometry3;
 use super::track::TrackOptions;
 use crate::msgs::{self, Tracks3D};
 use crate::transforms::boxes::transform_tracks_into;
-use crate::viz::scene_update::{scene_update, scene_update_descriptor, SCENE_UPDATE_SCHEMA};
+use crate::viz::scene_update::{
+    scene_update, scene_update_descriptor, OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA,
+};
 
 /// Suffix of the tracks topic for the tracks in the ego frame.
 pub const EGO_TOPIC_SUFFIX: &str = "/ego";
@@ -105,7 +107,9 @@ impl ExtraOutputs {
                 "protobuf",
                 &scene_update_descriptor(),
             )?;
-            w.add_channel_with_id(*id, *schema, topic, "protobuf", &BTreeMap::new())?;
+            let metadata =
+                BTreeMap::from([(OUTPUT_METADATA_KEY.to_string(), "tracks".to_string())]);
+            w.add_channel_with_id(*id, *schema, topic, "protobuf", &metadata)?;
         }
         Ok(())
     }

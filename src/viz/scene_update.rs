@@ -8,10 +8,15 @@
 //! replaced or deleted); the update of a frame deletes the entities of the tracks that are no
 //! longer reported (a track that died, or one not reported in this frame), so the scene shows
 //! exactly the tracks of the tracks channel.
+//!
+//! Each entity also carries the metadata `label`, `score` and `track_id`: the convention probmot
+//! reads `foxglove.SceneUpdate` detections with, so the boxes stay self-describing. The channel
+//! has the metadata `probmot.output = tracks`, which keeps `track` from reading it as detections
+//! by default when the tracked log is tracked again.
 
 use foxglove::schemas::{
-    scene_entity_deletion, ArrowPrimitive, Color, CubePrimitive, Pose, Quaternion, SceneEntity,
-    SceneEntityDeletion, SceneUpdate, TextPrimitive, Timestamp, Vector3,
+    scene_entity_deletion, ArrowPrimitive, Color, CubePrimitive, KeyValuePair, Pose, Quaternion,
+    SceneEntity, SceneEntityDeletion, SceneUpdate, TextPrimitive, Timestamp, Vector3,
 };
 
 use crate::msgs::Tracks3D;
@@ -19,6 +24,9 @@ use crate::viz::plot::id_color;
 
 /// Schema name of the output channel.
 pub const SCENE_UPDATE_SCHEMA: &str = "foxglove.SceneUpdate";
+
+/// Channel metadata key marking a channel as probmot's own output (value: what it holds).
+pub const OUTPUT_METADATA_KEY: &str = "probmot.output";
 
 /// Slowest speed (m/s) drawn as a velocity arrow.
 pub const MIN_ARROW_SPEED: f64 = 0.2;
@@ -142,6 +150,20 @@ pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
                 cubes: vec![cube],
                 texts: vec![text],
                 arrows,
+                metadata: vec![
+                    KeyValuePair {
+                        key: "label".into(),
+                        value: t.label.clone(),
+                    },
+                    KeyValuePair {
+                        key: "score".into(),
+                        value: format!("{}", t.score),
+                    },
+                    KeyValuePair {
+                        key: "track_id".into(),
+                        value: t.id.to_string(),
+                    },
+                ],
                 ..Default::default()
             }
         })
