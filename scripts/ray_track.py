@@ -412,11 +412,19 @@ def table(header: list[str], rows: list[list[str]]) -> str:
     return "\n".join(lines)
 
 
-def fmt(v) -> str:
+COUNT_COLUMNS = {"ids", "frag", "fp", "fn", "mt", "ml", "tp", "gt"}
+
+
+def fmt(v, column: str = "") -> str:
+    """A metric for the table: counts as integers, ratios with four decimals, None as '-'."""
     if v is None:
         return "-"
     if isinstance(v, float):
-        return f"{v:.4f}" if v == v else "nan"
+        if v != v:
+            return "nan"
+        if column in COUNT_COLUMNS and v.is_integer():
+            return str(int(v))
+        return f"{v:.4f}"
     return str(v)
 
 
@@ -518,11 +526,11 @@ def main(argv: list[str]) -> int:
         res = metrics["result"]
         cols = ["amota", "amotp", "recall", "mota", "motp", "ids", "frag", "fp", "fn"]
         mrows = [
-            [c, *[fmt(m.get(k)) for k in cols]]
+            [c, *[fmt(m.get(k), k) for k in cols]]
             for c, m in res["classes"].items()
-            if m.get("gt") == m.get("gt")  # classes with ground truth (gt is NaN otherwise)
+            if m.get("gt") is not None  # classes with ground truth (NaN, written null, otherwise)
         ]
-        mrows.append(["overall", *[fmt(res["overall"].get(k)) for k in cols]])
+        mrows.append(["overall", *[fmt(res["overall"].get(k), k) for k in cols]])
         print(f"\nnuScenes tracking metrics over {len(ok_jobs)} logs:")
         print(table(["class", *cols], mrows))
     if metrics_error:
