@@ -441,7 +441,12 @@ def main(argv: list[str]) -> int:
         shutil.copy2(src, os.path.join(ship_dir, "probmot"))
     ray = None
     try:
-        ray = start_ray(a, ship_dir)
+        try:
+            ray = start_ray(a, ship_dir)
+        except Exception as e:
+            where = a.address or "a local instance"
+            raise SystemExit(f"error: cannot start or reach Ray ({where}): {e}") from e
+        ray_started = time.time()
         task = ray.remote(num_cpus=1, max_retries=1, retry_exceptions=[TransientError])(track_one)
         pending = {task.remote(j): k for k, j in enumerate(jobs)}
         results: list[dict | None] = [None] * len(jobs)
@@ -467,6 +472,7 @@ def main(argv: list[str]) -> int:
             status = describe_ok(r) if r["ok"] else f"FAILED ({r['stage']}): {r['error']}"
             print(f"[{done}/{len(jobs)}] {base_name(r['input'])}: {status}", flush=True)
 
+        tracking_s = time.time() - ray_started
         ok_jobs = [j for j, r in zip(jobs, results) if r["ok"]]
         metrics, metrics_error = None, None
         if a.eval and ok_jobs:
@@ -478,8 +484,8 @@ def main(argv: list[str]) -> int:
             except Exception as e:
                 metrics_error = f"{type(e).__name__}: {e}"
     finally:
-        if ray is not None:
-            ray.shutdown()
+        if "ray" in sys.modules:  # also after a failed start: stops what it started
+            sys.modules["ray"].shutdown()
         if ship_dir:
             shutil.rmtree(ship_dir, ignore_errors=True)
 
@@ -495,6 +501,10 @@ def main(argv: list[str]) -> int:
         "metrics_error": metrics_error,
         "per_log": results,
         "track_args": track_args,
+        # Listing the inputs and starting (or connecting to) Ray; from the first task submitted to the last log done;
+        # the whole run, with the evaluation over all logs and shutting Ray down.
+        "ray_start_s": round(ray_started - started, 3),
+        "tracking_s": round(tracking_s, 3),
         "wall_time_s": round(time.time() - started, 3),
     }
 
@@ -520,7 +530,8 @@ def main(argv: list[str]) -> int:
     print(table(["log", "status", "frames", "detections", "tracks", "seconds", "AMOTA"], rows))
     print(
         f"\n{len(jobs)} logs: {report['tracked']} tracked, {report['failed']} failed, "
-        f"{report['wall_time_s']:.1f} s"
+        f"{report['tracking_s']:.1f} s tracking ({len(jobs) / max(tracking_s, 1e-9):.2f} logs/s), "
+        f"{report['wall_time_s']:.1f} s in all with {report['ray_start_s']:.1f} s starting Ray"
     )
     if metrics is not None:
         res = metrics["result"]
