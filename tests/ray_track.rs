@@ -2,7 +2,8 @@
 //! output is byte-identical to `probmot track X -o Y` with the same options, a corrupt input is
 //! reported as failed without stopping the others, the aggregated metrics equal `probmot eval`
 //! over the same files, a task whose probmot is killed is retried once, and a binary shipped in
-//! the runtime_env working_dir is the one that runs. After each run no process of the Ray
+//! the runtime_env working_dir is the one that runs. While it runs every server of the instance
+//! listens on loopback only; after each run no process of the Ray
 //! instance is left (any that is, is killed by the guard, and the test fails).
 //!
 //! Needs `python3 -m pip install -r scripts/requirements.txt` (ray, pyarrow); without them the
@@ -10,6 +11,7 @@
 
 mod common;
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::Mutex;
@@ -107,24 +109,112 @@ fn wait_for_shutdown(dir: &Path) -> Vec<(u32, String)> {
     }
 }
 
-/// Runs `scripts/ray_track.py` with a local instance whose temporary directory is `ray_dir`.
+/// Listening TCP sockets on this machine: inode -> (local address in /proc/net hex, IPv6).
+fn listening_sockets() -> HashMap<u64, (String, bool)> {
+    let mut out = HashMap::new();
+    for (table, v6) in [("/proc/net/tcp", false), ("/proc/net/tcp6", true)] {
+        let Ok(text) = std::fs::read_to_string(table) else {
+            continue;
+        };
+        for line in text.lines().skip(1) {
+            let f: Vec<&str> = line.split_whitespace().collect();
+            // sl local_address rem_address st tx:rx tr:when retrnsmt uid timeout inode
+            if f.len() > 9 && f[3] == "0A" {
+                let addr = f[1].split(':').next().unwrap_or_default().to_string();
+                if let Ok(inode) = f[9].parse() {
+                    out.insert(inode, (addr, v6));
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Whether a /proc/net address (32-bit words in host order, little-endian here) is loopback:
+/// 127.x.x.x, ::1 or ::ffff:127.x.x.x.
+fn is_loopback(addr: &str, v6: bool) -> bool {
+    if !v6 {
+        return addr.len() == 8 && addr.ends_with("7F");
+    }
+    addr == "00000000000000000000000001000000"
+        || (addr.len() == 32
+            && addr.starts_with("0000000000000000FFFF0000")
+            && addr.ends_with("7F"))
+}
+
+/// The listening sockets of the processes of the Ray instance under `dir`, as
+/// (pid, command line, address in /proc/net hex, loopback?).
+fn ray_listeners(dir: &Path) -> Vec<(u32, String, String, bool)> {
+    let sockets = listening_sockets();
+    let mut out = Vec::new();
+    for (pid, cmdline) in processes_using(dir) {
+        let Ok(fds) = std::fs::read_dir(format!("/proc/{pid}/fd")) else {
+            continue;
+        };
+        for fd in fds.flatten() {
+            let Ok(target) = std::fs::read_link(fd.path()) else {
+                continue;
+            };
+            let target = target.to_string_lossy();
+            let Some(inode) = target
+                .strip_prefix("socket:[")
+                .and_then(|t| t.strip_suffix(']'))
+                .and_then(|t| t.parse::<u64>().ok())
+            else {
+                continue;
+            };
+            if let Some((addr, v6)) = sockets.get(&inode) {
+                out.push((pid, cmdline.clone(), addr.clone(), is_loopback(addr, *v6)));
+            }
+        }
+    }
+    out
+}
+
+/// Runs `scripts/ray_track.py` with a local instance whose temporary directory is `ray_dir`,
+/// checking while it runs that every server of the instance listens on loopback only.
 fn ray_track(ray_dir: &Path, args: &[String]) -> Output {
     let _guard = RayGuard {
         dir: ray_dir.to_path_buf(),
     };
-    let out = Command::new("python3")
+    let logs = tempfile::tempdir().unwrap();
+    let (stdout, stderr) = (logs.path().join("stdout"), logs.path().join("stderr"));
+    let mut child = Command::new("python3")
         .arg(repo("scripts/ray_track.py"))
         .args(["--num-cpus", "2", "--temp-dir"])
         .arg(ray_dir)
         .args(args)
-        .output()
+        .stdout(std::fs::File::create(&stdout).unwrap())
+        .stderr(std::fs::File::create(&stderr).unwrap())
+        .spawn()
         .expect("run python3 scripts/ray_track.py");
+    let mut listeners = Vec::new();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        listeners.extend(ray_listeners(ray_dir));
+        std::thread::sleep(Duration::from_millis(250));
+    };
     let left = wait_for_shutdown(ray_dir);
     assert!(
         left.is_empty(),
         "Ray processes still running after ray_track.py exited: {left:?}"
     );
-    out
+    assert!(
+        !listeners.is_empty(),
+        "saw no listening socket of the Ray instance while it ran"
+    );
+    let exposed: Vec<_> = listeners.iter().filter(|l| !l.3).collect();
+    assert!(
+        exposed.is_empty(),
+        "Ray listened beyond loopback: {exposed:?}"
+    );
+    Output {
+        status,
+        stdout: std::fs::read(&stdout).unwrap(),
+        stderr: std::fs::read(&stderr).unwrap(),
+    }
 }
 
 fn s(p: &Path) -> String {
