@@ -172,14 +172,15 @@ def local_copy(location: str, directory: str) -> str:
 # Work done on the workers.
 
 
-def run_probmot(cmd: list[str]) -> tuple[subprocess.CompletedProcess, str | None]:
-    """Runs probmot; returns the process and an error message (None on success).
+def run_probmot(cmd: list[str]) -> tuple[subprocess.CompletedProcess | None, str | None]:
+    """Runs probmot; returns the process (None if it could not start) and an error message (None
+    on success). A binary that is missing or cannot run is reported, not retried.
 
     Raises TransientError when probmot was killed by a signal."""
     try:
         p = subprocess.run(cmd, capture_output=True, text=True)
     except OSError as e:
-        return None, f"cannot run {cmd[0]}: {e}"  # type: ignore[return-value]
+        return None, f"cannot run {cmd[0]}: {e}"
     if p.returncode < 0:
         raise TransientError(f"{' '.join(cmd[:2])} was killed by signal {-p.returncode}")
     if p.returncode != 0:
