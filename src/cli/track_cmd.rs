@@ -12,6 +12,7 @@ use rayon::prelude::*;
 
 use super::config_cmd::TrackerArgs;
 use super::show_progress;
+use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 
 /// Track the detections of MCAP recordings and write each back with a tracks channel added.
 ///
@@ -58,8 +59,9 @@ pub struct TrackArgs {
     /// Largest number of boxes accepted in one detection message (more is an error).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DETECTIONS)]
     max_detections: usize,
-    /// Also write a Rerun recording of the run (needs the `rerun` cargo feature).
-    #[arg(long, value_name = "OUT.rrd")]
+    /// Also write a Rerun recording of the output (as `probmot viz OUTPUT -o OUT.rrd`; one input
+    /// with -o only; needs the `rerun` cargo feature).
+    #[arg(long, value_name = "OUT.rrd", conflicts_with = "out_dir")]
     rerun: Option<PathBuf>,
     /// No progress bar and no summary line (errors and warnings still go to stderr).
     #[arg(short, long)]
@@ -101,12 +103,17 @@ fn print_summary(s: &TrackSummary) {
 }
 
 pub fn run(a: TrackArgs) -> Result<ExitCode> {
-    if a.rerun.is_some() {
-        bail!(
-            "--rerun needs probmot built with the `rerun` cargo feature \
-             (cargo build --release --features rerun); without it, convert the output with \
-             scripts/to_rerun.py"
-        );
+    if let Some(rrd) = &a.rerun {
+        if !cfg!(feature = "rerun") {
+            bail!("--rerun: {NEEDS_FEATURE}");
+        }
+        check_rrd_output(a.inputs.first().map(|p| p.as_path()), rrd)?;
+        if a.output.as_ref() == Some(rrd) {
+            bail!(
+                "--rerun {} is also the -o output; give two paths",
+                rrd.display()
+            );
+        }
     }
     let config = a.tracker.resolve()?;
     let opts = TrackOptions {
@@ -133,6 +140,9 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             for w in &s.warnings {
                 eprintln!("warning: {w}");
             }
+            if let Some(rrd) = &a.rerun {
+                write_recording(&a, out, rrd)?;
+            }
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&s)?);
             } else if !a.quiet {
@@ -143,6 +153,34 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         (None, Some(dir)) => run_many(&a, dir, &opts, progress),
         _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
     }
+}
+
+/// The Rerun recording of the finished output (`--rerun`).
+#[cfg(feature = "rerun")]
+fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
+    // The first detections topic read (the default one when none was given).
+    let detections = a
+        .detections_topics
+        .first()
+        .map(String::as_str)
+        .unwrap_or("/detections");
+    let r = super::viz_cmd::track_recording(tracked, rrd, detections, &a.tracks_topic)
+        .context("--rerun")?;
+    if !a.quiet && !a.json {
+        println!(
+            "{}: {} frames, {} track ids, {} bytes",
+            rrd.display(),
+            r.frames,
+            r.track_ids,
+            r.bytes
+        );
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "rerun"))]
+fn write_recording(_: &TrackArgs, _: &Path, _: &Path) -> Result<()> {
+    bail!("--rerun: {NEEDS_FEATURE}")
 }
 
 fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
