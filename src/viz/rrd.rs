@@ -11,7 +11,7 @@
 //! second). Timelines: `log_time` (timestamp, the MCAP log time) and `frame` (sequence, the
 //! frame index); the SDK's own `log_time`/`log_tick` injection is turned off.
 //!
-//! The recording carries a default blueprint with one 3D view of `world` whose eye looks straight
+//! The recording carries a blueprint (made active and default on load) with one 3D view of `world` whose eye looks straight
 //! down (+y up on screen) on a light background. The SDK's high-level blueprint API
 //! (`rerun::blueprint`) cannot set a 3D view's eye or background in 0.36, so the blueprint store is
 //! written here from the same blueprint archetypes the viewer reads (`ViewBlueprint`,
@@ -246,12 +246,15 @@ pub fn encode_rrd(scene: &Scene, opts: &RrdOptions) -> Result<Vec<u8>> {
         .unwrap_or_else(|| stable_uuid(&opts.name, 0).to_string());
     let rec = RecordingStreamBuilder::new(APPLICATION_ID)
         .recording_id(recording_id)
-        .recording_name(opts.name.clone())
         .buffered()
         .context("starting the Rerun recording")?;
     rec.set_log_time_enabled(false);
     rec.set_log_tick_enabled(false);
     let storage = rec.binary_stream();
+    // Named here, once the sink is in place: a name given to the builder (with SDK 0.36.3) did not
+    // reach the file, and the viewer listed the recording as "<unknown>".
+    rec.send_recording_name(opts.name.clone())
+        .context("naming the Rerun recording")?;
 
     let bp = blueprint(scene, &opts.name).context("building the Rerun blueprint")?;
     if let Some(LogMsg::SetStoreInfo(info)) = bp.first() {
@@ -260,7 +263,9 @@ pub fn encode_rrd(scene: &Scene, opts: &RrdOptions) -> Result<Vec<u8>> {
             bp,
             BlueprintActivationCommand {
                 blueprint_id,
-                make_active: false,
+                // Active at once: the eye is placed for this file's boxes, so a layout the viewer
+                // kept from another recording of the same application would look elsewhere.
+                make_active: true,
                 make_default: true,
             },
         );
