@@ -158,7 +158,8 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
 /// The Rerun recording of the finished output (`--rerun`).
 #[cfg(feature = "rerun")]
 fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
-    // The first detections topic read (the default one when none was given).
+    // The recording shows one detections topic: the first --detections-topic, else /detections
+    // (`probmot viz --detections-topic T` draws another one).
     let detections = a
         .detections_topics
         .first()
