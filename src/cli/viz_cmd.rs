@@ -43,7 +43,7 @@ pub struct VizArgs {
     /// Topic of the ground truth.
     #[arg(long, default_value = "/ground_truth", value_name = "TOPIC")]
     truth_topic: String,
-    /// Rerun recording id (default: derived from the input's file name).
+    /// Rerun recording id (default: a random one).
     #[arg(long, value_name = "ID")]
     recording_id: Option<String>,
     /// Print nothing on success.

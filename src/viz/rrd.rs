@@ -52,7 +52,8 @@ pub const VIEW_BACKGROUND: (u8, u8, u8) = (0xf4, 0xf4, 0xf4);
 /// How the recording is written.
 #[derive(Debug, Clone)]
 pub struct RrdOptions {
-    /// Rerun recording id; `None` derives one from `name` (so the same input gives the same id).
+    /// Rerun recording id; `None` for a random one (as `scripts/to_rerun.py`: the viewer merges
+    /// recordings with the same id, and two logs can share a file name).
     pub recording_id: Option<String>,
     /// Name of the view (and of the recording), e.g. the input's file name.
     pub name: String,
@@ -178,7 +179,7 @@ fn log_scene(rec: &RecordingStream, scene: &Scene) -> rerun::RecordingStreamResu
     Ok(())
 }
 
-/// A UUID derived from `name` and `salt`: stable ids for the same input.
+/// A UUID derived from `name` and `salt`: the blueprint's ids are the same for the same input.
 fn stable_uuid(name: &str, salt: u64) -> Uuid {
     let mut h = salt;
     for b in name.bytes() {
@@ -240,14 +241,11 @@ fn blueprint(scene: &Scene, name: &str) -> rerun::RecordingStreamResult<Vec<LogM
 
 /// Encodes the scene as an .rrd file in memory: the blueprint first, then the data.
 pub fn encode_rrd(scene: &Scene, opts: &RrdOptions) -> Result<Vec<u8>> {
-    let recording_id = opts
-        .recording_id
-        .clone()
-        .unwrap_or_else(|| stable_uuid(&opts.name, 0).to_string());
-    let rec = RecordingStreamBuilder::new(APPLICATION_ID)
-        .recording_id(recording_id)
-        .buffered()
-        .context("starting the Rerun recording")?;
+    let mut builder = RecordingStreamBuilder::new(APPLICATION_ID);
+    if let Some(id) = &opts.recording_id {
+        builder = builder.recording_id(id.clone());
+    }
+    let rec = builder.buffered().context("starting the Rerun recording")?;
     rec.set_log_time_enabled(false);
     rec.set_log_tick_enabled(false);
     let storage = rec.binary_stream();
@@ -303,7 +301,7 @@ pub struct VizOptions {
     pub classes: Vec<String>,
     /// Centres per track in `world/trails` (at least 1).
     pub trail: usize,
-    /// Rerun recording id; `None` derives one from the input's file name.
+    /// Rerun recording id; `None` for a random one.
     pub recording_id: Option<String>,
 }
 
