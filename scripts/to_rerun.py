@@ -16,7 +16,7 @@ Entities (all under `world`, z up, metres):
 Timelines: `log_time` (the MCAP messages' log time) and `frame` (index of the frame among all
 distinct log times of the topics read, from 0). Every entity gets one row per frame in which its
 topic has a message, empty frames included, so nothing stale stays on screen. The recording
-carries a blueprint with a top-down 3D view.
+carries a blueprint with a top-down 3D view, made active on load.
 
     python3 scripts/to_rerun.py drive.tracked.mcap -o drive.rrd
     rerun drive.rrd
@@ -360,7 +360,10 @@ def save_atomically(
     os.close(fd)
     try:
         rec = new_recording(recording_id)
-        rec.save(tmp, default_blueprint=blueprint)
+        rec.save(tmp)
+        # Active on load, not only the default: the eye is placed for this file's boxes, so a
+        # layout the viewer kept from another recording of the application would look elsewhere.
+        rec.send_blueprint(blueprint, make_active=True, make_default=True)
         log(rec)
         rec.flush()
         rec.disconnect()

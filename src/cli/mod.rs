@@ -8,6 +8,7 @@ mod info_cmd;
 mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;
+mod viz_cmd;
 
 use std::process::ExitCode;
 
@@ -37,6 +38,7 @@ enum Command {
     Import(import_cmd::ImportArgs),
     Export(import_cmd::ExportArgs),
     Plot(plot_cmd::PlotArgs),
+    Viz(viz_cmd::VizArgs),
 }
 
 /// Runs a parsed command line; the exit code on success.
@@ -51,6 +53,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Import(a) => import_cmd::run_import(a),
         Command::Export(a) => import_cmd::run_export(a),
         Command::Plot(a) => plot_cmd::run(a),
+        Command::Viz(a) => viz_cmd::run(a),
     }
 }
 

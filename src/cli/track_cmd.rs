@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::config_cmd::TrackerArgs;
 use super::show_progress;
+use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 
 /// Track the detections of MCAP recordings and write each back with a tracks channel added.
 ///
@@ -89,8 +90,9 @@ pub struct TrackArgs {
     /// for the Foxglove 3D panel.
     #[arg(long, value_name = "TOPIC")]
     scene_topic: Option<String>,
-    /// Also write a Rerun recording of the run (needs the `rerun` cargo feature).
-    #[arg(long, value_name = "OUT.rrd")]
+    /// Also write a Rerun recording of the output (as `probmot viz OUTPUT -o OUT.rrd`; one input
+    /// with -o only; needs the `rerun` cargo feature).
+    #[arg(long, value_name = "OUT.rrd", conflicts_with = "out_dir")]
     rerun: Option<PathBuf>,
     /// No progress bar and no summary line (errors and warnings still go to stderr).
     #[arg(short, long)]
@@ -141,12 +143,17 @@ fn print_summary(s: &TrackSummary) {
 }
 
 pub fn run(a: TrackArgs) -> Result<ExitCode> {
-    if a.rerun.is_some() {
-        bail!(
-            "--rerun needs probmot built with the `rerun` cargo feature \
-             (cargo build --release --features rerun); without it, convert the output with \
-             scripts/to_rerun.py"
-        );
+    if let Some(rrd) = &a.rerun {
+        if !cfg!(feature = "rerun") {
+            bail!("--rerun: {NEEDS_FEATURE}");
+        }
+        check_rrd_output(a.inputs.first().map(|p| p.as_path()), rrd)?;
+        if a.output.as_ref() == Some(rrd) {
+            bail!(
+                "--rerun {} is also the -o output; give two paths",
+                rrd.display()
+            );
+        }
     }
     if !(a.tf_tolerance.is_finite() && a.tf_tolerance >= 0.0) {
         bail!("--tf-tolerance must be a number of seconds >= 0");
@@ -182,6 +189,9 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             for w in &s.warnings {
                 eprintln!("warning: {w}");
             }
+            if let Some(rrd) = &a.rerun {
+                write_recording(&a, out, rrd)?;
+            }
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&s)?);
             } else if !a.quiet {
@@ -192,6 +202,35 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         (None, Some(dir)) => run_many(&a, dir, &opts, progress),
         _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
     }
+}
+
+/// The Rerun recording of the finished output (`--rerun`).
+#[cfg(feature = "rerun")]
+fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
+    // The recording shows one detections topic: the first --detections-topic, else /detections
+    // (`probmot viz --detections-topic T` draws another one).
+    let detections = a
+        .detections_topics
+        .first()
+        .map(String::as_str)
+        .unwrap_or("/detections");
+    let r = super::viz_cmd::track_recording(tracked, rrd, detections, &a.tracks_topic)
+        .context("--rerun")?;
+    if !a.quiet && !a.json {
+        println!(
+            "{}: {} frames, {} track ids, {} bytes",
+            rrd.display(),
+            r.frames,
+            r.track_ids,
+            r.bytes
+        );
+    }
+    Ok(())
+}
+
+#[cfg(not(feature = "rerun"))]
+fn write_recording(_: &TrackArgs, _: &Path, _: &Path) -> Result<()> {
+    bail!("--rerun: {NEEDS_FEATURE}")
 }
 
 fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {

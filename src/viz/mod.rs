@@ -4,6 +4,9 @@
 //! per-frame box lists and selects a class and a time window; [`plot`] draws them, with no I/O.
 
 pub mod plot;
+#[cfg(feature = "rerun")]
+pub mod rrd;
+pub mod scene;
 pub mod scene_update;
 
 use std::collections::{BTreeMap, BTreeSet};
@@ -31,12 +34,15 @@ pub struct BevBox {
     pub yaw: f64,
     /// Detection or track score.
     pub score: f64,
+    /// Velocity, m/s (zero when the message has none).
+    pub velocity: [f64; 3],
 }
 
 impl BevBox {
     fn from_track(t: &Track3D) -> BevBox {
         let c = t.center.unwrap_or_default();
         let s = t.size.unwrap_or_default();
+        let v = t.velocity.unwrap_or_default();
         BevBox {
             id: t.id,
             label: t.label.clone(),
@@ -44,12 +50,14 @@ impl BevBox {
             size: [s.length, s.width, s.height],
             yaw: t.yaw,
             score: t.score,
+            velocity: [v.x, v.y, v.z],
         }
     }
 
     fn from_detection(d: &Detection3D) -> BevBox {
         let c = d.center.unwrap_or_default();
         let s = d.size.unwrap_or_default();
+        let v = d.velocity.unwrap_or_default();
         BevBox {
             id: 0,
             label: d.label.clone(),
@@ -57,6 +65,7 @@ impl BevBox {
             size: [s.length, s.width, s.height],
             yaw: d.yaw,
             score: d.score,
+            velocity: [v.x, v.y, v.z],
         }
     }
 
@@ -159,6 +168,8 @@ pub struct LayerFrames {
     pub topic: String,
     /// Frames in file order (one per message).
     pub frames: Vec<Frame>,
+    /// The MCAP log time of each frame's message, ns (`log_times[i]` belongs to `frames[i]`).
+    pub log_times: Vec<u64>,
 }
 
 /// The layers of one file, read in a single pass.
@@ -202,7 +213,8 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
     // channel id -> (index into `wanted`, encoding)
     let mut channels: BTreeMap<u16, (usize, Encoding)> = BTreeMap::new();
     let mut topics = BTreeSet::new();
-    let mut frames: Vec<Option<Vec<Frame>>> = vec![None; wanted.len()];
+    // Per wanted channel: (frames, log time of each frame's message).
+    let mut frames: Vec<Option<(Vec<Frame>, Vec<u64>)>> = vec![None; wanted.len()];
     read_records(path, |rec, _| {
         match rec {
             Record::Schema { header, .. } => {
@@ -229,7 +241,7 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
                     );
                 };
                 channels.insert(c.id, (i, enc));
-                frames[i].get_or_insert_with(Vec::new);
+                frames[i].get_or_insert_with(Default::default);
             }
             Record::Message { header, data } => {
                 let Some(&(i, enc)) = channels.get(&header.channel_id) else {
@@ -257,7 +269,9 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
                     };
                     (stamp, m.tracks.iter().map(BevBox::from_track).collect())
                 };
-                frames[i].get_or_insert_with(Vec::new).push(frame);
+                let (layer_frames, log_times) = frames[i].get_or_insert_with(Default::default);
+                layer_frames.push(frame);
+                log_times.push(header.log_time);
             }
             _ => {}
         }
@@ -267,10 +281,11 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
         .iter()
         .zip(frames)
         .filter_map(|((layer, topic), f)| {
-            f.map(|frames| LayerFrames {
+            f.map(|(frames, log_times)| LayerFrames {
                 layer: *layer,
                 topic: topic.clone(),
                 frames,
+                log_times,
             })
         })
         .collect();
@@ -334,6 +349,7 @@ mod tests {
             size: [4.0, 2.0, 1.5],
             yaw: 0.0,
             score: 1.0,
+            velocity: [0.0; 3],
         }
     }
 

@@ -418,6 +418,7 @@ mod tests {
             size: [4.5, 1.9, 1.6],
             yaw,
             score: 0.9,
+            velocity: [0.0; 3],
         }
     }
 

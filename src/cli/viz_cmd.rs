@@ -1,0 +1,127 @@
+//! `probmot viz`, and the Rerun recording of `probmot track --rerun`.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{bail, Result};
+use clap::Args;
+use probmot::mcapio::writer::check_output_path;
+
+/// Write a Rerun recording (.rrd) of a recording's detections, tracks and ground truth.
+///
+/// Entities under `world` (z up, metres): detections (grey boxes), tracks (a colour per id,
+/// labelled "car 12"), ground_truth (green, when present), trails (each track's last centres)
+/// and velocity (arrows); timelines `log_time` (the MCAP log time) and `frame` (frame index).
+/// The recording opens in a top-down 3D view. Same content as scripts/to_rerun.py.
+///
+/// Needs probmot built with the `rerun` cargo feature (cargo build --release --features rerun);
+/// without it, use scripts/to_rerun.py.
+///
+/// Examples:
+///   probmot viz drive.tracked.mcap -o drive.rrd && rerun drive.rrd
+///   probmot viz drive.tracked.mcap -o cars.rrd --class car --trail 50
+#[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
+pub struct VizArgs {
+    /// MCAP file with probmot's channels, e.g. the output of `probmot track`.
+    file: PathBuf,
+    /// Output .rrd file (written atomically).
+    #[arg(short, long, value_name = "OUT.rrd")]
+    output: PathBuf,
+    /// Centres per track in world/trails.
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    trail: usize,
+    /// Only boxes of these classes (comma-separated or repeated); default: every class.
+    #[arg(long, value_name = "CLASS", value_delimiter = ',')]
+    class: Vec<String>,
+    /// Topic of the detections.
+    #[arg(long, default_value = "/detections", value_name = "TOPIC")]
+    detections_topic: String,
+    /// Topic of the tracks.
+    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
+    tracks_topic: String,
+    /// Topic of the ground truth.
+    #[arg(long, default_value = "/ground_truth", value_name = "TOPIC")]
+    truth_topic: String,
+    /// Rerun recording id (default: a random one).
+    #[arg(long, value_name = "ID")]
+    recording_id: Option<String>,
+    /// Print nothing on success.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// The error without the `rerun` feature: how to enable it, or the script to use instead.
+pub const NEEDS_FEATURE: &str = "this probmot was built without the `rerun` cargo feature; \
+     rebuild with `cargo build --release --features rerun` (or `cargo install --path . \
+     --features rerun`), or convert a tracked file with `python3 scripts/to_rerun.py \
+     TRACKED.mcap -o OUT.rrd` (needs `python3 -m pip install -r scripts/requirements.txt`)";
+
+/// Checks the output path of a recording before any work.
+pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {
+    let is_rrd = out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("rrd"));
+    if !is_rrd {
+        bail!(
+            "output {} must end in .rrd (a Rerun recording)",
+            out.display()
+        );
+    }
+    check_output_path(input, out)
+}
+
+pub fn run(a: VizArgs) -> Result<ExitCode> {
+    check_rrd_output(Some(&a.file), &a.output)?;
+    if a.trail == 0 {
+        bail!("--trail must be at least 1");
+    }
+    write(&a)
+}
+
+#[cfg(feature = "rerun")]
+fn write(a: &VizArgs) -> Result<ExitCode> {
+    use probmot::viz::rrd::{mcap_to_rrd, VizOptions};
+    let o = VizOptions {
+        detections_topic: a.detections_topic.clone(),
+        tracks_topic: a.tracks_topic.clone(),
+        truth_topic: a.truth_topic.clone(),
+        classes: a.class.clone(),
+        trail: a.trail,
+        recording_id: a.recording_id.clone(),
+    };
+    let s = mcap_to_rrd(&a.file, &a.output, &o)?;
+    if !a.quiet {
+        println!(
+            "{}: {} frames, {} track ids, {} bytes",
+            a.output.display(),
+            s.frames,
+            s.track_ids,
+            s.bytes
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+#[cfg(not(feature = "rerun"))]
+fn write(_: &VizArgs) -> Result<ExitCode> {
+    bail!("probmot viz: {NEEDS_FEATURE}")
+}
+
+/// The Rerun recording of a finished `probmot track` run: the same as `probmot viz TRACKED -o
+/// OUT` with the run's detections and tracks topics.
+#[cfg(feature = "rerun")]
+pub fn track_recording(
+    tracked: &Path,
+    out: &Path,
+    detections_topic: &str,
+    tracks_topic: &str,
+) -> Result<probmot::viz::rrd::RrdSummary> {
+    use probmot::viz::rrd::{mcap_to_rrd, VizOptions};
+    let o = VizOptions {
+        detections_topic: detections_topic.into(),
+        tracks_topic: tracks_topic.into(),
+        ..VizOptions::default()
+    };
+    mcap_to_rrd(tracked, out, &o)
+}
