@@ -1,9 +1,11 @@
 //! The whole `track` path (MCAP read, decode, track, encode, write) on a generated dense log,
 //! next to a plain copy of the same log (`--no-track`), in one run: the ratio of the two is the
-//! cost of tracking over I/O.
+//! cost of tracking over I/O. Both are measured with each output compression (`--compression
+//! zstd`, the default, and `lz4`).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use indicatif::ProgressBar;
+use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::track::{track_file, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::sim::{write_simulation, Scenario, SimOptions};
 use probmot::tracker::TrackerConfig;
@@ -39,18 +41,25 @@ fn bench(c: &mut Criterion) {
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
         ego: Default::default(),
         scene_topic: None,
+        compression: Default::default(),
     };
     let mut g = c.benchmark_group("track_path");
     g.sample_size(10);
     g.throughput(Throughput::Bytes(bytes));
-    g.bench_function("copy_no_track", |b| {
-        opts.no_track = true;
-        b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())
-    });
-    g.bench_function("track", |b| {
-        opts.no_track = false;
-        b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())
-    });
+    for (name, compression) in [
+        ("zstd", OutputCompression::Zstd),
+        ("lz4", OutputCompression::Lz4),
+    ] {
+        opts.compression = compression;
+        g.bench_function(format!("copy_no_track/{name}"), |b| {
+            opts.no_track = true;
+            b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())
+        });
+        g.bench_function(format!("track/{name}"), |b| {
+            opts.no_track = false;
+            b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())
+        });
+    }
     g.finish();
 }
 

@@ -211,6 +211,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
         max_detections_per_message: 100_000,
         ego: Default::default(),
         scene_topic: None,
+        compression: Default::default(),
     };
     let mut failures = Vec::new();
     for (i, f) in files.iter().enumerate() {

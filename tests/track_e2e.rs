@@ -324,3 +324,46 @@ fn many_files_in_parallel_report_failures_and_finish_the_rest() {
     assert!(!out_dir.join("corrupt.mcap").exists());
     assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 2);
 }
+
+#[test]
+fn compression_option_changes_only_the_chunk_compression() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("sample_logs/city.mcap");
+    let mut runs = Vec::new();
+    for algo in ["zstd", "lz4", "none"] {
+        let out = dir.path().join(format!("{algo}.mcap"));
+        track(&input, &out, &["--compression", algo]);
+        let bytes = std::fs::read(&out).unwrap();
+        let summary = mcap::Summary::read(&bytes).unwrap().unwrap();
+        let used: std::collections::BTreeSet<String> = summary
+            .chunk_indexes
+            .iter()
+            .map(|c| c.compression.clone())
+            .collect();
+        let want = if algo == "none" { "" } else { algo };
+        assert_eq!(used, [want.to_string()].into(), "{algo}");
+        let msgs: Vec<(String, u64, Vec<u8>)> = messages(&out)
+            .into_iter()
+            .map(|m| (m.topic, m.log_time, m.data))
+            .collect();
+        runs.push((bytes.len(), msgs));
+    }
+    assert_eq!(runs[0].1, runs[1].1);
+    assert_eq!(runs[0].1, runs[2].1);
+    // Uncompressed is the largest, zstd the smallest.
+    assert!(
+        runs[2].0 > runs[1].0 && runs[1].0 > runs[0].0,
+        "{:?}",
+        runs.iter().map(|r| r.0).collect::<Vec<_>>()
+    );
+    let bad = probmot(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.mcap").to_str().unwrap(),
+        "--compression",
+        "gzip",
+    ]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("expected zstd, lz4 or none"));
+}

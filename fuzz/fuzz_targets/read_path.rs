@@ -55,6 +55,7 @@ fn options() -> TrackOptions {
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
         ego: Default::default(),
         scene_topic: None,
+        compression: Default::default(),
     }
 }
 

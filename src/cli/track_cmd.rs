@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use rayon::prelude::*;
@@ -73,6 +74,10 @@ pub struct TrackArgs {
     /// Largest number of boxes accepted in one detection message (more is an error).
     #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DETECTIONS)]
     max_detections: usize,
+    /// Chunk compression of the output: zstd (level 1, the smallest files), lz4 (faster to
+    /// write and to read, larger files) or none.
+    #[arg(long, value_name = "ALGO", default_value = "zstd", value_parser = OutputCompression::parse)]
+    compression: OutputCompression,
     /// Frame to track in when detections are in a moving frame (e.g. base_link); default: the
     /// root of the transform tree read from /tf, /tf_static (tf2_msgs/msg/TFMessage),
     /// nav_msgs/msg/Odometry or foxglove.FrameTransform(s) channels.
@@ -172,6 +177,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             tracks_in_ego_frame: a.tracks_frame == TracksFrame::Ego,
         },
         scene_topic: a.scene_topic.clone(),
+        compression: a.compression,
     };
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {

@@ -9,6 +9,44 @@ use anyhow::{bail, Context, Result};
 use mcap::{WriteOptions, Writer};
 use tempfile::NamedTempFile;
 
+/// Compression of the output's chunks.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub enum OutputCompression {
+    /// zstd level 1 (the default: small files, fast enough).
+    #[default]
+    Zstd,
+    /// lz4: faster to write and read, larger files.
+    Lz4,
+    /// Uncompressed chunks.
+    None,
+}
+
+impl OutputCompression {
+    /// Every variant with its name, for parsing and help texts.
+    pub const NAMES: [(&'static str, OutputCompression); 3] = [
+        ("zstd", OutputCompression::Zstd),
+        ("lz4", OutputCompression::Lz4),
+        ("none", OutputCompression::None),
+    ];
+
+    /// Parses `zstd`, `lz4` or `none`.
+    pub fn parse(s: &str) -> Result<OutputCompression, String> {
+        Self::NAMES
+            .iter()
+            .find(|(n, _)| *n == s)
+            .map(|(_, c)| *c)
+            .ok_or_else(|| format!("'{s}': expected zstd, lz4 or none"))
+    }
+
+    fn mcap(self) -> Option<mcap::Compression> {
+        match self {
+            OutputCompression::Zstd => Some(mcap::Compression::Zstd),
+            OutputCompression::Lz4 => Some(mcap::Compression::Lz4),
+            OutputCompression::None => None,
+        }
+    }
+}
+
 /// Options of the output file.
 #[derive(Debug, Clone)]
 pub struct OutputOptions {
@@ -16,6 +54,8 @@ pub struct OutputOptions {
     pub profile: String,
     /// Chunk size in bytes before compression.
     pub chunk_size: u64,
+    /// Chunk compression.
+    pub compression: OutputCompression,
 }
 
 impl Default for OutputOptions {
@@ -23,6 +63,7 @@ impl Default for OutputOptions {
         OutputOptions {
             profile: String::new(),
             chunk_size: 1 << 20,
+            compression: OutputCompression::Zstd,
         }
     }
 }
@@ -94,8 +135,9 @@ pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 impl AtomicOutput {
-    /// Creates the temporary file beside `dest` and an MCAP writer on it: zstd chunks, message
-    /// and chunk indexes, and a summary section, so viewers can seek.
+    /// Creates the temporary file beside `dest` and an MCAP writer on it: compressed chunks (zstd
+    /// level 1 on a worker thread by default), message and chunk indexes, and a summary section,
+    /// so viewers can seek.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
         let dir = parent_dir(dest);
         let tmp = NamedTempFile::with_prefix_in(".probmot-", &dir)
@@ -111,7 +153,7 @@ impl AtomicOutput {
         let writer = WriteOptions::new()
             .profile(opts.profile.clone())
             .library(library_string())
-            .compression(Some(mcap::Compression::Zstd))
+            .compression(opts.compression.mcap())
             .compression_threads(1)
             .compression_level(1)
             .chunk_size(Some(opts.chunk_size))

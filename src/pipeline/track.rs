@@ -20,7 +20,7 @@ use super::detections::{convert, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::track_outputs::ExtraOutputs;
 use crate::mcapio::reader::read_records;
-use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputOptions};
+use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputCompression, OutputOptions};
 use crate::msgs::detection_source::{self, DetectionSource};
 use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
@@ -49,6 +49,8 @@ pub struct TrackOptions {
     pub ego: EgoOptions,
     /// Topic of the `foxglove.SceneUpdate` output channel, if any.
     pub scene_topic: Option<String>,
+    /// Chunk compression of the output.
+    pub compression: OutputCompression,
 }
 
 /// Default of [`TrackOptions::max_detections_per_message`].
@@ -222,7 +224,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                     s.entry_channels.push(header.channel_id);
                     ordinal += 1;
                 }
-                if ordinal % 256 == 0 {
+                if ordinal.is_multiple_of(256) {
                     progress.set_position(stats.bytes_read);
                 }
             }
@@ -401,6 +403,7 @@ pub fn track_file(
         output,
         &OutputOptions {
             profile,
+            compression: opts.compression,
             ..Default::default()
         },
     )?;
@@ -511,7 +514,7 @@ pub fn track_file(
                         frame_state.finish(tracker.deleted());
                         summary.tracks_messages += 1;
                         next_frame += 1;
-                        if next_frame % 64 == 0 {
+                        if next_frame.is_multiple_of(64) {
                             progress.set_message(format!(
                                 "tracking: frame {next_frame}/{}",
                                 frames.len()
@@ -519,7 +522,7 @@ pub fn track_file(
                         }
                     }
                 }
-                if summary.messages_copied % 256 == 0 {
+                if summary.messages_copied.is_multiple_of(256) {
                     progress.set_position(base + stats.bytes_read);
                 }
             }
