@@ -284,3 +284,51 @@ fn plot_errors_are_clear_and_write_nothing() {
         "no output on error"
     );
 }
+
+#[test]
+fn plot_draws_ros2_and_foxglove_detections_like_probmot_ones() {
+    // The ROS 2 and Foxglove fixtures carry the detections of sample_logs/city.mcap; tracked,
+    // they give the same boxes (tests/ros2_foxglove_input.rs), so their pictures are the same
+    // pixels as the probmot log's.
+    let dir = tempfile::tempdir().unwrap();
+    let mut pictures = Vec::new();
+    for (name, input) in [
+        ("probmot", "sample_logs/city.mcap"),
+        ("ros2", "tests/fixtures/ros2/city.mcap"),
+        ("foxglove", "tests/fixtures/foxglove/city.mcap"),
+    ] {
+        let tracked = dir.path().join(format!("{name}.mcap"));
+        probmot_ok(&[
+            "track",
+            repo(input).to_str().unwrap(),
+            "-o",
+            tracked.to_str().unwrap(),
+            "--quiet",
+        ]);
+        let png = dir.path().join(format!("{name}.png"));
+        probmot_ok(&[
+            "plot",
+            tracked.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--layers",
+            "detections,tracks",
+            "--title",
+            "city",
+        ]);
+        pictures.push(Picture::read(&png));
+    }
+    let grey = pictures[0]
+        .rgb
+        .chunks(3)
+        .filter(|p| (p[0], p[1], p[2]) == DETECTION_GREY)
+        .count();
+    assert!(grey > 100, "the detections panel has grey boxes");
+    for p in &pictures[1..] {
+        assert_eq!((p.width, p.height), (pictures[0].width, pictures[0].height));
+        assert!(
+            p.rgb == pictures[0].rgb,
+            "same picture as the probmot log's"
+        );
+    }
+}

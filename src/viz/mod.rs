@@ -17,6 +17,7 @@ use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
 use crate::mcapio::reader::read_records;
+use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::{self, Detection3D, Detections3D, Encoding, Track3D, Tracks3D};
 
 /// One box seen from above (z and height are kept but not drawn).
@@ -90,7 +91,8 @@ pub type Frame = (u64, Vec<BevBox>);
 /// What a channel holds, and so how it is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub enum Layer {
-    /// `probmot.Detections3D`: boxes without ids, drawn grey.
+    /// Detections (any input `track` reads: probmot, ROS 2 vision_msgs, Foxglove SceneUpdate):
+    /// boxes without ids, drawn grey.
     Detections,
     /// `probmot.Tracks3D` written by the tracker: a colour per track id.
     Tracks,
@@ -204,21 +206,29 @@ impl FileLayers {
     }
 }
 
+/// How the messages of one layer channel are decoded.
+enum LayerDecoder {
+    /// A detection input of any supported schema.
+    Detections(DetectionSource),
+    /// `probmot.Tracks3D`.
+    Tracks(Encoding),
+}
+
 /// Reads the given `(layer, topic)` channels of `path` in one pass. Topics the file lacks are
 /// left out of the result (see [`FileLayers::topics`]); a topic with the wrong schema or an
 /// undecodable message is an error naming the file, topic and log time.
 pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers> {
     let file = path.display().to_string();
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    // channel id -> (index into `wanted`, encoding)
-    let mut channels: BTreeMap<u16, (usize, Encoding)> = BTreeMap::new();
+    let mut schemas: BTreeMap<u16, (String, String, Vec<u8>)> = BTreeMap::new();
+    // channel id -> (index into `wanted`, how to decode it)
+    let mut channels: BTreeMap<u16, (usize, LayerDecoder)> = BTreeMap::new();
     let mut topics = BTreeSet::new();
     // Per wanted channel: (frames, log time of each frame's message).
     let mut frames: Vec<Option<(Vec<Frame>, Vec<u64>)>> = vec![None; wanted.len()];
     read_records(path, |rec, _| {
         match rec {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name);
+            Record::Schema { header, data } => {
+                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
             }
             Record::Channel(c) => {
                 topics.insert(c.topic.clone());
@@ -226,50 +236,69 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
                     return Ok(());
                 };
                 let (layer, topic) = &wanted[i];
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                if schema != layer.schema() {
-                    bail!(
-                        "{file}: topic {topic} has schema '{schema}', expected {} for the {layer} \
-                         layer",
-                        layer.schema()
-                    );
-                }
-                let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
-                    bail!(
-                        "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
-                        c.message_encoding
-                    );
+                let (schema, schema_enc, schema_data) =
+                    schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let decoder = if *layer == Layer::Detections {
+                    // Any detection input `track` reads (probmot, ROS 2, Foxglove).
+                    match DetectionSource::for_channel(
+                        &schema,
+                        &schema_enc,
+                        &schema_data,
+                        &c.message_encoding,
+                    ) {
+                        Ok(source) => LayerDecoder::Detections(source),
+                        Err(why) => bail!("{file}: topic {topic} ({layer} layer): {why}"),
+                    }
+                } else {
+                    if schema != layer.schema() {
+                        bail!(
+                            "{file}: topic {topic} has schema '{schema}', expected {} for the \
+                             {layer} layer",
+                            layer.schema()
+                        );
+                    }
+                    let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
+                        bail!(
+                            "{file}: topic {topic} has message encoding '{}'; expected protobuf or \
+                             json",
+                            c.message_encoding
+                        );
+                    };
+                    LayerDecoder::Tracks(enc)
                 };
-                channels.insert(c.id, (i, enc));
+                channels.insert(c.id, (i, decoder));
                 frames[i].get_or_insert_with(Default::default);
             }
             Record::Message { header, data } => {
-                let Some(&(i, enc)) = channels.get(&header.channel_id) else {
+                let Some((i, decoder)) = channels.get(&header.channel_id) else {
                     return Ok(());
                 };
-                let (layer, topic) = &wanted[i];
+                let topic = &wanted[*i].1;
                 let ctx = || {
                     format!(
                         "{file}: topic {topic}, message at log_time {}: cannot decode",
                         header.log_time
                     )
                 };
-                let frame = if *layer == Layer::Detections {
-                    let m: Detections3D = msgs::decode(&data, enc).with_context(ctx)?;
-                    (
-                        m.stamp.unwrap_or(header.log_time),
-                        m.detections.iter().map(BevBox::from_detection).collect(),
-                    )
-                } else {
-                    let m: Tracks3D = msgs::decode(&data, enc).with_context(ctx)?;
-                    let stamp = if m.stamp != 0 {
-                        m.stamp
-                    } else {
-                        header.log_time
-                    };
-                    (stamp, m.tracks.iter().map(BevBox::from_track).collect())
+                let frame = match decoder {
+                    LayerDecoder::Detections(source) => {
+                        let m: Detections3D = source.decode(&data).with_context(ctx)?;
+                        (
+                            m.stamp.unwrap_or(header.log_time),
+                            m.detections.iter().map(BevBox::from_detection).collect(),
+                        )
+                    }
+                    LayerDecoder::Tracks(enc) => {
+                        let m: Tracks3D = msgs::decode(&data, *enc).with_context(ctx)?;
+                        let stamp = if m.stamp != 0 {
+                            m.stamp
+                        } else {
+                            header.log_time
+                        };
+                        (stamp, m.tracks.iter().map(BevBox::from_track).collect())
+                    }
                 };
-                let (layer_frames, log_times) = frames[i].get_or_insert_with(Default::default);
+                let (layer_frames, log_times) = frames[*i].get_or_insert_with(Default::default);
                 layer_frames.push(frame);
                 log_times.push(header.log_time);
             }
