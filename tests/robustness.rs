@@ -415,3 +415,30 @@ fn stamps_going_backwards_are_replayed_in_order_and_counted() {
     tb.sort_by_key(|t| t.stamp);
     assert_eq!(ta, tb);
 }
+
+#[cfg(unix)]
+#[test]
+fn a_closed_stdout_pipe_ends_the_process_without_a_panic() {
+    // `probmot info --json | head -0`: the reader is gone before probmot writes.
+    use std::os::unix::process::ExitStatusExt;
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let out = bin()
+        .args([
+            "info",
+            repo("sample_logs/city.mcap").to_str().unwrap(),
+            "--json",
+        ])
+        .stdout(writer)
+        .stderr(std::process::Stdio::piped())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(
+        out.status.signal(),
+        Some(13),
+        "ended by SIGPIPE: {:?}",
+        out.status
+    );
+}
