@@ -225,6 +225,20 @@ fn load_logs(
     Ok((scenes, total))
 }
 
+/// `(truth, tracks)` file pairs, one per log.
+type LogPairs = Vec<(PathBuf, PathBuf)>;
+
+/// The `--baseline` logs, paired with the truth like `--tracks`, loaded as [`load_logs`] does;
+/// no pairs and `None` without `--baseline`.
+fn load_baseline(a: &EvalArgs, kitti: bool) -> Result<(LogPairs, Option<Vec<Scene>>)> {
+    if a.baseline.is_empty() {
+        return Ok((Vec::new(), None));
+    }
+    let pairs = log_pairs(&a.truth, &a.baseline)?;
+    let (scenes, _) = load_logs(a, &pairs, kitti)?;
+    Ok((pairs, Some(scenes)))
+}
+
 /// The regression gate: what fell by more than `max_drop` percentage points, as
 /// `(baseline, this)` values of the main metric, overall and (with `per_class`) per class. An
 /// overall value that has become undefined (no ground truth that counts) also fails.
@@ -306,16 +320,8 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             params.classes.join(", ")
         );
     }
-    let base_pairs = if a.baseline.is_empty() {
-        Vec::new()
-    } else {
-        log_pairs(&a.truth, &a.baseline)?
-    };
-    let baseline = if base_pairs.is_empty() {
-        None
-    } else {
-        Some(evaluate(&load_logs(&a, &base_pairs, false)?.0, &params))
-    };
+    let (base_pairs, base_scenes) = load_baseline(&a, false)?;
+    let baseline = base_scenes.map(|scenes| evaluate(&scenes, &params));
 
     // The gate, on AMOTA.
     let failures = match (&baseline, a.max_drop) {
@@ -451,19 +457,8 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             params.classes.join(", ")
         );
     }
-    let base_pairs = if a.baseline.is_empty() {
-        Vec::new()
-    } else {
-        log_pairs(&a.truth, &a.baseline)?
-    };
-    let baseline = if base_pairs.is_empty() {
-        None
-    } else {
-        Some(kitti::evaluate(
-            &load_logs(&a, &base_pairs, true)?.0,
-            &params,
-        ))
-    };
+    let (base_pairs, base_scenes) = load_baseline(&a, true)?;
+    let baseline = base_scenes.map(|scenes| kitti::evaluate(&scenes, &params));
 
     // The gate, on sAMOTA.
     let failures = match (&baseline, a.max_drop) {

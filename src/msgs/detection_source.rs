@@ -38,6 +38,36 @@ pub fn is_detection_schema(schema_name: &str) -> bool {
         || schema_name == foxglove_scene::SCHEMA_NAME
 }
 
+/// Channel metadata key marking a channel as one of probmot's own outputs (value: what it
+/// holds, e.g. `tracks` on the `--scene-topic` SceneUpdate).
+pub const OUTPUT_METADATA_KEY: &str = "probmot.output";
+
+/// Whether `track` considers a channel for its default selection (no `--detections-topic`): a
+/// detection schema, and not one of probmot's own outputs.
+pub fn is_default_candidate(
+    schema_name: &str,
+    metadata: &std::collections::BTreeMap<String, String>,
+) -> bool {
+    is_detection_schema(schema_name) && !metadata.contains_key(OUTPUT_METADATA_KEY)
+}
+
+/// Of the readable channels of the default selection, the SceneUpdates to leave out: a
+/// SceneUpdate is often a drawing of the same boxes, so it is read by default only when no
+/// other kind of detection channel is there.
+pub fn scenes_left_out<'a>(
+    selected: impl IntoIterator<Item = (u16, &'a DetectionSource)> + Clone,
+) -> Vec<u16> {
+    let is_scene = |s: &DetectionSource| matches!(s, DetectionSource::FoxgloveScene);
+    if selected.clone().into_iter().all(|(_, s)| is_scene(s)) {
+        return Vec::new();
+    }
+    selected
+        .into_iter()
+        .filter(|(_, s)| is_scene(s))
+        .map(|(id, _)| id)
+        .collect()
+}
+
 impl DetectionSource {
     /// The decoder for a channel, or why its messages cannot be read as detections (the reason
     /// names the channel's schema and encodings and lists the supported ones).

@@ -7,11 +7,12 @@ use anyhow::Result;
 use mcap::records::Record;
 
 use crate::mcapio::reader::read_records;
-use crate::msgs::detection_source::{is_detection_schema, DetectionSource};
+use crate::msgs::detection_source::{
+    is_default_candidate, is_detection_schema, scenes_left_out, DetectionSource,
+};
 use crate::msgs::{self, Encoding, Tracks3D};
 use crate::transforms::buffer::EdgeSummary;
 use crate::transforms::TransformCollector;
-use crate::viz::scene_update::{OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA};
 
 /// One channel of a recording.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -111,9 +112,9 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
                     Err(_) if is_transform => "transforms",
                     Err(_) => "",
                 };
-                let own_output = c.metadata.contains_key(OUTPUT_METADATA_KEY);
+                let default_candidate = is_default_candidate(&schema, &c.metadata);
                 channels.entry(c.id).or_insert(ChannelSummary {
-                    default_detections: role == "detections" && !own_output,
+                    default_detections: role == "detections" && default_candidate,
                     id: c.id,
                     topic: c.topic,
                     schema,
@@ -168,18 +169,19 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
         }
         Ok(())
     })?;
-    out.channels = channels.into_values().collect();
-    // The rule of `track`'s default selection: a SceneUpdate only when nothing else is there.
-    let is_scene = |c: &ChannelSummary| c.schema == SCENE_UPDATE_SCHEMA;
-    if out
-        .channels
-        .iter()
-        .any(|c| c.default_detections && !is_scene(c))
-    {
-        for c in out.channels.iter_mut().filter(|c| is_scene(c)) {
+    // `track`'s default selection: a SceneUpdate only when nothing else is there.
+    let left_out = scenes_left_out(
+        sources
+            .iter()
+            .filter(|(id, _)| channels.get(id).is_some_and(|c| c.default_detections))
+            .map(|(id, s)| (*id, s)),
+    );
+    for id in left_out {
+        if let Some(c) = channels.get_mut(&id) {
             c.default_detections = false;
         }
     }
+    out.channels = channels.into_values().collect();
     transforms.finish();
     out.transform_tree = transforms.buffer.summary();
     Ok(out)

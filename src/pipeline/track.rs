@@ -26,7 +26,6 @@ use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
 use crate::transforms::TransformCollector;
-use crate::viz::scene_update::OUTPUT_METADATA_KEY;
 
 /// Settings of one `track` run.
 #[derive(Debug, Clone)]
@@ -162,8 +161,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                 s.transforms.on_channel(&c, &schema_name);
                 let wanted = if opts.detection_topics.is_empty() {
                     // probmot's own outputs (e.g. a --scene-topic SceneUpdate) are not input.
-                    detection_source::is_detection_schema(&schema_name)
-                        && !c.metadata.contains_key(OUTPUT_METADATA_KEY)
+                    detection_source::is_default_candidate(&schema_name, &c.metadata)
                 } else {
                     opts.detection_topics.contains(&c.topic)
                 };
@@ -232,32 +230,20 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         }
         Ok(())
     })?;
-    // By default a SceneUpdate (a visualization, often of the same boxes) is read only when the
-    // log has no other detection channel.
-    if opts.detection_topics.is_empty()
-        && s.det_channels
-            .values()
-            .any(|(src, _)| !matches!(src, DetectionSource::FoxgloveScene))
-    {
-        let scenes: BTreeMap<u16, String> = s
-            .det_channels
-            .iter()
-            .filter(|(_, (src, _))| matches!(src, DetectionSource::FoxgloveScene))
-            .map(|(id, (_, topic))| (*id, topic.clone()))
-            .collect();
-        if !scenes.is_empty() {
-            let keep: Vec<bool> = s
-                .entry_channels
-                .iter()
-                .map(|c| !scenes.contains_key(c))
-                .collect();
-            let mut k = keep.iter();
-            s.entries.retain(|_| *k.next().unwrap());
-            for (id, topic) in scenes {
-                s.det_channels.remove(&id);
+    if opts.detection_topics.is_empty() {
+        let left_out = detection_source::scenes_left_out(
+            s.det_channels.iter().map(|(id, (src, _))| (*id, src)),
+        );
+        if !left_out.is_empty() {
+            let mut k = s.entry_channels.iter();
+            s.entries
+                .retain(|_| !left_out.contains(k.next().expect("one channel per entry")));
+            for id in left_out {
+                let (_, topic) = s.det_channels.remove(&id).expect("selected channel");
                 s.stamps_backwards.remove(&topic);
                 s.left_out.push(format!(
-                    "channel {id} (topic {topic}, foxglove.SceneUpdate) is left out because the                      log has other detection channels; name it with --detections-topic to track it"
+                    "channel {id} (topic {topic}, foxglove.SceneUpdate) is left out because the \
+                     log has other detection channels; name it with --detections-topic to track it"
                 ));
             }
         }

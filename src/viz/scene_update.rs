@@ -19,14 +19,12 @@ use foxglove::schemas::{
     SceneEntity, SceneEntityDeletion, SceneUpdate, TextPrimitive, Timestamp, Vector3,
 };
 
+pub use crate::msgs::detection_source::OUTPUT_METADATA_KEY;
 use crate::msgs::Tracks3D;
 use crate::viz::plot::id_color;
 
 /// Schema name of the output channel.
 pub const SCENE_UPDATE_SCHEMA: &str = "foxglove.SceneUpdate";
-
-/// Channel metadata key marking a channel as probmot's own output (value: what it holds).
-pub const OUTPUT_METADATA_KEY: &str = "probmot.output";
 
 /// Slowest speed (m/s) drawn as a velocity arrow.
 pub const MIN_ARROW_SPEED: f64 = 0.2;
