@@ -1,7 +1,8 @@
 //! The whole `track` path (MCAP read, decode, track, encode, write) on a generated dense log,
 //! next to a plain copy of the same log (`--no-track`), in one run: the ratio of the two is the
 //! cost of tracking over I/O. Both are measured with each output compression (`--compression
-//! zstd`, the default, and `lz4`).
+//! zstd`, the default, and `lz4`) and, for zstd, also with the output written on the caller's
+//! thread (`zstd-inline`, what each file gets when `--jobs` runs files on every core).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use indicatif::ProgressBar;
@@ -42,15 +43,19 @@ fn bench(c: &mut Criterion) {
         ego: Default::default(),
         scene_topic: None,
         compression: Default::default(),
+        background_writer: true,
     };
     let mut g = c.benchmark_group("track_path");
     g.sample_size(10);
     g.throughput(Throughput::Bytes(bytes));
-    for (name, compression) in [
-        ("zstd", OutputCompression::Zstd),
-        ("lz4", OutputCompression::Lz4),
+    for (name, compression, background) in [
+        ("zstd", OutputCompression::Zstd, true),
+        ("lz4", OutputCompression::Lz4, true),
+        // As when files run in parallel on every core: compression on the file's own thread.
+        ("zstd-inline", OutputCompression::Zstd, false),
     ] {
         opts.compression = compression;
+        opts.background_writer = background;
         g.bench_function(format!("copy_no_track/{name}"), |b| {
             opts.no_track = true;
             b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())

@@ -212,6 +212,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
         ego: Default::default(),
         scene_topic: None,
         compression: Default::default(),
+        background_writer: true,
     };
     let mut failures = Vec::new();
     for (i, f) in files.iter().enumerate() {

@@ -74,6 +74,7 @@ fn options() -> TrackOptions {
         ego: Default::default(),
         scene_topic: None,
         compression: Default::default(),
+        background_writer: true,
     }
 }
 

@@ -53,7 +53,9 @@ pub struct TrackArgs {
     /// Output directory (any number of inputs; each output keeps its input's file name).
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
-    /// Files processed in parallel with --out-dir (default: number of cores).
+    /// Threads to use (default: number of cores). With --out-dir, files run in parallel on N
+    /// threads; a file whose share is two or more threads (one file on a multi-core machine)
+    /// writes and compresses its output on a second thread, overlapping with tracking.
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
     /// Detection topic(s); default: every channel of a supported detection schema
@@ -164,6 +166,11 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         bail!("--tf-tolerance must be a number of seconds >= 0");
     }
     let config = a.tracker.resolve()?;
+    let jobs = a.jobs.unwrap_or_else(|| {
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1)
+    });
     let opts = TrackOptions {
         detection_topics: a.detections_topics.clone(),
         tracks_topic: a.tracks_topic.clone(),
@@ -178,6 +185,9 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         },
         scene_topic: a.scene_topic.clone(),
         compression: a.compression,
+        // A file gets a writer thread of its own when there is a core for it: one file on two
+        // or more, not several files that already keep every core busy.
+        background_writer: jobs >= 2 * a.inputs.len(),
     };
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {
@@ -205,7 +215,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        (None, Some(dir)) => run_many(&a, dir, &opts, progress),
+        (None, Some(dir)) => run_many(&a, dir, &opts, jobs, progress),
         _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
     }
 }
@@ -246,7 +256,13 @@ fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
     Ok(dir.join(name))
 }
 
-fn run_many(a: &TrackArgs, dir: &Path, opts: &TrackOptions, progress: bool) -> Result<ExitCode> {
+fn run_many(
+    a: &TrackArgs,
+    dir: &Path,
+    opts: &TrackOptions,
+    jobs: usize,
+    progress: bool,
+) -> Result<ExitCode> {
     if !dir.is_dir() {
         bail!("output directory {} does not exist", dir.display());
     }
@@ -258,11 +274,6 @@ fn run_many(a: &TrackArgs, dir: &Path, opts: &TrackOptions, progress: bool) -> R
         }
         outputs.push(o);
     }
-    let jobs = a.jobs.unwrap_or_else(|| {
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1)
-    });
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs.max(1))
         .build()

@@ -1,5 +1,7 @@
-//! MCAP input and output: a streaming record reader over any file, and an atomic writer.
+//! MCAP input and output: a streaming record reader over any file, and an atomic writer (also
+//! one that writes and compresses on a thread of its own).
 
+pub mod background;
 pub mod reader;
 pub mod topic;
 pub mod writer;

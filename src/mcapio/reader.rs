@@ -31,6 +31,12 @@ const RECORD_LENGTH_LIMIT: usize = 1 << 32;
 /// reading in blocks makes its buffer grow only with bytes that are really in the file.
 const READ_BLOCK: usize = 1 << 20;
 
+/// Largest chunk decompressed in one call (larger ones are streamed).
+const BULK_LIMIT: u64 = 256 << 20;
+
+/// Largest ratio of claimed uncompressed size to compressed size decompressed in one call.
+const BULK_RATIO: u64 = 64;
+
 /// Bytes consumed so far, for progress reporting.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct ReadStats {
@@ -120,6 +126,17 @@ fn parse_record(opcode: u8, body: &[u8]) -> Result<Record<'_>> {
 /// The records of a chunk, uncompressed: `data` itself, or `data` decompressed into `buf`. The
 /// output grows only as decompression produces bytes, up to the size the header declares, which
 /// it must then reach; a nonzero CRC is checked.
+/// Decompresses a whole zstd chunk of `size` bytes into `buf` in one call; false (and `buf`
+/// unspecified) if it fails or does not fill `size`.
+fn decompress_zstd_bulk(data: &[u8], size: usize, buf: &mut Vec<u8>) -> bool {
+    buf.clear();
+    buf.reserve(size);
+    let ok = zstd::bulk::Decompressor::new()
+        .and_then(|mut d| d.decompress_to_buffer(data, buf))
+        .is_ok_and(|n| n == size);
+    ok && buf.len() == size
+}
+
 fn decompress_chunk<'a>(
     header: &ChunkHeader,
     data: &'a [u8],
@@ -132,7 +149,18 @@ fn decompress_chunk<'a>(
     buf.clear();
     let records: &[u8] = match header.compression.as_str() {
         "" => data,
+        // In one call when the claimed size is plausible for the compressed size (the buffer is
+        // allocated at the claimed size first), else streamed so that only real bytes cost memory.
+        // (A chunk that does not fit its claimed size is streamed too, as before.)
+        "zstd"
+            if size <= BULK_LIMIT
+                && size <= BULK_RATIO * data.len() as u64
+                && decompress_zstd_bulk(data, size as usize, buf) =>
+        {
+            buf
+        }
         "zstd" => {
+            buf.clear();
             zstd::stream::read::Decoder::with_buffer(data)?
                 .take(size)
                 .read_to_end(buf)

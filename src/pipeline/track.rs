@@ -7,6 +7,9 @@
 //! order) have been seen; messages that arrive early wait in a small reorder buffer. Memory is
 //! bounded by the live tracks, one chunk of the input and output, and the out-of-orderness of
 //! the file, not by its length.
+//!
+//! The output is written through [`BackgroundOutput`]: with [`TrackOptions::background_writer`]
+//! its chunks are compressed on other threads while this one reads and tracks.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::Path;
@@ -19,8 +22,9 @@ use mcap::records::{MessageHeader, Record};
 use super::detections::{convert, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::track_outputs::ExtraOutputs;
+use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::read_records;
-use crate::mcapio::writer::{check_output_path, AtomicOutput, OutputCompression, OutputOptions};
+use crate::mcapio::writer::{check_output_path, OutputCompression, OutputOptions};
 use crate::msgs::detection_source::{self, DetectionSource};
 use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
@@ -50,6 +54,10 @@ pub struct TrackOptions {
     pub scene_topic: Option<String>,
     /// Chunk compression of the output.
     pub compression: OutputCompression,
+    /// Write and compress the output on a thread of its own ([`BackgroundOutput`]), so that it
+    /// overlaps with reading and tracking: faster for one file when a core is spare; when files
+    /// already run in parallel on every core, writing on the file's own thread costs less.
+    pub background_writer: bool,
 }
 
 /// Default of [`TrackOptions::max_detections_per_message`].
@@ -385,29 +393,31 @@ pub fn track_file(
     let mut ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
     let mut extra = ExtraOutputs::new(opts, &file, scan_ids.as_ref(), ids)?;
 
-    let mut out = AtomicOutput::create(
-        output,
-        &OutputOptions {
-            profile,
-            compression: opts.compression,
-            ..Default::default()
-        },
-    )?;
+    let out_opts = OutputOptions {
+        profile,
+        compression: opts.compression,
+        ..Default::default()
+    };
+    let mut out = if opts.background_writer {
+        BackgroundOutput::create(output, &out_opts)?
+    } else {
+        BackgroundOutput::create_inline(output, &out_opts)?
+    };
     if let Some((schema_id, channel_id)) = ids {
-        out.writer.add_schema_with_id(
+        out.add_schema_with_id(
             schema_id,
             msgs::TRACKS_SCHEMA,
             "protobuf",
             msgs::DESCRIPTOR_SET,
         )?;
-        out.writer.add_channel_with_id(
+        out.add_channel_with_id(
             channel_id,
             schema_id,
             &opts.tracks_topic,
             "protobuf",
             &BTreeMap::new(),
         )?;
-        extra.add_channels(&mut out.writer, schema_id)?;
+        extra.add_channels(&mut out, schema_id)?;
     }
 
     let mut tracker = Tracker::new(opts.config.clone())?;
@@ -425,24 +435,21 @@ pub fn track_file(
         match rec {
             Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
             Record::Schema { header, data } if header.id != 0 => {
-                out.writer
-                    .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
+                out.add_schema_with_id(header.id, &header.name, &header.encoding, &data)
                     .with_context(|| format!("{file}: copying schema {}", header.id))?;
             }
             Record::Channel(c) => {
-                out.writer
-                    .add_channel_with_id(
-                        c.id,
-                        c.schema_id,
-                        &c.topic,
-                        &c.message_encoding,
-                        &c.metadata,
-                    )
-                    .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
+                out.add_channel_with_id(
+                    c.id,
+                    c.schema_id,
+                    &c.topic,
+                    &c.message_encoding,
+                    &c.metadata,
+                )
+                .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
             }
             Record::Message { header, data } => {
-                out.writer
-                    .write_to_known_channel(&header, &data)
+                out.write_to_known_channel(&header, &data)
                     .with_context(|| {
                         format!(
                             "{file}: copying message at log_time {} on channel {}",
@@ -482,7 +489,7 @@ pub fn track_file(
                             &topics,
                         )?;
                         msgs::encode_into(&frame_state.out, &mut frame_state.buf);
-                        out.writer.write_to_known_channel(
+                        out.write_to_known_channel(
                             &MessageHeader {
                                 channel_id,
                                 sequence: next_frame as u32,
@@ -492,7 +499,7 @@ pub fn track_file(
                             &frame_state.buf,
                         )?;
                         extra.write_frame(
-                            &mut out.writer,
+                            &mut out,
                             &frame_state.out,
                             ego.take_ego(stamp),
                             next_frame as u32,
@@ -513,20 +520,18 @@ pub fn track_file(
                 }
             }
             Record::Attachment { header, data, .. } => {
-                out.writer
-                    .attach(&mcap::Attachment {
-                        log_time: header.log_time,
-                        create_time: header.create_time,
-                        name: header.name,
-                        media_type: header.media_type,
-                        data,
-                    })
-                    .with_context(|| format!("{file}: copying an attachment"))?;
+                out.attach(&mcap::Attachment {
+                    log_time: header.log_time,
+                    create_time: header.create_time,
+                    name: header.name,
+                    media_type: header.media_type,
+                    data,
+                })
+                .with_context(|| format!("{file}: copying an attachment"))?;
                 summary.attachments += 1;
             }
             Record::Metadata(m) => {
-                out.writer
-                    .write_metadata(&m)
+                out.write_metadata(&m)
                     .with_context(|| format!("{file}: copying metadata {}", m.name))?;
                 summary.metadata += 1;
             }

@@ -3,15 +3,13 @@
 //! detection frame) and `--scene-topic` (`foxglove.SceneUpdate` for the Foxglove 3D panel).
 
 use std::collections::{BTreeMap, HashSet};
-use std::fs::File;
-use std::io::BufWriter;
 
 use anyhow::{bail, Context, Result};
 use mcap::records::MessageHeader;
-use mcap::Writer;
 use nalgebra::Isometry3;
 
 use super::track::TrackOptions;
+use crate::mcapio::background::BackgroundOutput;
 use crate::msgs::{self, Tracks3D};
 use crate::transforms::boxes::transform_tracks_into;
 use crate::viz::scene_update::{
@@ -96,7 +94,7 @@ impl ExtraOutputs {
 
     /// Adds the planned channels to the output (`tracks_schema`: the `probmot.Tracks3D` schema
     /// id already added).
-    pub fn add_channels(&self, w: &mut Writer<BufWriter<File>>, tracks_schema: u16) -> Result<()> {
+    pub fn add_channels(&self, w: &mut BackgroundOutput, tracks_schema: u16) -> Result<()> {
         if let Some((topic, id)) = &self.ego {
             w.add_channel_with_id(*id, tracks_schema, topic, "protobuf", &BTreeMap::new())?;
         }
@@ -119,7 +117,7 @@ impl ExtraOutputs {
     /// deletions for the tracks shown before and not reported now).
     pub fn write_frame(
         &mut self,
-        w: &mut Writer<BufWriter<File>>,
+        w: &mut BackgroundOutput,
         tracks: &Tracks3D,
         ego: Option<(String, Isometry3<f64>)>,
         sequence: u32,
