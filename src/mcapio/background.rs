@@ -110,7 +110,7 @@ impl BackgroundOutput {
     /// Creates the temporary file beside `dest` (see [`AtomicOutput::create`]) and starts the
     /// writer thread. Chunks are compressed by zstd's worker beside it.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
-        let out = AtomicOutput::create_with_threads(dest, opts, 1)?;
+        let out = AtomicOutput::create(dest, opts)?;
         let dest: PathBuf = dest.to_path_buf();
         let (tx, rx) = mpsc::sync_channel::<Option<Batch>>(BATCHES);
         let (free_tx, free) = mpsc::sync_channel::<Batch>(BATCHES);
@@ -126,10 +126,11 @@ impl BackgroundOutput {
         }))
     }
 
-    /// The same interface without the thread: every call is written (and chunks compressed) on
-    /// the caller's thread, for runs where each core already has a file of its own.
+    /// The same interface without the thread: every call is written on the caller's thread, as
+    /// [`AtomicOutput`] writes (zstd's worker compresses each chunk while the caller waits for
+    /// it), for runs where each core already has a file of its own.
     pub fn create_inline(dest: &Path, opts: &OutputOptions) -> Result<Self> {
-        let out = AtomicOutput::create_with_threads(dest, opts, 0)?;
+        let out = AtomicOutput::create(dest, opts)?;
         Ok(Self::with_mode(Mode::Inline {
             out: Box::new(out),
             dest: dest.to_path_buf(),

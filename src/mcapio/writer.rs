@@ -139,12 +139,6 @@ impl AtomicOutput {
     /// level 1 on a worker thread by default), message and chunk indexes, and a summary section,
     /// so viewers can seek.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
-        Self::create_with_threads(dest, opts, 1)
-    }
-
-    /// Like [`AtomicOutput::create`] with `threads` zstd worker threads (0: chunks are compressed
-    /// on the calling thread, as [`super::background::BackgroundOutput`] wants).
-    pub fn create_with_threads(dest: &Path, opts: &OutputOptions, threads: u32) -> Result<Self> {
         let dir = parent_dir(dest);
         let tmp = NamedTempFile::with_prefix_in(".probmot-", &dir)
             .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
@@ -160,7 +154,7 @@ impl AtomicOutput {
             .profile(opts.profile.clone())
             .library(library_string())
             .compression(opts.compression.mcap())
-            .compression_threads(threads)
+            .compression_threads(1)
             .compression_level(1)
             .chunk_size(Some(opts.chunk_size))
             .create(BufWriter::with_capacity(1 << 16, file))
