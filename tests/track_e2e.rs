@@ -367,3 +367,105 @@ fn compression_option_changes_only_the_chunk_compression() {
     assert_eq!(bad.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&bad.stderr).contains("expected zstd, lz4 or none"));
 }
+
+/// Writes a copy of `input` (same messages in the same order) whose summary section has no
+/// schemas, channels or statistics, so `track` cannot plan a single pass from it.
+fn copy_without_summary(input: &Path, output: &Path) {
+    let bytes = std::fs::read(input).unwrap();
+    let mut w = mcap::WriteOptions::new()
+        .emit_summary_records(false)
+        .emit_statistics(false)
+        .create(std::io::BufWriter::new(
+            std::fs::File::create(output).unwrap(),
+        ))
+        .unwrap();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        w.write(&m.unwrap()).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+fn track_json(input: &Path, output: &Path) -> serde_json::Value {
+    let out = probmot_ok(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--json",
+    ]);
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+/// Writes a copy of `input` with its first detections message moved to the end of the file.
+fn late_first_detections_copy(input: &Path, output: &Path) {
+    let bytes = std::fs::read(input).unwrap();
+    let mut msgs: Vec<mcap::Message> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .collect();
+    let first = msgs
+        .iter()
+        .position(|m| m.channel.topic == "/detections")
+        .unwrap();
+    let m = msgs.remove(first);
+    msgs.push(m);
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(
+        std::fs::File::create(output).unwrap(),
+    ))
+    .unwrap();
+    for m in &msgs {
+        w.write(m).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// A log with a summary section is tracked in one pass, also when its messages are in reverse
+/// order (the frames wait until the end); without a summary, or when a detection stamp goes
+/// back to a frame already tracked (the first frame's message moved to the end), in two. All
+/// give the same tracks message for message, and the same counts.
+#[test]
+fn one_pass_and_two_passes_give_the_same_tracks() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in SAMPLES {
+        let input = repo(&format!("sample_logs/{name}.mcap"));
+        let bare = dir.path().join(format!("{name}.bare.mcap"));
+        let late = dir.path().join(format!("{name}.late.mcap"));
+        let reversed = dir.path().join(format!("{name}.reversed.mcap"));
+        copy_without_summary(&input, &bare);
+        late_first_detections_copy(&input, &late);
+        reverse_order_copy(&input, &reversed);
+        let runs: Vec<(serde_json::Value, Vec<probmot::msgs::Tracks3D>)> =
+            [&input, &bare, &late, &reversed]
+                .iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    let out = dir.path().join(format!("{name}.{i}.out.mcap"));
+                    let s = track_json(p, &out);
+                    let mut t = tracks(&out, "/tracks");
+                    // In stamp order in every output; sorted so that a failure shows the tracks.
+                    t.sort_by_key(|m| m.stamp);
+                    (s, t)
+                })
+                .collect();
+        let passes: Vec<u64> = runs
+            .iter()
+            .map(|(s, _)| s["passes"].as_u64().unwrap())
+            .collect();
+        assert_eq!(passes, [1, 2, 2, 1], "{name}");
+        assert!(!runs[0].1.is_empty());
+        for (s, t) in &runs[1..] {
+            assert!(t == &runs[0].1, "{name}: the tracks differ");
+            for key in [
+                "frames",
+                "detection_messages",
+                "merged_messages",
+                "tracks_born",
+                "tracks_confirmed",
+                "tracks_messages",
+                "detections",
+            ] {
+                assert_eq!(s[key], runs[0].0[key], "{name}: {key}");
+            }
+        }
+    }
+}

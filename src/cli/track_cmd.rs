@@ -135,7 +135,7 @@ fn print_summary(s: &TrackSummary) {
         .collect();
     let total: u64 = s.detections.per_label.values().sum();
     println!(
-        "{}: {} frames, {} detections ({}), {} tracks born, {} confirmed, mean track length {} frames, {} boxes skipped, {} messages copied, {:.2} s",
+        "{}: {} frames, {} detections ({}), {} tracks born, {} confirmed, mean track length {} frames, {} boxes skipped, {} messages copied, {:.2} s ({} {})",
         s.output,
         s.frames,
         total,
@@ -145,7 +145,9 @@ fn print_summary(s: &TrackSummary) {
         s.mean_track_length.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
         s.detections.total_skipped(),
         s.messages_copied,
-        s.wall_time_s
+        s.wall_time_s,
+        s.passes,
+        if s.passes == 1 { "pass" } else { "passes" }
     );
 }
 

@@ -117,6 +117,76 @@ pub fn read_records(
     Ok(())
 }
 
+/// Largest summary section read by [`read_summary_records`].
+const SUMMARY_LIMIT: u64 = 64 << 20;
+
+/// The records of the summary section the footer points to, each checked like every record
+/// read here; `None` when the file has no summary section, or it is not readable (a file the
+/// linear read then reports on), or larger than 64 MiB. Also the header record at the start of
+/// the file. Reads only the start and the end of the file.
+pub fn read_summary_records(path: &Path) -> Option<(Record<'static>, Vec<Record<'static>>)> {
+    use std::io::{Seek, SeekFrom};
+    let mut file = File::open(path).ok()?;
+    let size = file.metadata().ok()?.len();
+    // The header: magic, opcode, length, body.
+    let mut start = [0u8; 17];
+    file.read_exact(&mut start).ok()?;
+    if start[..8] != mcap::MAGIC[..] || start[8] != op::HEADER {
+        return None;
+    }
+    let len = u64::from_le_bytes(start[9..17].try_into().ok()?);
+    if len > size.saturating_sub(17) || len > SUMMARY_LIMIT {
+        return None;
+    }
+    let mut body = vec![0u8; len as usize];
+    file.read_exact(&mut body).ok()?;
+    let header = parse_record(op::HEADER, &body).ok()?.into_owned();
+    // The footer: opcode, length (20), summary start, summary offset start, CRC; then magic.
+    const TAIL: u64 = 1 + 8 + 20 + 8;
+    if size < 8 + TAIL {
+        return None;
+    }
+    let mut tail = [0u8; TAIL as usize];
+    file.seek(SeekFrom::End(-(TAIL as i64))).ok()?;
+    file.read_exact(&mut tail).ok()?;
+    if tail[0] != op::FOOTER || tail[29..] != mcap::MAGIC[..] {
+        return None;
+    }
+    let summary_start = u64::from_le_bytes(tail[9..17].try_into().ok()?);
+    let offsets_start = u64::from_le_bytes(tail[17..25].try_into().ok()?);
+    let footer_at = size - TAIL;
+    let end = if offsets_start == 0 {
+        footer_at
+    } else {
+        offsets_start
+    };
+    if summary_start == 0 || summary_start > end || end > footer_at {
+        return None;
+    }
+    if end - summary_start > SUMMARY_LIMIT {
+        return None;
+    }
+    let mut section = vec![0u8; (end - summary_start) as usize];
+    file.seek(SeekFrom::Start(summary_start)).ok()?;
+    file.read_exact(&mut section).ok()?;
+    let mut records = Vec::new();
+    let mut rest = &section[..];
+    while !rest.is_empty() {
+        if rest.len() < 9 {
+            return None;
+        }
+        let opcode = rest[0];
+        let len = u64::from_le_bytes(rest[1..9].try_into().ok()?);
+        if len > (rest.len() - 9) as u64 {
+            return None;
+        }
+        let (body, next) = rest[9..].split_at(len as usize);
+        records.push(parse_record(opcode, body).ok()?.into_owned());
+        rest = next;
+    }
+    Some((header, records))
+}
+
 /// [`check_record`], then `mcap::parse_record`.
 fn parse_record(opcode: u8, body: &[u8]) -> Result<Record<'_>> {
     check_record(opcode, body).map_err(anyhow::Error::msg)?;
@@ -244,6 +314,8 @@ fn check_record(opcode: u8, body: &[u8]) -> Result<(), &'static str> {
         op::ATTACHMENT_INDEX => f.skip(40) && f.string() && f.string(),
         op::METADATA => f.string() && f.string_map(),
         op::METADATA_INDEX => f.skip(16) && f.string(),
+        // Message, schema, channel, attachment, metadata and chunk counts, time range.
+        op::STATISTICS => f.skip(42) && f.int_map(2 + 8),
         _ => true,
     };
     if ok {

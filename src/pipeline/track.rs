@@ -23,7 +23,7 @@ use super::detections::{convert, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::track_outputs::ExtraOutputs;
 use crate::mcapio::background::BackgroundOutput;
-use crate::mcapio::reader::read_records;
+use crate::mcapio::reader::{read_records, read_summary_records};
 use crate::mcapio::writer::{check_output_path, OutputCompression, OutputOptions};
 use crate::msgs::detection_source::{self, DetectionSource};
 use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
@@ -100,6 +100,9 @@ pub struct TrackSummary {
     pub ego: EgoSummary,
     /// Warnings for the user.
     pub warnings: Vec<String>,
+    /// Passes over the input: 1 (the summary section sufficed, or `--no-track`) or 2 (a first
+    /// pass learned the frames); see [`track_file`].
+    pub passes: u8,
     /// Wall time in seconds.
     pub wall_time_s: f64,
 }
@@ -136,22 +139,114 @@ fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
     )
 }
 
+impl Scan {
+    fn new() -> Scan {
+        Scan {
+            profile: String::new(),
+            schema_ids: HashSet::new(),
+            channel_ids: HashSet::new(),
+            det_channels: HashMap::new(),
+            entries: Vec::new(),
+            stamps_backwards: BTreeMap::new(),
+            topics: HashSet::new(),
+            unreadable: BTreeMap::new(),
+            left_out: Vec::new(),
+            entry_channels: Vec::new(),
+            transforms: TransformCollector::new(),
+        }
+    }
+
+    /// A channel record: chooses it as detections (by topic, or by schema by default) and
+    /// registers it with the transform sources. Returns whether it is a transform source.
+    fn on_channel(
+        &mut self,
+        c: &mcap::records::Channel,
+        schemas: &HashMap<u16, (String, String, Vec<u8>)>,
+        opts: &TrackOptions,
+        file: &str,
+    ) -> Result<bool> {
+        self.channel_ids.insert(c.id);
+        self.topics.insert(c.topic.clone());
+        let (schema_name, schema_enc, schema_data) =
+            schemas.get(&c.schema_id).cloned().unwrap_or_default();
+        let transform = self.transforms.on_channel(c, &schema_name).is_some();
+        let wanted = if opts.detection_topics.is_empty() {
+            // probmot's own outputs (e.g. a --scene-topic SceneUpdate) are not input.
+            detection_source::is_default_candidate(&schema_name, &c.metadata)
+        } else {
+            opts.detection_topics.contains(&c.topic)
+        };
+        if wanted {
+            // A schemaless channel given by topic is read as probmot.Detections3D.
+            let name = if schema_name.is_empty() {
+                msgs::DETECTIONS_SCHEMA
+            } else {
+                &schema_name
+            };
+            match DetectionSource::for_channel(name, &schema_enc, &schema_data, &c.message_encoding)
+            {
+                Ok(source) => {
+                    self.det_channels.insert(c.id, (source, c.topic.clone()));
+                }
+                // Chosen by topic: the user asked for it, so it is an error.
+                Err(why) if !opts.detection_topics.is_empty() => {
+                    bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
+                }
+                // Chosen by default: left out, and reported below.
+                Err(why) => {
+                    let why = format!("channel {} (topic {}): {why}", c.id, c.topic);
+                    self.unreadable.insert(c.id, why);
+                }
+            }
+        }
+        Ok(transform)
+    }
+
+    /// After every channel is known: leaves out SceneUpdates beside other detection channels
+    /// (by default), and checks that there is something readable and every named topic exists.
+    fn finish(&mut self, opts: &TrackOptions, file: &str) -> Result<()> {
+        if opts.detection_topics.is_empty() {
+            let left_out = detection_source::scenes_left_out(
+                self.det_channels.iter().map(|(id, (src, _))| (*id, src)),
+            );
+            if !left_out.is_empty() {
+                let mut k = self.entry_channels.iter();
+                self.entries
+                    .retain(|_| !left_out.contains(k.next().expect("one channel per entry")));
+                for id in left_out {
+                    let (_, topic) = self.det_channels.remove(&id).expect("selected channel");
+                    self.stamps_backwards.remove(&topic);
+                    self.left_out.push(format!(
+                        "channel {id} (topic {topic}, foxglove.SceneUpdate) is left out because \
+                         the log has other detection channels; name it with --detections-topic \
+                         to track it"
+                    ));
+                }
+            }
+        }
+        if self.det_channels.is_empty() && !self.unreadable.is_empty() {
+            bail!(
+                "{file}: no readable detection channel: {}",
+                self.unreadable
+                    .values()
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            );
+        }
+        for t in &opts.detection_topics {
+            if !self.topics.contains(t) {
+                bail!("{file}: no channel with topic {t} (given with --detections-topic)");
+            }
+        }
+        Ok(())
+    }
+}
+
 fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
     let file = input.display().to_string();
     let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
-    let mut s = Scan {
-        profile: String::new(),
-        schema_ids: HashSet::new(),
-        channel_ids: HashSet::new(),
-        det_channels: HashMap::new(),
-        entries: Vec::new(),
-        stamps_backwards: BTreeMap::new(),
-        topics: HashSet::new(),
-        unreadable: BTreeMap::new(),
-        left_out: Vec::new(),
-        entry_channels: Vec::new(),
-        transforms: TransformCollector::new(),
-    };
+    let mut s = Scan::new();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     let mut ordinal = 0u64;
     read_records(input, |rec, stats| {
@@ -162,44 +257,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                 schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
             }
             Record::Channel(c) => {
-                s.channel_ids.insert(c.id);
-                s.topics.insert(c.topic.clone());
-                let (schema_name, schema_enc, schema_data) =
-                    schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                s.transforms.on_channel(&c, &schema_name);
-                let wanted = if opts.detection_topics.is_empty() {
-                    // probmot's own outputs (e.g. a --scene-topic SceneUpdate) are not input.
-                    detection_source::is_default_candidate(&schema_name, &c.metadata)
-                } else {
-                    opts.detection_topics.contains(&c.topic)
-                };
-                if wanted {
-                    // A schemaless channel given by topic is read as probmot.Detections3D.
-                    let name = if schema_name.is_empty() {
-                        msgs::DETECTIONS_SCHEMA
-                    } else {
-                        &schema_name
-                    };
-                    match DetectionSource::for_channel(
-                        name,
-                        &schema_enc,
-                        &schema_data,
-                        &c.message_encoding,
-                    ) {
-                        Ok(source) => {
-                            s.det_channels.insert(c.id, (source, c.topic.clone()));
-                        }
-                        // Chosen by topic: the user asked for it, so it is an error.
-                        Err(why) if !opts.detection_topics.is_empty() => {
-                            bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
-                        }
-                        // Chosen by default: left out, and reported below.
-                        Err(why) => {
-                            let why = format!("channel {} (topic {}): {why}", c.id, c.topic);
-                            s.unreadable.insert(c.id, why);
-                        }
-                    }
-                }
+                s.on_channel(&c, &schemas, opts, &file)?;
             }
             Record::Message { header, data } => {
                 s.transforms.on_message(&file, &header, &data);
@@ -238,39 +296,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
         }
         Ok(())
     })?;
-    if opts.detection_topics.is_empty() {
-        let left_out = detection_source::scenes_left_out(
-            s.det_channels.iter().map(|(id, (src, _))| (*id, src)),
-        );
-        if !left_out.is_empty() {
-            let mut k = s.entry_channels.iter();
-            s.entries
-                .retain(|_| !left_out.contains(k.next().expect("one channel per entry")));
-            for id in left_out {
-                let (_, topic) = s.det_channels.remove(&id).expect("selected channel");
-                s.stamps_backwards.remove(&topic);
-                s.left_out.push(format!(
-                    "channel {id} (topic {topic}, foxglove.SceneUpdate) is left out because the \
-                     log has other detection channels; name it with --detections-topic to track it"
-                ));
-            }
-        }
-    }
-    if s.det_channels.is_empty() && !s.unreadable.is_empty() {
-        bail!(
-            "{file}: no readable detection channel: {}",
-            s.unreadable
-                .values()
-                .cloned()
-                .collect::<Vec<_>>()
-                .join("; ")
-        );
-    }
-    for t in &opts.detection_topics {
-        if !s.topics.contains(t) {
-            bail!("{file}: no channel with topic {t} (given with --detections-topic)");
-        }
-    }
+    s.finish(opts, &file)?;
     Ok(s)
 }
 
@@ -283,6 +309,13 @@ struct Pending {
 }
 
 /// Runs `track` on one file. The output appears only when everything succeeded.
+///
+/// A file is read once when its summary section lists its schemas and channels (and, with
+/// several detection channels, their message counts), it has no transform channels, and its
+/// detection stamps never go back to a frame already tracked: a frame is then complete once
+/// every detection channel has moved past its stamp. Otherwise, or as soon as such a stamp
+/// turns up, the file is read twice (the first pass learns every frame's stamp and message
+/// count). Both give the same tracks.
 pub fn track_file(
     input: &Path,
     output: &Path,
@@ -295,80 +328,263 @@ pub fn track_file(
     let size = std::fs::metadata(input)
         .with_context(|| format!("cannot read {}", input.display()))?
         .len();
+    if opts.no_track {
+        progress.set_length(size);
+        return run_pass(
+            input,
+            output,
+            opts,
+            progress,
+            None,
+            Schedule::Known(Vec::new()),
+            0,
+        )
+        .map(|s| finish_summary(s, 1, started));
+    }
+    if let Some((plan, streaming)) = one_pass_plan(input, opts, &file) {
+        progress.set_length(size);
+        progress.set_message("tracking");
+        let r = run_pass(input, output, opts, progress, Some(plan), streaming, 0);
+        match r {
+            Err(e) if e.downcast_ref::<NeedsTwoPasses>().is_some() => {}
+            r => return r.map(|s| finish_summary(s, 1, started)),
+        }
+    }
+    progress.set_length(2 * size);
+    progress.set_position(0);
+    progress.set_message("scanning");
+    let mut s = scan(input, opts, progress)?;
+    s.entries.sort_unstable();
+    // Frames in stamp order: (stamp, number of messages).
+    let mut frames: Vec<(u64, u32)> = Vec::new();
+    for &(stamp, _) in &s.entries {
+        match frames.last_mut() {
+            Some((st, n)) if *st == stamp => *n += 1,
+            _ => frames.push((stamp, 1)),
+        }
+    }
+    progress.set_message("tracking");
+    run_pass(
+        input,
+        output,
+        opts,
+        progress,
+        Some(s),
+        Schedule::Known(frames),
+        size,
+    )
+    .map(|s| finish_summary(s, 2, started))
+}
+
+fn finish_summary(mut s: TrackSummary, passes: u8, started: Instant) -> TrackSummary {
+    s.passes = passes;
+    s.wall_time_s = started.elapsed().as_secs_f64();
+    s
+}
+
+/// The one-pass run met a detection stamp at or before a frame it has already tracked; the
+/// file is tracked in two passes instead.
+#[derive(Debug)]
+struct NeedsTwoPasses;
+
+impl std::fmt::Display for NeedsTwoPasses {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("a detection stamp goes back to a frame already tracked")
+    }
+}
+
+impl std::error::Error for NeedsTwoPasses {}
+
+/// How the tracking pass tells that a frame is complete.
+enum Schedule {
+    /// From the first pass: `(stamp, messages)` of every frame, in stamp order.
+    Known(Vec<(u64, u32)>),
+    /// One pass: the earliest pending frame is complete once every detection channel has
+    /// moved past its stamp or delivered all its messages.
+    Streaming(Streaming),
+}
+
+/// State of the one-pass schedule.
+struct Streaming {
+    /// Per detection channel: messages in the file (from the summary's statistics, if any),
+    /// messages seen, and the stamp of the last one.
+    channels: HashMap<u16, (Option<u64>, u64, Option<u64>)>,
+    /// `(topic, schema id)` of every channel in the summary: a data-section record that differs
+    /// ends the one-pass run.
+    summary_channels: HashMap<u16, (String, u16)>,
+    summary_schemas: HashSet<u16>,
+    /// Stamp of the last frame tracked.
+    done: Option<u64>,
+}
+
+impl Schedule {
+    /// A detection message of `channel` with `stamp` has arrived.
+    fn on_message(&mut self, channel: u16, stamp: u64) -> Result<()> {
+        if let Schedule::Streaming(st) = self {
+            if st.done.is_some_and(|d| stamp <= d) {
+                return Err(NeedsTwoPasses.into());
+            }
+            let c = st.channels.get_mut(&channel).expect("a detection channel");
+            c.1 += 1;
+            c.2 = Some(stamp);
+        }
+        Ok(())
+    }
+
+    /// The stamp of the next frame to track, if it is complete.
+    fn ready(&self, pending: &BTreeMap<u64, Vec<Pending>>, next_frame: usize) -> Option<u64> {
+        match self {
+            Schedule::Known(frames) => {
+                let &(stamp, count) = frames.get(next_frame)?;
+                (pending.get(&stamp).map(|v| v.len() as u32) == Some(count)).then_some(stamp)
+            }
+            Schedule::Streaming(st) => {
+                let (&stamp, _) = pending.first_key_value()?;
+                st.channels
+                    .values()
+                    .all(|&(total, seen, last)| {
+                        total == Some(seen) || last.is_some_and(|l| l > stamp)
+                    })
+                    .then_some(stamp)
+            }
+        }
+    }
+
+    fn frames(&self) -> Option<usize> {
+        match self {
+            Schedule::Known(f) => Some(f.len()),
+            Schedule::Streaming(_) => None,
+        }
+    }
+}
+
+/// The plan of a one-pass run from the file's summary section, or `None` if the file needs
+/// two passes: no readable summary (or one without channels), a transform channel (ego motion
+/// looks ahead in time), several detection channels without message counts, or a channel
+/// choice that fails (the first pass then reports it from the data section).
+fn one_pass_plan(input: &Path, opts: &TrackOptions, file: &str) -> Option<(Scan, Schedule)> {
+    let Some((Record::Header(header), records)) = read_summary_records(input) else {
+        return None;
+    };
+    let mut plan = Scan::new();
+    plan.profile = header.profile;
+    let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
+    let mut summary_channels = HashMap::new();
+    let mut counts = None;
+    for rec in records {
+        match rec {
+            Record::Schema { header, data } if header.id != 0 => {
+                plan.schema_ids.insert(header.id);
+                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
+            }
+            Record::Channel(c) => {
+                // A transform channel (ego motion looks ahead in time), or an error that the
+                // first pass will report with the data section's records.
+                if plan.on_channel(&c, &schemas, opts, file).unwrap_or(true) {
+                    return None;
+                }
+                summary_channels.insert(c.id, (c.topic, c.schema_id));
+            }
+            Record::Statistics(st) => counts = Some(st.channel_message_counts),
+            _ => {}
+        }
+    }
+    if summary_channels.is_empty() || plan.finish(opts, file).is_err() {
+        return None;
+    }
+    if plan.det_channels.len() > 1 && counts.is_none() {
+        return None;
+    }
+    let channels = plan
+        .det_channels
+        .keys()
+        .map(|id| {
+            (
+                *id,
+                (
+                    counts.as_ref().map(|c| c.get(id).copied().unwrap_or(0)),
+                    0,
+                    None,
+                ),
+            )
+        })
+        .collect();
+    let schedule = Schedule::Streaming(Streaming {
+        channels,
+        summary_schemas: plan.schema_ids.clone(),
+        summary_channels,
+        done: None,
+    });
+    Some((plan, schedule))
+}
+
+/// Warnings about the detection channels chosen (none, unreadable, left out, mixed kinds).
+fn selection_warnings(s: &Scan, opts: &TrackOptions, file: &str, warnings: &mut Vec<String>) {
+    if s.det_channels.is_empty() {
+        warnings.push(format!(
+            "{file}: no detection channel (supported: {}); the log is copied unchanged \
+             without a tracks channel",
+            detection_source::SUPPORTED
+        ));
+    }
+    for why in s.unreadable.values() {
+        warnings.push(format!("{file}: {why}; this channel is not tracked"));
+    }
+    for why in &s.left_out {
+        warnings.push(format!("{file}: {why}"));
+    }
+    let mut kinds: Vec<(&str, &str)> = s
+        .det_channels
+        .values()
+        .map(|(src, topic)| (src.schema_name(), topic.as_str()))
+        .collect();
+    kinds.sort();
+    if opts.detection_topics.is_empty() && kinds.first().map(|k| &k.0) != kinds.last().map(|k| &k.0)
+    {
+        let list: Vec<String> = kinds.iter().map(|(k, t)| format!("{t} ({k})")).collect();
+        warnings.push(format!(
+            "{file}: detection channels of different kinds are merged into one frame \
+             sequence: {}; if some carry the same boxes (e.g. a visualization), choose with \
+             --detections-topic",
+            list.join(", ")
+        ));
+    }
+}
+
+/// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
+/// the first pass or the summary; `None` with `--no-track`), `base` the progress already made.
+fn run_pass(
+    input: &Path,
+    output: &Path,
+    opts: &TrackOptions,
+    progress: &ProgressBar,
+    plan: Option<Scan>,
+    mut schedule: Schedule,
+    base: u64,
+) -> Result<TrackSummary> {
+    let file = input.display().to_string();
     let mut summary = TrackSummary {
         input: file.clone(),
         output: output.display().to_string(),
         ..Default::default()
     };
-    progress.set_length(if opts.no_track { size } else { 2 * size });
-    progress.set_message("scanning");
-
-    let scan = if opts.no_track {
-        None
-    } else {
-        let s = scan(input, opts, progress)?;
-        if s.topics.contains(&opts.tracks_topic) {
-            bail!(
-                "{file}: already has a channel on {}; choose another topic with --tracks-topic",
-                opts.tracks_topic
-            );
-        }
-        if s.det_channels.is_empty() {
-            summary.warnings.push(format!(
-                "{file}: no detection channel (supported: {}); the log is copied unchanged \
-                 without a tracks channel",
-                detection_source::SUPPORTED
-            ));
-        }
-        for why in s.unreadable.values() {
-            summary
-                .warnings
-                .push(format!("{file}: {why}; this channel is not tracked"));
-        }
-        for why in &s.left_out {
-            summary.warnings.push(format!("{file}: {why}"));
-        }
-        let mut kinds: Vec<(&str, &str)> = s
-            .det_channels
-            .values()
-            .map(|(src, topic)| (src.schema_name(), topic.as_str()))
-            .collect();
-        kinds.sort();
-        if opts.detection_topics.is_empty()
-            && kinds.first().map(|k| &k.0) != kinds.last().map(|k| &k.0)
-        {
-            let list: Vec<String> = kinds.iter().map(|(k, t)| format!("{t} ({k})")).collect();
-            summary.warnings.push(format!(
-                "{file}: detection channels of different kinds are merged into one frame \
-                 sequence: {}; if some carry the same boxes (e.g. a visualization), choose with \
-                 --detections-topic",
-                list.join(", ")
-            ));
-        }
-        Some(s)
-    };
-
-    // Frames in stamp order: (stamp, number of messages).
-    let mut frames: Vec<(u64, u32)> = Vec::new();
     let mut profile = String::new();
     let mut topics: Vec<String> = Vec::new();
     let mut det_channels: HashMap<u16, (DetectionSource, usize)> = HashMap::new();
     let mut ids = None;
     let mut scan_ids = None;
     let mut transforms = TransformCollector::new();
-    if let Some(mut s) = scan {
-        transforms = std::mem::take(&mut s.transforms);
-        s.entries.sort_unstable();
-        for &(stamp, _) in &s.entries {
-            match frames.last_mut() {
-                Some((st, n)) if *st == stamp => *n += 1,
-                _ => frames.push((stamp, 1)),
-            }
+    if let Some(mut s) = plan {
+        if s.topics.contains(&opts.tracks_topic) {
+            bail!(
+                "{file}: already has a channel on {}; choose another topic with --tracks-topic",
+                opts.tracks_topic
+            );
         }
-        summary.merged_messages = s.entries.len() as u64 - frames.len() as u64;
-        summary.detection_messages = s.entries.len() as u64;
-        summary.stamps_backwards = s.stamps_backwards;
-        profile = s.profile;
+        selection_warnings(&s, opts, &file, &mut summary.warnings);
+        transforms = std::mem::take(&mut s.transforms);
+        summary.stamps_backwards = std::mem::take(&mut s.stamps_backwards);
+        profile = std::mem::take(&mut s.profile);
         let mut det: Vec<(u16, (DetectionSource, String))> = s.det_channels.into_iter().collect();
         det.sort_by_key(|(id, _)| *id);
         for (id, (enc, topic)) in det {
@@ -390,8 +606,8 @@ pub fn track_file(
         scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
     }
     summary.detection_topics = topics.clone();
-    let mut ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
-    let mut extra = ExtraOutputs::new(opts, &file, scan_ids.as_ref(), ids)?;
+    let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
+    let extra = ExtraOutputs::new(opts, &file, scan_ids.as_ref(), ids)?;
 
     let out_opts = OutputOptions {
         profile,
@@ -420,168 +636,267 @@ pub fn track_file(
         extra.add_channels(&mut out, schema_id)?;
     }
 
-    let mut tracker = Tracker::new(opts.config.clone())?;
-    let mut counters = InputCounters::default();
-    let mut pending: BTreeMap<u64, Vec<Pending>> = BTreeMap::new();
-    let mut next_frame = 0usize;
+    let mut pass = Pass {
+        opts,
+        file: &file,
+        topics,
+        ids,
+        out,
+        extra,
+        ego,
+        tracker: Tracker::new(opts.config.clone())?,
+        counters: InputCounters::default(),
+        pending: BTreeMap::new(),
+        next_frame: 0,
+        frame_state: FrameState::default(),
+        summary,
+        progress,
+    };
     let mut ordinal = 0u64;
-    let mut frame_state = FrameState::default();
-    let base = if opts.no_track { 0 } else { size };
-    if !opts.no_track {
-        progress.set_message("tracking");
-    }
-
+    let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     read_records(input, |rec, stats| {
         match rec {
             Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
             Record::Schema { header, data } if header.id != 0 => {
-                out.add_schema_with_id(header.id, &header.name, &header.encoding, &data)
+                if let Schedule::Streaming(st) = &schedule {
+                    if !st.summary_schemas.contains(&header.id) {
+                        return Err(NeedsTwoPasses.into());
+                    }
+                }
+                pass.out
+                    .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
                     .with_context(|| format!("{file}: copying schema {}", header.id))?;
             }
             Record::Channel(c) => {
-                out.add_channel_with_id(
-                    c.id,
-                    c.schema_id,
-                    &c.topic,
-                    &c.message_encoding,
-                    &c.metadata,
-                )
-                .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
+                if let Schedule::Streaming(st) = &schedule {
+                    if st.summary_channels.get(&c.id) != Some(&(c.topic.clone(), c.schema_id)) {
+                        return Err(NeedsTwoPasses.into());
+                    }
+                }
+                pass.out
+                    .add_channel_with_id(
+                        c.id,
+                        c.schema_id,
+                        &c.topic,
+                        &c.message_encoding,
+                        &c.metadata,
+                    )
+                    .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
             }
             Record::Message { header, data } => {
-                out.write_to_known_channel(&header, &data)
+                pass.out
+                    .write_to_known_channel(&header, &data)
                     .with_context(|| {
                         format!(
                             "{file}: copying message at log_time {} on channel {}",
                             header.log_time, header.channel_id
                         )
                     })?;
-                summary.messages_copied += 1;
+                pass.summary.messages_copied += 1;
                 if let Some(&(source, topic_idx)) = det_channels.get(&header.channel_id) {
-                    let mut msg: Detections3D = source
-                        .decode(&data)
-                        .with_context(|| describe_message(&file, &topics[topic_idx], &header))?;
-                    let stamp = stamp_of(&msg, header.log_time);
-                    ego.to_fixed(&mut msg, stamp, || {
-                        describe_message(&file, &topics[topic_idx], &header)
+                    let topic = &pass.topics[topic_idx];
+                    let mut msg: Detections3D = source.decode(&data).with_context(|| {
+                        format!(
+                            "{}: cannot decode {}",
+                            describe_message(&file, topic, &header),
+                            source.describe()
+                        )
                     })?;
-                    pending.entry(stamp).or_default().push(Pending {
+                    if msg.detections.len() > opts.max_detections_per_message {
+                        bail!(
+                            "{}: {} detections in one message, more than the limit of {} \
+                             (--max-detections)",
+                            describe_message(&file, topic, &header),
+                            msg.detections.len(),
+                            opts.max_detections_per_message
+                        );
+                    }
+                    let stamp = stamp_of(&msg, header.log_time);
+                    schedule.on_message(header.channel_id, stamp)?;
+                    if let Schedule::Streaming(_) = schedule {
+                        if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
+                            if stamp < prev {
+                                *pass
+                                    .summary
+                                    .stamps_backwards
+                                    .entry(topic.clone())
+                                    .or_default() += 1;
+                            }
+                        }
+                    }
+                    pass.ego
+                        .to_fixed(&mut msg, stamp, || describe_message(&file, topic, &header))?;
+                    pass.summary.detection_messages += 1;
+                    pass.pending.entry(stamp).or_default().push(Pending {
                         ordinal,
                         log_time: header.log_time,
                         topic_idx,
                         msg,
                     });
                     ordinal += 1;
-                    while let Some(&(stamp, count)) = frames.get(next_frame) {
-                        if pending.get(&stamp).map(|v| v.len() as u32) != Some(count) {
-                            break;
-                        }
-                        let mut msgs_of_frame = pending.remove(&stamp).unwrap();
-                        msgs_of_frame.sort_by_key(|p| p.ordinal);
-                        let (_, channel_id) = ids.expect("ids exist with detections");
-                        frame_state.run(
-                            stamp,
-                            &mut msgs_of_frame,
-                            &mut tracker,
-                            &mut counters,
-                            opts.strict,
-                            &file,
-                            &topics,
-                        )?;
-                        msgs::encode_into(&frame_state.out, &mut frame_state.buf);
-                        out.write_to_known_channel(
-                            &MessageHeader {
-                                channel_id,
-                                sequence: next_frame as u32,
-                                log_time: stamp,
-                                publish_time: stamp,
-                            },
-                            &frame_state.buf,
-                        )?;
-                        extra.write_frame(
-                            &mut out,
-                            &frame_state.out,
-                            ego.take_ego(stamp),
-                            next_frame as u32,
-                        )?;
-                        frame_state.finish(tracker.deleted());
-                        summary.tracks_messages += 1;
-                        next_frame += 1;
-                        if next_frame.is_multiple_of(64) {
-                            progress.set_message(format!(
-                                "tracking: frame {next_frame}/{}",
-                                frames.len()
-                            ));
+                    while let Some(stamp) = schedule.ready(&pass.pending, pass.next_frame) {
+                        pass.track_frame(stamp, schedule.frames())?;
+                        if let Schedule::Streaming(st) = &mut schedule {
+                            st.done = Some(stamp);
                         }
                     }
                 }
-                if summary.messages_copied.is_multiple_of(256) {
+                if pass.summary.messages_copied.is_multiple_of(256) {
                     progress.set_position(base + stats.bytes_read);
                 }
             }
             Record::Attachment { header, data, .. } => {
-                out.attach(&mcap::Attachment {
-                    log_time: header.log_time,
-                    create_time: header.create_time,
-                    name: header.name,
-                    media_type: header.media_type,
-                    data,
-                })
-                .with_context(|| format!("{file}: copying an attachment"))?;
-                summary.attachments += 1;
+                pass.out
+                    .attach(&mcap::Attachment {
+                        log_time: header.log_time,
+                        create_time: header.create_time,
+                        name: header.name,
+                        media_type: header.media_type,
+                        data,
+                    })
+                    .with_context(|| format!("{file}: copying an attachment"))?;
+                pass.summary.attachments += 1;
             }
             Record::Metadata(m) => {
-                out.write_metadata(&m)
+                pass.out
+                    .write_metadata(&m)
                     .with_context(|| format!("{file}: copying metadata {}", m.name))?;
-                summary.metadata += 1;
+                pass.summary.metadata += 1;
             }
             _ => {}
         }
         Ok(())
     })?;
-    if next_frame != frames.len() {
-        bail!(
+    match &schedule {
+        Schedule::Known(frames) if pass.next_frame != frames.len() => bail!(
             "{file}: the file changed while it was read ({} of {} frames seen)",
-            next_frame,
+            pass.next_frame,
             frames.len()
-        );
+        ),
+        Schedule::Known(_) => {}
+        // Every channel has delivered all it has: the frames left are complete.
+        Schedule::Streaming(_) => {
+            while let Some((&stamp, _)) = pass.pending.first_key_value() {
+                pass.track_frame(stamp, None)?;
+            }
+        }
     }
-    out.commit()?;
-    progress.set_position(progress.length().unwrap_or(0));
+    pass.finish()
+}
 
-    let st = tracker.stats();
-    summary.frames = st.frames;
-    summary.tracks_born = st.born;
-    summary.tracks_confirmed = st.confirmed;
-    summary.mean_track_length = tracker.mean_confirmed_track_length();
-    if counters.total_skipped() > 0 {
-        let parts: Vec<String> = counters
-            .skipped
-            .iter()
-            .map(|(r, n)| format!("{n} ({})", r.describe()))
-            .collect();
-        summary.warnings.push(format!(
-            "{file}: skipped {} detection boxes: {}",
-            counters.total_skipped(),
-            parts.join(", ")
-        ));
+/// The state of the tracking pass.
+struct Pass<'a> {
+    opts: &'a TrackOptions,
+    file: &'a str,
+    /// Detection topics, indexed by [`Pending::topic_idx`].
+    topics: Vec<String>,
+    /// `(schema id, channel id)` of the tracks channel.
+    ids: Option<(u16, u16)>,
+    out: BackgroundOutput,
+    extra: ExtraOutputs,
+    ego: EgoMotion,
+    tracker: Tracker,
+    counters: InputCounters,
+    /// Decoded detection messages by stamp, waiting for their frame to be complete.
+    pending: BTreeMap<u64, Vec<Pending>>,
+    next_frame: usize,
+    frame_state: FrameState,
+    summary: TrackSummary,
+    progress: &'a ProgressBar,
+}
+
+impl Pass<'_> {
+    /// Tracks the complete frame at `stamp` and writes its outputs.
+    fn track_frame(&mut self, stamp: u64, frames: Option<usize>) -> Result<()> {
+        let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
+        msgs_of_frame.sort_by_key(|p| p.ordinal);
+        let (_, channel_id) = self.ids.expect("ids exist with detections");
+        self.frame_state.run(
+            stamp,
+            &mut msgs_of_frame,
+            &mut self.tracker,
+            &mut self.counters,
+            self.opts.strict,
+            self.file,
+            &self.topics,
+        )?;
+        msgs::encode_into(&self.frame_state.out, &mut self.frame_state.buf);
+        let sequence = self.next_frame as u32;
+        self.out.write_to_known_channel(
+            &MessageHeader {
+                channel_id,
+                sequence,
+                log_time: stamp,
+                publish_time: stamp,
+            },
+            &self.frame_state.buf,
+        )?;
+        self.extra.write_frame(
+            &mut self.out,
+            &self.frame_state.out,
+            self.ego.take_ego(stamp),
+            sequence,
+        )?;
+        self.frame_state.finish(self.tracker.deleted());
+        self.summary.tracks_messages += 1;
+        self.next_frame += 1;
+        if self.next_frame.is_multiple_of(64) {
+            self.progress.set_message(match frames {
+                Some(n) => format!("tracking: frame {}/{n}", self.next_frame),
+                None => format!("tracking: frame {}", self.next_frame),
+            });
+        }
+        Ok(())
     }
-    if counters.score_outside_unit > 0 {
-        summary.warnings.push(format!(
-            "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
-            counters.score_outside_unit
-        ));
+
+    /// Commits the output and fills in the summary.
+    fn finish(self) -> Result<TrackSummary> {
+        let Pass {
+            file,
+            out,
+            ego,
+            tracker,
+            counters,
+            mut summary,
+            progress,
+            ..
+        } = self;
+        out.commit()?;
+        progress.set_position(progress.length().unwrap_or(0));
+        let st = tracker.stats();
+        summary.frames = st.frames;
+        summary.tracks_born = st.born;
+        summary.tracks_confirmed = st.confirmed;
+        summary.mean_track_length = tracker.mean_confirmed_track_length();
+        summary.merged_messages = summary.detection_messages - summary.tracks_messages;
+        if counters.total_skipped() > 0 {
+            let parts: Vec<String> = counters
+                .skipped
+                .iter()
+                .map(|(r, n)| format!("{n} ({})", r.describe()))
+                .collect();
+            summary.warnings.push(format!(
+                "{file}: skipped {} detection boxes: {}",
+                counters.total_skipped(),
+                parts.join(", ")
+            ));
+        }
+        if counters.score_outside_unit > 0 {
+            summary.warnings.push(format!(
+                "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
+                counters.score_outside_unit
+            ));
+        }
+        for (topic, n) in &summary.stamps_backwards {
+            summary.warnings.push(format!(
+                "{file}: topic {topic}: {n} messages have a stamp earlier than the message \
+                 before them; frames were replayed in stamp order"
+            ));
+        }
+        summary.detections = counters;
+        summary.ego = ego.finish(file, &mut summary.warnings);
+        Ok(summary)
     }
-    for (topic, n) in &summary.stamps_backwards {
-        summary.warnings.push(format!(
-            "{file}: topic {topic}: {n} messages have a stamp earlier than the message before \
-             them; frames were replayed in stamp order"
-        ));
-    }
-    summary.detections = counters;
-    summary.ego = ego.finish(&file, &mut summary.warnings);
-    summary.wall_time_s = started.elapsed().as_secs_f64();
-    Ok(summary)
 }
 
 /// Image box and attributes of a track's last matched detection.
