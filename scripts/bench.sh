@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Whole-program measurements that a criterion bench cannot make: peak memory against log length,
-# and the speed-up of `track --jobs 2` over `--jobs 1` on 8 logs. Prints the figures that go into
+# the speed-up of `track --jobs 2` over `--jobs 1` on 8 logs, and `track` against the plain copy
+# (`--no-track`) of the dense log of benches/pipeline.rs run alternately (on a machine whose speed
+# drifts, alternating keeps the drift out of the ratio). Prints the figures that go into
 # BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary directory)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -32,10 +34,26 @@ mkdir -p "$work/many" "$work/out1" "$work/out2"
 for i in 1 2 3 4 5 6 7 8; do
   "$bin" simulate --scenario city --frames 1500 --objects 120 --seed "$i" -o "$work/many/log$i.mcap" >/dev/null
 done
+# Alternating --jobs 1 and --jobs 2, 5 rounds.
+: > "$work/jobs1.all"; : > "$work/jobs2.all"
+for i in 1 2 3 4 5; do
+  for j in 1 2; do
+    wall "$bin" track "$work"/many/*.mcap --out-dir "$work/out$j" --jobs "$j" --quiet >> "$work/jobs$j.all"
+  done
+done
 for j in 1 2; do
-  t=()
-  for i in 1 2 3; do t+=("$(wall "$bin" track "$work"/many/*.mcap --out-dir "$work/out$j" --jobs "$j" --quiet)"); done
-  printf '%s\n' "${t[@]}" | median > "$work/jobs$j.s"
-  echo "8 logs with --jobs $j: $(cat "$work/jobs$j.s") s (median of 3)"
+  median < "$work/jobs$j.all" > "$work/jobs$j.s"
+  echo "8 logs with --jobs $j: $(cat "$work/jobs$j.s") s (median of 5, alternating)"
 done
 echo "speed-up --jobs 2 over --jobs 1: $(div "$(cat "$work/jobs1.s")" "$(cat "$work/jobs2.s")")x"
+
+# --- track vs the plain copy, alternating, 15 runs each (the dense log of benches/pipeline.rs)
+"$bin" simulate --scenario city --frames 600 --objects 200 --rate 2 --seed 3 -o "$work/dense.mcap" >/dev/null
+: > "$work/copy.s"; : > "$work/track.s"
+for i in $(seq 15); do
+  wall "$bin" track "$work/dense.mcap" -o "$work/dense.copy.mcap" --no-track --quiet >> "$work/copy.s"
+  wall "$bin" track "$work/dense.mcap" -o "$work/dense.track.mcap" --quiet >> "$work/track.s"
+done
+copy=$(median < "$work/copy.s"); track=$(median < "$work/track.s")
+echo "dense log ($(du -h "$work/dense.mcap" | cut -f1)): copy (--no-track) $copy s, track $track s (medians of 15, alternating)"
+echo "ratio track / copy: $(div "$track" "$copy")x"
