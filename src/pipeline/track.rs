@@ -132,6 +132,49 @@ fn stamp_of(msg: &Detections3D, log_time: u64) -> u64 {
     msg.stamp.unwrap_or(log_time)
 }
 
+/// The error of a detection message that does not decode.
+fn undecodable(file: &str, topic: &str, h: &MessageHeader, source: &DetectionSource) -> String {
+    format!(
+        "{}: cannot decode {}",
+        describe_message(file, topic, h),
+        source.describe()
+    )
+}
+
+/// Refuses a detection message with more boxes than `--max-detections`.
+fn check_count(
+    count: usize,
+    opts: &TrackOptions,
+    file: &str,
+    topic: &str,
+    h: &MessageHeader,
+) -> Result<()> {
+    if count > opts.max_detections_per_message {
+        bail!(
+            "{}: {count} detections in one message, more than the limit of {} (--max-detections)",
+            describe_message(file, topic, h),
+            opts.max_detections_per_message
+        );
+    }
+    Ok(())
+}
+
+/// Counts, per topic, a stamp earlier than the previous one on the same channel.
+fn note_stamp(
+    last: &mut HashMap<u16, u64>,
+    h: &MessageHeader,
+    stamp: u64,
+    topic: &str,
+    backwards: &mut BTreeMap<String, u64>,
+) {
+    if last
+        .insert(h.channel_id, stamp)
+        .is_some_and(|prev| stamp < prev)
+    {
+        *backwards.entry(topic.to_string()).or_default() += 1;
+    }
+}
+
 fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
     format!(
         "{file}: topic {topic}, message at log_time {} (sequence {})",
@@ -262,28 +305,18 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
             Record::Message { header, data } => {
                 s.transforms.on_message(&file, &header, &data);
                 if let Some((source, topic)) = s.det_channels.get(&header.channel_id) {
-                    let (msg_stamp, count) = source.stamp_and_count(&data).with_context(|| {
-                        format!(
-                            "{}: cannot decode {}",
-                            describe_message(&file, topic, &header),
-                            source.describe()
-                        )
-                    })?;
-                    if count > opts.max_detections_per_message {
-                        bail!(
-                            "{}: {} detections in one message, more than the limit of {} \
-                             (--max-detections)",
-                            describe_message(&file, topic, &header),
-                            count,
-                            opts.max_detections_per_message
-                        );
-                    }
+                    let (msg_stamp, count) = source
+                        .stamp_and_count(&data)
+                        .with_context(|| undecodable(&file, topic, &header, source))?;
+                    check_count(count, opts, &file, topic, &header)?;
                     let stamp = msg_stamp.unwrap_or(header.log_time);
-                    if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
-                        if stamp < prev {
-                            *s.stamps_backwards.entry(topic.clone()).or_default() += 1;
-                        }
-                    }
+                    note_stamp(
+                        &mut last_stamp,
+                        &header,
+                        stamp,
+                        topic,
+                        &mut s.stamps_backwards,
+                    );
                     s.entries.push((stamp, ordinal));
                     s.entry_channels.push(header.channel_id);
                     ordinal += 1;
@@ -695,34 +728,16 @@ fn run_pass(
                 pass.summary.messages_copied += 1;
                 if let Some(&(source, topic_idx)) = det_channels.get(&header.channel_id) {
                     let topic = &pass.topics[topic_idx];
-                    let mut msg: Detections3D = source.decode(&data).with_context(|| {
-                        format!(
-                            "{}: cannot decode {}",
-                            describe_message(&file, topic, &header),
-                            source.describe()
-                        )
-                    })?;
-                    if msg.detections.len() > opts.max_detections_per_message {
-                        bail!(
-                            "{}: {} detections in one message, more than the limit of {} \
-                             (--max-detections)",
-                            describe_message(&file, topic, &header),
-                            msg.detections.len(),
-                            opts.max_detections_per_message
-                        );
-                    }
+                    let mut msg: Detections3D = source
+                        .decode(&data)
+                        .with_context(|| undecodable(&file, topic, &header, &source))?;
+                    check_count(msg.detections.len(), opts, &file, topic, &header)?;
                     let stamp = stamp_of(&msg, header.log_time);
                     schedule.on_message(header.channel_id, stamp)?;
+                    // (With two passes, the first has counted them.)
                     if let Schedule::Streaming(_) = schedule {
-                        if let Some(prev) = last_stamp.insert(header.channel_id, stamp) {
-                            if stamp < prev {
-                                *pass
-                                    .summary
-                                    .stamps_backwards
-                                    .entry(topic.clone())
-                                    .or_default() += 1;
-                            }
-                        }
+                        let backwards = &mut pass.summary.stamps_backwards;
+                        note_stamp(&mut last_stamp, &header, stamp, topic, backwards);
                     }
                     pass.ego
                         .to_fixed(&mut msg, stamp, || describe_message(&file, topic, &header))?;
