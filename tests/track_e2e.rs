@@ -469,3 +469,27 @@ fn one_pass_and_two_passes_give_the_same_tracks() {
         }
     }
 }
+
+/// A footer whose summary offset points at garbage: `track` does not trust it, reads the log
+/// twice and gives the same tracks.
+#[test]
+fn a_bad_summary_offset_falls_back_to_two_passes() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("sample_logs/city.mcap");
+    let mut bytes = std::fs::read(&input).unwrap();
+    // Footer: opcode, length, summary start, summary offset start, CRC; then the magic.
+    let footer = bytes.len() - (1 + 8 + 20 + 8);
+    assert_eq!(bytes[footer], 0x02);
+    let bad = (footer as u64 - 5).to_le_bytes();
+    bytes[footer + 9..footer + 17].copy_from_slice(&bad);
+    let broken = dir.path().join("broken-summary.mcap");
+    std::fs::write(&broken, &bytes).unwrap();
+    let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+    let sa = track_json(&input, &a);
+    let sb = track_json(&broken, &b);
+    assert_eq!(
+        (sa["passes"].as_u64(), sb["passes"].as_u64()),
+        (Some(1), Some(2))
+    );
+    assert!(tracks(&a, "/tracks") == tracks(&b, "/tracks"));
+}
