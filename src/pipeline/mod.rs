@@ -2,6 +2,7 @@
 
 pub mod detections;
 pub mod ego;
+pub mod frame_schedule;
 pub mod info;
 pub mod kitti_io;
 pub mod nuscenes_io;

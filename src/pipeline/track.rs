@@ -1,12 +1,13 @@
 //! `probmot track`: read an MCAP recording, replay its detections in stamp order through the
 //! tracker, and write every input record plus a tracks channel to a new MCAP file.
 //!
-//! Two streaming passes over the input. The first decodes only the detection messages to learn
-//! the frame stamps (16 bytes kept per detection message). The second copies every record to the
-//! output in file order and runs the tracker as soon as all messages of the next frame (in stamp
-//! order) have been seen; messages that arrive early wait in a small reorder buffer. Memory is
-//! bounded by the live tracks, one chunk of the input and output, and the out-of-orderness of
-//! the file, not by its length.
+//! One or two streaming passes over the input (see [`track_file`] and
+//! [`super::frame_schedule`]). With two, the first decodes only the detection messages to learn
+//! the frame stamps (16 bytes kept per detection message). The tracking pass copies every record
+//! to the output in file order and runs the tracker as soon as the next frame (in stamp order)
+//! is complete; messages that arrive early wait in a small reorder buffer. Memory is bounded by
+//! the live tracks, one chunk of the input and output, and the out-of-orderness of the file,
+//! not by its length.
 //!
 //! The output is written through [`BackgroundOutput`]: with [`TrackOptions::background_writer`]
 //! its chunks are compressed on other threads while this one reads and tracks.
@@ -21,6 +22,7 @@ use mcap::records::{MessageHeader, Record};
 
 use super::detections::{convert, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
+use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
 use super::track_outputs::ExtraOutputs;
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
@@ -415,82 +417,6 @@ fn finish_summary(mut s: TrackSummary, passes: u8, started: Instant) -> TrackSum
     s
 }
 
-/// The one-pass run met a detection stamp at or before a frame it has already tracked; the
-/// file is tracked in two passes instead.
-#[derive(Debug)]
-struct NeedsTwoPasses;
-
-impl std::fmt::Display for NeedsTwoPasses {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("a detection stamp goes back to a frame already tracked")
-    }
-}
-
-impl std::error::Error for NeedsTwoPasses {}
-
-/// How the tracking pass tells that a frame is complete.
-enum Schedule {
-    /// From the first pass: `(stamp, messages)` of every frame, in stamp order.
-    Known(Vec<(u64, u32)>),
-    /// One pass: the earliest pending frame is complete once every detection channel has
-    /// moved past its stamp or delivered all its messages.
-    Streaming(Streaming),
-}
-
-/// State of the one-pass schedule.
-struct Streaming {
-    /// Per detection channel: messages in the file (from the summary's statistics, if any),
-    /// messages seen, and the stamp of the last one.
-    channels: HashMap<u16, (Option<u64>, u64, Option<u64>)>,
-    /// `(topic, schema id)` of every channel in the summary: a data-section record that differs
-    /// ends the one-pass run.
-    summary_channels: HashMap<u16, (String, u16)>,
-    summary_schemas: HashSet<u16>,
-    /// Stamp of the last frame tracked.
-    done: Option<u64>,
-}
-
-impl Schedule {
-    /// A detection message of `channel` with `stamp` has arrived.
-    fn on_message(&mut self, channel: u16, stamp: u64) -> Result<()> {
-        if let Schedule::Streaming(st) = self {
-            if st.done.is_some_and(|d| stamp <= d) {
-                return Err(NeedsTwoPasses.into());
-            }
-            let c = st.channels.get_mut(&channel).expect("a detection channel");
-            c.1 += 1;
-            c.2 = Some(stamp);
-        }
-        Ok(())
-    }
-
-    /// The stamp of the next frame to track, if it is complete.
-    fn ready(&self, pending: &BTreeMap<u64, Vec<Pending>>, next_frame: usize) -> Option<u64> {
-        match self {
-            Schedule::Known(frames) => {
-                let &(stamp, count) = frames.get(next_frame)?;
-                (pending.get(&stamp).map(|v| v.len() as u32) == Some(count)).then_some(stamp)
-            }
-            Schedule::Streaming(st) => {
-                let (&stamp, _) = pending.first_key_value()?;
-                st.channels
-                    .values()
-                    .all(|&(total, seen, last)| {
-                        total == Some(seen) || last.is_some_and(|l| l > stamp)
-                    })
-                    .then_some(stamp)
-            }
-        }
-    }
-
-    fn frames(&self) -> Option<usize> {
-        match self {
-            Schedule::Known(f) => Some(f.len()),
-            Schedule::Streaming(_) => None,
-        }
-    }
-}
-
 /// The plan of a one-pass run from the file's summary section, or `None` if the file needs
 /// two passes: no readable summary (or one without channels), a transform channel (ego motion
 /// looks ahead in time), several detection channels without message counts, or a channel
@@ -528,26 +454,21 @@ fn one_pass_plan(input: &Path, opts: &TrackOptions, file: &str) -> Option<(Scan,
     if plan.det_channels.len() > 1 && counts.is_none() {
         return None;
     }
-    let channels = plan
+    let channels: Vec<(u16, Option<u64>)> = plan
         .det_channels
         .keys()
         .map(|id| {
             (
                 *id,
-                (
-                    counts.as_ref().map(|c| c.get(id).copied().unwrap_or(0)),
-                    0,
-                    None,
-                ),
+                counts.as_ref().map(|c| c.get(id).copied().unwrap_or(0)),
             )
         })
         .collect();
-    let schedule = Schedule::Streaming(Streaming {
+    let schedule = Schedule::Streaming(Streaming::new(
         channels,
-        summary_schemas: plan.schema_ids.clone(),
         summary_channels,
-        done: None,
-    });
+        plan.schema_ids.clone(),
+    ));
     Some((plan, schedule))
 }
 
@@ -691,21 +612,13 @@ fn run_pass(
         match rec {
             Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
             Record::Schema { header, data } if header.id != 0 => {
-                if let Schedule::Streaming(st) = &schedule {
-                    if !st.summary_schemas.contains(&header.id) {
-                        return Err(NeedsTwoPasses.into());
-                    }
-                }
+                schedule.on_schema(header.id)?;
                 pass.out
                     .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
                     .with_context(|| format!("{file}: copying schema {}", header.id))?;
             }
             Record::Channel(c) => {
-                if let Schedule::Streaming(st) = &schedule {
-                    if st.summary_channels.get(&c.id) != Some(&(c.topic.clone(), c.schema_id)) {
-                        return Err(NeedsTwoPasses.into());
-                    }
-                }
+                schedule.on_channel(c.id, &c.topic, c.schema_id)?;
                 pass.out
                     .add_channel_with_id(
                         c.id,
@@ -735,7 +648,7 @@ fn run_pass(
                     let stamp = stamp_of(&msg, header.log_time);
                     schedule.on_message(header.channel_id, stamp)?;
                     // (With two passes, the first has counted them.)
-                    if let Schedule::Streaming(_) = schedule {
+                    if schedule.is_streaming() {
                         let backwards = &mut pass.summary.stamps_backwards;
                         note_stamp(&mut last_stamp, &header, stamp, topic, backwards);
                     }
@@ -751,9 +664,7 @@ fn run_pass(
                     ordinal += 1;
                     while let Some(stamp) = schedule.ready(&pass.pending, pass.next_frame) {
                         pass.track_frame(stamp, schedule.frames())?;
-                        if let Schedule::Streaming(st) = &mut schedule {
-                            st.done = Some(stamp);
-                        }
+                        schedule.tracked(stamp);
                     }
                 }
                 if pass.summary.messages_copied.is_multiple_of(256) {
