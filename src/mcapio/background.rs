@@ -79,7 +79,7 @@ impl Batch {
 /// [`BackgroundOutput::commit`]. Dropped without a commit, it leaves no file.
 pub struct BackgroundOutput {
     mode: Mode,
-    /// The batch being filled (inline: only the payload of the call being written).
+    /// The batch being filled (unused inline).
     batch: Batch,
     /// Ids added so far, to refuse unknown ones at the call.
     schemas: HashSet<u16>,
@@ -158,8 +158,7 @@ impl BackgroundOutput {
             return Err(McapError::InvalidSchemaId.into());
         }
         self.schemas.insert(id);
-        let data = self.batch.push_bytes(data);
-        self.push(Op::Schema {
+        self.push(data, |data| Op::Schema {
             id,
             name: name.to_string(),
             encoding: encoding.to_string(),
@@ -180,7 +179,7 @@ impl BackgroundOutput {
             return Err(McapError::UnknownSchema(topic.into(), schema_id).into());
         }
         self.channels.insert(id);
-        self.push(Op::Channel {
+        self.push(&[], |_| Op::Channel {
             id,
             schema_id,
             topic: topic.to_string(),
@@ -189,14 +188,13 @@ impl BackgroundOutput {
         })
     }
 
-    /// Like `mcap::Writer::write_to_known_channel`: the payload is copied, nothing is allocated
-    /// in steady state.
+    /// Like `mcap::Writer::write_to_known_channel`: the payload is copied into the batch (written
+    /// at once inline), nothing is allocated in steady state.
     pub fn write_to_known_channel(&mut self, header: &MessageHeader, data: &[u8]) -> Result<()> {
         if !self.channels.contains(&header.channel_id) {
             return Err(McapError::UnknownChannel(header.sequence, header.channel_id).into());
         }
-        let data = self.batch.push_bytes(data);
-        self.push(Op::Message {
+        self.push(data, |data| Op::Message {
             header: *header,
             data,
         })
@@ -204,8 +202,7 @@ impl BackgroundOutput {
 
     /// Like `mcap::Writer::attach`.
     pub fn attach(&mut self, a: &mcap::Attachment) -> Result<()> {
-        let data = self.batch.push_bytes(&a.data);
-        self.push(Op::Attachment {
+        self.push(&a.data, |data| Op::Attachment {
             log_time: a.log_time,
             create_time: a.create_time,
             name: a.name.clone(),
@@ -216,7 +213,7 @@ impl BackgroundOutput {
 
     /// Like `mcap::Writer::write_metadata`.
     pub fn write_metadata(&mut self, m: &Metadata) -> Result<()> {
-        self.push(Op::Metadata(m.clone()))
+        self.push(&[], |_| Op::Metadata(m.clone()))
     }
 
     /// Writes what is left, finishes the MCAP (summary, footer), syncs it and renames it over
@@ -238,13 +235,14 @@ impl BackgroundOutput {
         }
     }
 
-    fn push(&mut self, op: Op) -> Result<()> {
+    /// Records the call `op` with its `payload` (given to `op` as a range of the bytes it is
+    /// written from); inline, writes it at once from `payload` itself.
+    fn push(&mut self, payload: &[u8], op: impl FnOnce(Range<usize>) -> Op) -> Result<()> {
         if let Mode::Inline { out, dest } = &mut self.mode {
-            let r = apply(out, op, &self.batch.bytes, dest);
-            self.batch.bytes.clear();
-            return r;
+            return apply(out, op(0..payload.len()), payload, dest);
         }
-        self.batch.ops.push(op);
+        let range = self.batch.push_bytes(payload);
+        self.batch.ops.push(op(range));
         if self.batch.bytes.len() >= BATCH_BYTES || self.batch.ops.len() >= BATCH_OPS {
             self.send()?;
         }
