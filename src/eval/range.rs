@@ -12,10 +12,9 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use mcap::records::Record;
 
 use super::scene::{EvalBox, Scene};
-use crate::mcapio::reader::read_records;
+use crate::mcapio::topic::for_each_payload;
 use crate::msgs::EGO_POSE_SCHEMA;
 
 /// Maximum ego distance per class, metres.
@@ -133,53 +132,47 @@ struct EgoPoseJson {
 /// Reads the ego positions of `topic` (schema `probmot.EgoPose`, JSON) from `path`.
 pub fn read_ego_positions(path: &Path, topic: &str) -> Result<EgoPositions> {
     let file = path.display().to_string();
-    let mut schemas: BTreeMap<u16, String> = BTreeMap::new();
-    let mut channel: Option<u16> = None;
     let mut samples: BTreeMap<u64, [f64; 3]> = BTreeMap::new();
-    read_records(path, |rec, _| {
-        match rec {
-            Record::Schema { header, .. } => {
-                schemas.insert(header.id, header.name.clone());
+    let found = for_each_payload(
+        path,
+        topic,
+        |c, name| {
+            if name != EGO_POSE_SCHEMA || c.message_encoding != "json" {
+                bail!(
+                    "{file}: topic {topic} has schema '{name}' ({}); the range filter needs \
+                     {EGO_POSE_SCHEMA} (json), as `probmot import nuscenes` writes",
+                    c.message_encoding
+                );
             }
-            Record::Channel(c) if c.topic == topic => {
-                let name = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                if name != EGO_POSE_SCHEMA || c.message_encoding != "json" {
+            Ok(())
+        },
+        |header, data, ()| {
+            let m: EgoPoseJson = serde_json::from_slice(data).with_context(|| {
+                format!(
+                    "{file}: topic {topic}, message at log_time {} (sequence {}): cannot \
+                     decode {EGO_POSE_SCHEMA}",
+                    header.log_time, header.sequence
+                )
+            })?;
+            if m.translation.iter().any(|v| !v.is_finite()) {
+                bail!(
+                    "{file}: topic {topic}, message at log_time {}: non-finite translation",
+                    header.log_time
+                );
+            }
+            if let Some(old) = samples.insert(m.stamp, m.translation) {
+                if old != m.translation {
                     bail!(
-                        "{file}: topic {topic} has schema '{name}' ({}); the range filter needs \
-                         {EGO_POSE_SCHEMA} (json), as `probmot import nuscenes` writes",
-                        c.message_encoding
+                        "{file}: topic {topic}: two different ego poses at stamp {}",
+                        m.stamp
                     );
                 }
-                channel = Some(c.id);
             }
-            Record::Message { header, data } if Some(header.channel_id) == channel => {
-                let m: EgoPoseJson = serde_json::from_slice(&data).with_context(|| {
-                    format!(
-                        "{file}: topic {topic}, message at log_time {} (sequence {}): cannot \
-                         decode {EGO_POSE_SCHEMA}",
-                        header.log_time, header.sequence
-                    )
-                })?;
-                if m.translation.iter().any(|v| !v.is_finite()) {
-                    bail!(
-                        "{file}: topic {topic}, message at log_time {}: non-finite translation",
-                        header.log_time
-                    );
-                }
-                if let Some(old) = samples.insert(m.stamp, m.translation) {
-                    if old != m.translation {
-                        bail!(
-                            "{file}: topic {topic}: two different ego poses at stamp {}",
-                            m.stamp
-                        );
-                    }
-                }
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
-    if channel.is_none() {
+            Ok(())
+        },
+        |_| Ok(()),
+    )?;
+    if !found {
         bail!(
             "{file}: no channel with topic {topic}: the range filter (--max-range) needs the ego \
              vehicle's pose (`probmot import nuscenes` writes it when ego_pose.json is present)"
