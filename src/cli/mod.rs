@@ -5,6 +5,7 @@ mod eval_cmd;
 mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
+mod layer_topics;
 mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;

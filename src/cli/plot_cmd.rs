@@ -10,6 +10,8 @@ use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::viz::plot::{render_png, Panel, PlotOptions};
 use probmot::viz::{read_layers, Layer, Selection};
 
+use super::layer_topics::LayerTopics;
+
 /// Draw a bird's-eye-view PNG of a recording: one panel per layer (detections, tracks, ground
 /// truth) side by side, every box of the time window in place, a colour per id (detections
 /// grey), axes in metres with equal scale on x and y.
@@ -42,15 +44,8 @@ pub struct PlotArgs {
     /// Title above the panels; default: file name, classes and time window.
     #[arg(long)]
     title: Option<String>,
-    /// Topic of the detections layer.
-    #[arg(long, default_value = "/detections", value_name = "TOPIC")]
-    detections_topic: String,
-    /// Topic of the tracks layer.
-    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
-    tracks_topic: String,
-    /// Topic of the ground-truth layer.
-    #[arg(long, default_value = "/ground_truth", value_name = "TOPIC")]
-    truth_topic: String,
+    #[command(flatten)]
+    topics: LayerTopics,
     /// Print nothing on success.
     #[arg(short, long)]
     quiet: bool,
@@ -106,11 +101,7 @@ pub fn run(a: PlotArgs) -> Result<ExitCode> {
     if !explicit {
         wanted_layers = Layer::ALL.to_vec();
     }
-    let topic_of = |l: Layer| match l {
-        Layer::Detections => a.detections_topic.clone(),
-        Layer::Tracks => a.tracks_topic.clone(),
-        Layer::GroundTruth => a.truth_topic.clone(),
-    };
+    let topic_of = |l: Layer| a.topics.of(l).to_string();
 
     // Every layer's topic is read, so that "the first frame" does not depend on --layers.
     let all: Vec<(Layer, String)> = Layer::ALL.iter().map(|&l| (l, topic_of(l))).collect();
@@ -136,9 +127,9 @@ pub fn run(a: PlotArgs) -> Result<ExitCode> {
         if wanted_layers.is_empty() {
             bail!(
                 "{file} has none of the topics {}, {}, {} (topics: {})",
-                a.detections_topic,
-                a.tracks_topic,
-                a.truth_topic,
+                a.topics.detections_topic,
+                a.topics.tracks_topic,
+                a.topics.truth_topic,
                 topics()
             );
         }

@@ -7,6 +7,8 @@ use anyhow::{bail, Result};
 use clap::Args;
 use probmot::mcapio::writer::check_output_path;
 
+use super::layer_topics::LayerTopics;
+
 /// Write a Rerun recording (.rrd) of a recording's detections, tracks and ground truth.
 ///
 /// Entities under `world` (z up, metres): detections (grey boxes), tracks (a colour per id,
@@ -34,15 +36,8 @@ pub struct VizArgs {
     /// Only boxes of these classes (comma-separated or repeated); default: every class.
     #[arg(long, value_name = "CLASS", value_delimiter = ',')]
     class: Vec<String>,
-    /// Topic of the detections.
-    #[arg(long, default_value = "/detections", value_name = "TOPIC")]
-    detections_topic: String,
-    /// Topic of the tracks.
-    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
-    tracks_topic: String,
-    /// Topic of the ground truth.
-    #[arg(long, default_value = "/ground_truth", value_name = "TOPIC")]
-    truth_topic: String,
+    #[command(flatten)]
+    topics: LayerTopics,
     /// Rerun recording id (default: a random one).
     #[arg(long, value_name = "ID")]
     recording_id: Option<String>,
@@ -83,9 +78,9 @@ pub fn run(a: VizArgs) -> Result<ExitCode> {
 fn write(a: &VizArgs) -> Result<ExitCode> {
     use probmot::viz::rrd::{mcap_to_rrd, VizOptions};
     let o = VizOptions {
-        detections_topic: a.detections_topic.clone(),
-        tracks_topic: a.tracks_topic.clone(),
-        truth_topic: a.truth_topic.clone(),
+        detections_topic: a.topics.detections_topic.clone(),
+        tracks_topic: a.topics.tracks_topic.clone(),
+        truth_topic: a.topics.truth_topic.clone(),
         classes: a.class.clone(),
         trail: a.trail,
         recording_id: a.recording_id.clone(),
