@@ -110,6 +110,7 @@ pub struct TrackSummary {
 }
 
 /// Result of the first pass.
+#[derive(Default)]
 struct Scan {
     profile: String,
     schema_ids: HashSet<u16>,
@@ -185,22 +186,6 @@ fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
 }
 
 impl Scan {
-    fn new() -> Scan {
-        Scan {
-            profile: String::new(),
-            schema_ids: HashSet::new(),
-            channel_ids: HashSet::new(),
-            det_channels: HashMap::new(),
-            entries: Vec::new(),
-            stamps_backwards: BTreeMap::new(),
-            topics: HashSet::new(),
-            unreadable: BTreeMap::new(),
-            left_out: Vec::new(),
-            entry_channels: Vec::new(),
-            transforms: TransformCollector::new(),
-        }
-    }
-
     /// A channel record: chooses it as detections (by topic, or by schema by default) and
     /// registers it with the transform sources. Returns whether it is a transform source.
     fn on_channel(
@@ -291,9 +276,8 @@ impl Scan {
 fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
     let file = input.display().to_string();
     let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
-    let mut s = Scan::new();
+    let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    let mut ordinal = 0u64;
     read_records(input, |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
@@ -319,11 +303,10 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                         topic,
                         &mut s.stamps_backwards,
                     );
-                    s.entries.push((stamp, ordinal));
+                    s.entries.push((stamp, s.entries.len() as u64));
                     s.entry_channels.push(header.channel_id);
-                    ordinal += 1;
                 }
-                if ordinal.is_multiple_of(256) {
+                if s.entries.len().is_multiple_of(256) {
                     progress.set_position(stats.bytes_read);
                 }
             }
@@ -425,8 +408,10 @@ fn one_pass_plan(input: &Path, opts: &TrackOptions, file: &str) -> Option<(Scan,
     let Some((Record::Header(header), records)) = read_summary_records(input) else {
         return None;
     };
-    let mut plan = Scan::new();
-    plan.profile = header.profile;
+    let mut plan = Scan {
+        profile: header.profile,
+        ..Default::default()
+    };
     let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
     let mut summary_channels = HashMap::new();
     let mut counts = None;
@@ -606,7 +591,6 @@ fn run_pass(
         summary,
         progress,
     };
-    let mut ordinal = 0u64;
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     read_records(input, |rec, stats| {
         match rec {
@@ -654,14 +638,13 @@ fn run_pass(
                     }
                     pass.ego
                         .to_fixed(&mut msg, stamp, || describe_message(&file, topic, &header))?;
-                    pass.summary.detection_messages += 1;
                     pass.pending.entry(stamp).or_default().push(Pending {
-                        ordinal,
+                        ordinal: pass.summary.detection_messages,
                         log_time: header.log_time,
                         topic_idx,
                         msg,
                     });
-                    ordinal += 1;
+                    pass.summary.detection_messages += 1;
                     while let Some(stamp) = schedule.ready(&pass.pending, pass.next_frame) {
                         pass.track_frame(stamp, schedule.frames())?;
                         schedule.tracked(stamp);
