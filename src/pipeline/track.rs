@@ -114,6 +114,8 @@ pub struct TrackSummary {
 struct Scan {
     profile: String,
     schema_ids: HashSet<u16>,
+    /// `(name, encoding, data)` of every schema.
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
     channel_ids: HashSet<u16>,
     det_channels: HashMap<u16, (DetectionSource, String)>,
     /// `(stamp, ordinal)` of every detection message.
@@ -186,19 +188,25 @@ fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
 }
 
 impl Scan {
+    /// A schema record.
+    fn on_schema(&mut self, header: mcap::records::SchemaHeader, data: &[u8]) {
+        self.schema_ids.insert(header.id);
+        let schema = (header.name, header.encoding, data.to_vec());
+        self.schemas.insert(header.id, schema);
+    }
+
     /// A channel record: chooses it as detections (by topic, or by schema by default) and
     /// registers it with the transform sources. Returns whether it is a transform source.
     fn on_channel(
         &mut self,
         c: &mcap::records::Channel,
-        schemas: &HashMap<u16, (String, String, Vec<u8>)>,
         opts: &TrackOptions,
         file: &str,
     ) -> Result<bool> {
         self.channel_ids.insert(c.id);
         self.topics.insert(c.topic.clone());
         let (schema_name, schema_enc, schema_data) =
-            schemas.get(&c.schema_id).cloned().unwrap_or_default();
+            self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
         let transform = self.transforms.on_channel(c, &schema_name).is_some();
         let wanted = if opts.detection_topics.is_empty() {
             // probmot's own outputs (e.g. a --scene-topic SceneUpdate) are not input.
@@ -275,18 +283,14 @@ impl Scan {
 
 fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
     let file = input.display().to_string();
-    let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
     let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     read_records(input, |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
-            Record::Schema { header, data } => {
-                s.schema_ids.insert(header.id);
-                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
-            }
+            Record::Schema { header, data } => s.on_schema(header, &data),
             Record::Channel(c) => {
-                s.on_channel(&c, &schemas, opts, &file)?;
+                s.on_channel(&c, opts, &file)?;
             }
             Record::Message { header, data } => {
                 s.transforms.on_message(&file, &header, &data);
@@ -412,19 +416,15 @@ fn one_pass_plan(input: &Path, opts: &TrackOptions, file: &str) -> Option<(Scan,
         profile: header.profile,
         ..Default::default()
     };
-    let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
     let mut summary_channels = HashMap::new();
     let mut counts = None;
     for rec in records {
         match rec {
-            Record::Schema { header, data } if header.id != 0 => {
-                plan.schema_ids.insert(header.id);
-                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
-            }
+            Record::Schema { header, data } if header.id != 0 => plan.on_schema(header, &data),
             Record::Channel(c) => {
                 // A transform channel (ego motion looks ahead in time), or an error that the
                 // first pass will report with the data section's records.
-                if plan.on_channel(&c, &schemas, opts, file).unwrap_or(true) {
+                if plan.on_channel(&c, opts, file).unwrap_or(true) {
                     return None;
                 }
                 summary_channels.insert(c.id, (c.topic, c.schema_id));
