@@ -136,7 +136,8 @@ pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
 
 impl AtomicOutput {
     /// Creates the temporary file beside `dest` and an MCAP writer on it: compressed chunks (zstd
-    /// level 1 on a worker thread by default), message and chunk indexes, and a summary section,
+    /// level 1 by default, on the thread that writes: `BackgroundOutput` gives the output a thread
+    /// of its own where it pays), message and chunk indexes, and a summary section,
     /// so viewers can seek.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
         let dir = parent_dir(dest);
@@ -154,7 +155,7 @@ impl AtomicOutput {
             .profile(opts.profile.clone())
             .library(library_string())
             .compression(opts.compression.mcap())
-            .compression_threads(1)
+            .compression_threads(0)
             .compression_level(1)
             .chunk_size(Some(opts.chunk_size))
             .create(BufWriter::with_capacity(1 << 16, file))
