@@ -47,13 +47,34 @@ for j in 1 2; do
 done
 echo "speed-up --jobs 2 over --jobs 1: $(div "$(cat "$work/jobs1.s")" "$(cat "$work/jobs2.s")")x"
 
-# --- track vs the plain copy, alternating, 15 runs each (the dense log of benches/pipeline.rs)
+# --- track vs the plain copy, alternating, 15 runs each (the dense log of benches/pipeline.rs).
+# Each run prints its wall time and its CPU time (user + system, all threads); the runs with
+# `--compression none` separate compressing the output from everything else.
 "$bin" simulate --scenario city --frames 600 --objects 200 --rate 2 --seed 3 -o "$work/dense.mcap" >/dev/null
-: > "$work/copy.s"; : > "$work/track.s"
+run() { # run NAME ARGS...: appends "wall cpu" (seconds) of one run to $work/NAME.s
+  local name=$1; shift
+  python3 - "$@" >> "$work/$name.s" <<'PY'
+import resource, subprocess, sys, time
+r0 = resource.getrusage(resource.RUSAGE_CHILDREN)  # not zero: Python's start-up can spawn
+t = time.perf_counter()
+subprocess.run(sys.argv[1:], check=True, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+wall = time.perf_counter() - t
+ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+cpu = ru.ru_utime + ru.ru_stime - r0.ru_utime - r0.ru_stime
+print(f"{wall:.4f} {cpu:.4f}")
+PY
+}
+col() { awk -v c="$1" '{print $c}' "$work/$2.s" | median; }
+for c in zstd none; do : > "$work/copy-$c.s"; : > "$work/track-$c.s"; done
 for i in $(seq 15); do
-  wall "$bin" track "$work/dense.mcap" -o "$work/dense.copy.mcap" --no-track --quiet >> "$work/copy.s"
-  wall "$bin" track "$work/dense.mcap" -o "$work/dense.track.mcap" --quiet >> "$work/track.s"
+  for c in zstd none; do
+    run "copy-$c" "$bin" track "$work/dense.mcap" -o "$work/dense.copy.mcap" --no-track --quiet --compression "$c"
+    run "track-$c" "$bin" track "$work/dense.mcap" -o "$work/dense.track.mcap" --quiet --compression "$c"
+  done
 done
-copy=$(median < "$work/copy.s"); track=$(median < "$work/track.s")
-echo "dense log ($(du -h "$work/dense.mcap" | cut -f1)): copy (--no-track) $copy s, track $track s (medians of 15, alternating)"
-echo "ratio track / copy: $(div "$track" "$copy")x"
+echo "dense log ($(du -h "$work/dense.mcap" | cut -f1)), medians of 15 alternating runs (wall s / cpu s):"
+for c in zstd none; do
+  echo "  --compression $c: copy (--no-track) $(col 1 "copy-$c") / $(col 2 "copy-$c"), track $(col 1 "track-$c") / $(col 2 "track-$c")"
+done
+echo "ratio track / copy (wall): $(div "$(col 1 track-zstd)" "$(col 1 copy-zstd)")x"
+echo "ratio track / copy (cpu):  $(div "$(col 2 track-zstd)" "$(col 2 copy-zstd)")x"
