@@ -5,6 +5,10 @@ read_path:        the sample logs of at most 64 KiB, plus small MCAP files made 
                   detections channel, stamps out of order, attachments and metadata).
 decode_protobuf:  /detections payloads of the sample logs, and a few hand-made messages.
 decode_json:      the same messages in probmot's JSON form (serde, proto field names).
+decode_sources:   a selector byte (0: vision_msgs 4.x, 1: vision_msgs 2.x, 2: foxglove.SceneUpdate)
+                  and a message of the ROS 2 and Foxglove test fixtures.
+transforms:       the transform messages of tests/fixtures/ros2_tf/tf.mcap and two Foxglove frame
+                  transform messages made here, in the framing of probmot_fuzz::read_transforms.
 
 Needs the Python packages of scripts/requirements.txt (mcap, protobuf, lz4, zstandard).
 Run from anywhere: python3 fuzz/make_seeds.py
@@ -23,6 +27,10 @@ from mcap.writer import CompressionType, Writer
 ROOT = pathlib.Path(__file__).resolve().parent.parent
 CORPUS = ROOT / "fuzz" / "corpus"
 SAMPLES = sorted((ROOT / "sample_logs").glob("*.mcap"))
+FIXTURES = ROOT / "tests" / "fixtures"
+TARGETS = ("read_path", "decode_protobuf", "decode_json", "decode_sources", "transforms")
+# Channel numbers of probmot_fuzz::read_transforms (TRANSFORM_CHANNELS), by topic.
+TRANSFORM_CHANNEL = {"/tf": 0, "/tf_static": 1, "/odom": 2, "/frame": 3, "/frames": 4}
 
 
 def put(target: str, data: bytes) -> None:
@@ -87,9 +95,46 @@ def small_mcap(descriptor: bytes, payloads, encoding="protobuf", compression=Non
     return buf.getvalue()
 
 
+def framed(channel: str, log_time_tenths: int, data: bytes) -> bytes:
+    """One message in the framing of probmot_fuzz::read_transforms."""
+    return (bytes([TRANSFORM_CHANNEL[channel], log_time_tenths % 256])
+            + len(data).to_bytes(2, "little") + data)
+
+
+def source_and_transform_seeds() -> None:
+    for selector, path in ((0, "ros2/city.mcap"), (1, "ros2/turning-car-vision_msgs2.mcap"),
+                           (2, "foxglove/city.mcap")):
+        with open(FIXTURES / path, "rb") as f:
+            for i, (_, _, message) in enumerate(make_reader(f).iter_messages()):
+                if i in (0, 1, 20):
+                    put("decode_sources", bytes([selector]) + message.data)
+
+    from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+
+    tf = b""
+    with open(FIXTURES / "ros2_tf" / "tf.mcap", "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
+            tf += framed(channel.topic, message.log_time // 100_000_000, message.data)
+    put("transforms", tf)
+
+    def frame_transform(sec: int, parent: str, child: str, x: float, yaw_w: float):
+        t = FrameTransform(parent_frame_id=parent, child_frame_id=child)
+        t.timestamp.seconds = sec
+        t.translation.x, t.translation.y = x, 1.0
+        t.rotation.z, t.rotation.w = (1 - yaw_w * yaw_w) ** 0.5, yaw_w
+        return t
+
+    one = frame_transform(1, "map", "base_link", 2.0, 1.0)
+    many = FrameTransforms(transforms=[frame_transform(2, "map", "base_link", 3.0, 0.8),
+                                       frame_transform(0, "base_link", "lidar", 1.2, 1.0)])
+    put("transforms", tf + framed("/frame", 10, one.SerializeToString())
+        + framed("/frames", 20, many.SerializeToString()))
+
+
 def main() -> None:
     if CORPUS.exists():
-        for t in ("read_path", "decode_protobuf", "decode_json"):
+        for t in TARGETS:
             shutil.rmtree(CORPUS / t, ignore_errors=True)
     descriptor, Detections3D = load_types()
 
@@ -141,7 +186,8 @@ def main() -> None:
     put("read_path", small_mcap(descriptor, pb, compression=CompressionType.LZ4, extras=True))
     put("read_path", small_mcap(descriptor, list(reversed(pb)), compression=CompressionType.ZSTD))
     put("read_path", small_mcap(descriptor, js, encoding="json"))
-    for t in ("read_path", "decode_protobuf", "decode_json"):
+    source_and_transform_seeds()
+    for t in TARGETS:
         files = list((CORPUS / t).iterdir())
         print(f"{t}: {len(files)} seeds, {sum(f.stat().st_size for f in files)} bytes")
 

@@ -1,8 +1,17 @@
 //! Shared harness code of the fuzz targets (see `fuzz/README.md`).
 
-use probmot::msgs::{self, Detections3D, DetectionsEnvelope, Encoding};
+use std::collections::BTreeMap;
+
+use mcap::records::{Channel, MessageHeader};
+use probmot::msgs::detection_source::DetectionSource;
+use probmot::msgs::ros2_tf::{ODOMETRY_SCHEMA, TF_MESSAGE_SCHEMA};
+use probmot::msgs::ros2_vision::VisionLayout;
+use probmot::msgs::{self, Detection3D, Detections3D, DetectionsEnvelope, Encoding, Vector3};
 use probmot::pipeline::detections::{convert, InputCounters, Origin};
+use probmot::pipeline::ego::{EgoMotion, EgoOptions};
 use probmot::tracker::{Tracker, TrackerConfig};
+use probmot::transforms::sources::{FOXGLOVE_FRAME_TRANSFORM, FOXGLOVE_FRAME_TRANSFORMS};
+use probmot::transforms::TransformCollector;
 
 /// Preset used when `probmot track` is given no `--preset`/`--config`.
 pub const DEFAULT_PRESET: &str = "nuscenes-chiu2019";
@@ -31,7 +40,46 @@ pub fn decode_and_track(data: &[u8], encoding: Encoding) {
         msg.detections.len(),
         "envelope count"
     );
+    track_decoded(&msg);
+}
 
+/// The first byte of `data` picks a detection input other than probmot's own (0: ROS 2
+/// `vision_msgs` 4.x layout, 1: its 2.x layout, 2: `foxglove.SceneUpdate`, modulo 3); the rest
+/// is one message of it. Decodes it fully and as `track`'s first pass does, and tracks a decoded
+/// message as [`decode_and_track`] does. Invariant besides no panic: the first pass's stamp and
+/// box count agree with the full decode, and both fail or succeed together.
+pub fn decode_source_and_track(data: &[u8]) {
+    let Some((&selector, bytes)) = data.split_first() else {
+        return;
+    };
+    let source = match selector % 3 {
+        0 => DetectionSource::Ros2Vision(VisionLayout::V4),
+        1 => DetectionSource::Ros2Vision(VisionLayout::V2),
+        _ => DetectionSource::FoxgloveScene,
+    };
+    let counted = source.stamp_and_count(bytes);
+    let msg = match source.decode(bytes) {
+        Ok(m) => m,
+        Err(_) => {
+            assert!(
+                counted.is_err(),
+                "the first pass read a message the full decode refused"
+            );
+            return;
+        }
+    };
+    let counted = counted.expect("a message that decodes fully is counted by the first pass");
+    assert_eq!(
+        counted,
+        (msg.stamp, msg.detections.len()),
+        "stamp and count"
+    );
+    track_decoded(&msg);
+}
+
+/// Runs the boxes of a decoded message through `convert` (with and without `--strict`) and a
+/// tracker of the default preset for [`FRAMES`] frames.
+fn track_decoded(msg: &Detections3D) {
     let config = TrackerConfig::preset(DEFAULT_PRESET).expect("default preset");
     let mut tracker = Tracker::new(config.clone()).expect("default preset validates");
     let mut strict_tracker = Tracker::new(config).expect("default preset validates");
@@ -80,4 +128,126 @@ pub fn decode_and_track(data: &[u8], encoding: Encoding) {
         }
     }
     std::hint::black_box(tracker.mean_confirmed_track_length());
+}
+
+/// The transform channels [`read_transforms`] registers: `(topic, schema, message encoding)`.
+const TRANSFORM_CHANNELS: [(&str, &str, &str); 5] = [
+    ("/tf", TF_MESSAGE_SCHEMA, "cdr"),
+    ("/tf_static", TF_MESSAGE_SCHEMA, "cdr"),
+    ("/odom", ODOMETRY_SCHEMA, "cdr"),
+    ("/frame", FOXGLOVE_FRAME_TRANSFORM, "protobuf"),
+    ("/frames", FOXGLOVE_FRAME_TRANSFORMS, "protobuf"),
+];
+
+/// Most frames whose pairs are looked up (bounds the time of one input).
+const MAX_LOOKUP_FRAMES: usize = 12;
+
+/// Splits `data` into messages of the transform channels `track` reads (`/tf`, `/tf_static`,
+/// `nav_msgs/msg/Odometry`, `foxglove.FrameTransform(s)`): each message is a channel byte
+/// (modulo 5), a log-time byte (tenths of a second) and a little-endian `u16` length, then
+/// that many payload bytes (fewer at the end of the input). Feeds them to a
+/// `TransformCollector`, then asks the transform buffer for every pair of its frames and moves a
+/// one-box detection message from each frame into the fixed frame with `EgoMotion`, at the
+/// stamps around every edge's samples. Invariants besides no panic and no hang (a cycle in the
+/// frames must not loop): a frame looked up in itself is the identity, a lookup that succeeds
+/// in one direction succeeds in the other, and `EgoMotion` without `--strict` never fails and
+/// leaves a message either in the fixed frame or without boxes.
+pub fn read_transforms(data: &[u8]) {
+    let mut collector = TransformCollector::new();
+    for (i, (topic, schema, encoding)) in TRANSFORM_CHANNELS.iter().enumerate() {
+        let channel = Channel {
+            id: i as u16,
+            schema_id: 1,
+            topic: topic.to_string(),
+            message_encoding: encoding.to_string(),
+            metadata: BTreeMap::new(),
+        };
+        assert!(
+            collector.on_channel(&channel, schema).is_some(),
+            "{schema} is a transform source"
+        );
+    }
+    let mut rest = data;
+    let mut sequence = 0;
+    while rest.len() >= 4 {
+        let channel_id = (rest[0] % TRANSFORM_CHANNELS.len() as u8) as u16;
+        let log_time = rest[1] as u64 * 100_000_000;
+        let len = (u16::from_le_bytes([rest[2], rest[3]]) as usize).min(rest.len() - 4);
+        let payload = &rest[4..4 + len];
+        rest = &rest[4 + len..];
+        let header = MessageHeader {
+            channel_id,
+            sequence,
+            log_time,
+            publish_time: log_time,
+        };
+        assert!(collector.on_message("fuzz", &header, payload));
+        sequence += 1;
+    }
+    collector.finish();
+
+    let summary = collector.buffer.summary();
+    let mut frames: Vec<&str> = Vec::new();
+    let mut stamps = vec![0, 1, u64::MAX];
+    for e in &summary {
+        for f in [e.parent.as_str(), e.child.as_str()] {
+            if !frames.contains(&f) && frames.len() < MAX_LOOKUP_FRAMES {
+                frames.push(f);
+            }
+        }
+        if let Some((first, last)) = e.stamp_range {
+            stamps.extend([first, last, first / 2 + last / 2, last.saturating_add(1)]);
+        }
+    }
+    stamps.sort_unstable();
+    stamps.dedup();
+    stamps.truncate(16);
+
+    let buffer = &collector.buffer;
+    for &a in &frames {
+        for &stamp in &stamps {
+            let same = buffer.lookup(a, a, stamp).expect("a frame in itself");
+            assert_eq!(same, nalgebra::Isometry3::identity(), "{a} in itself");
+            for &b in &frames {
+                let ab = buffer.lookup(a, b, stamp).is_ok();
+                let ba = buffer.lookup(b, a, stamp).is_ok();
+                assert_eq!(ab, ba, "lookups {a} <- {b} and {b} <- {a} at {stamp}");
+            }
+        }
+    }
+
+    let frames: Vec<String> = frames.iter().map(|f| f.to_string()).collect();
+    let mut ego = EgoMotion::new(collector, &EgoOptions::default(), false)
+        .expect("EgoMotion without --strict accepts every collector");
+    for frame in &frames {
+        for &stamp in &stamps {
+            let mut msg = Detections3D {
+                stamp: Some(stamp),
+                frame_id: frame.clone(),
+                detections: vec![Detection3D {
+                    center: Some(Vector3 {
+                        x: 1.0,
+                        y: 2.0,
+                        z: 0.5,
+                    }),
+                    yaw: 0.3,
+                    label: "car".to_string(),
+                    score: 0.9,
+                    ..Default::default()
+                }],
+            };
+            ego.to_fixed(&mut msg, stamp, || format!("{frame} at {stamp}"))
+                .expect("to_fixed without --strict never fails");
+            if !msg.detections.is_empty() && ego.is_active() {
+                let fixed = ego.take_ego(stamp).map(|(f, _)| f);
+                assert!(
+                    fixed.is_some(),
+                    "a transformed message remembers its ego frame"
+                );
+            }
+            ego.take_ego(stamp);
+        }
+    }
+    let mut warnings = Vec::new();
+    std::hint::black_box(ego.finish("fuzz", &mut warnings));
 }
