@@ -101,7 +101,35 @@ def framed(channel: str, log_time_tenths: int, data: bytes) -> bytes:
             + len(data).to_bytes(2, "little") + data)
 
 
+def merged_mcap(sources) -> bytes:
+    """An MCAP with the first messages of each (path, count) in `sources`, schemas and channels
+    copied, zstd chunks."""
+    buf = io.BytesIO()
+    w = Writer(buf, compression=CompressionType.ZSTD, chunk_size=4096)
+    w.start(profile="", library="probmot-fuzz-seeds")
+    for path, count in sources:
+        with open(path, "rb") as f:
+            ids = {}
+            for i, (schema, channel, message) in enumerate(make_reader(f).iter_messages()):
+                if i >= count:
+                    break
+                if channel.id not in ids:
+                    sid = w.register_schema(schema.name, schema.encoding, schema.data)
+                    ids[channel.id] = w.register_channel(channel.topic, channel.message_encoding,
+                                                         sid)
+                w.add_message(ids[channel.id], log_time=message.log_time, data=message.data,
+                              publish_time=message.publish_time, sequence=message.sequence)
+    w.finish()
+    return buf.getvalue()
+
+
 def source_and_transform_seeds() -> None:
+    # Whole-pipeline seeds of the other input kinds: ROS 2 detections with ROS 2 transforms,
+    # Foxglove detections.
+    put("read_path", merged_mcap([(FIXTURES / "ros2" / "turning-car-vision_msgs2.mcap", 8),
+                                  (FIXTURES / "ros2_tf" / "tf.mcap", 6)]))
+    put("read_path", merged_mcap([(FIXTURES / "foxglove" / "city.mcap", 3)]))
+
     for selector, path in ((0, "ros2/city.mcap"), (1, "ros2/turning-car-vision_msgs2.mcap"),
                            (2, "foxglove/city.mcap")):
         with open(FIXTURES / path, "rb") as f:
