@@ -108,7 +108,7 @@ enum Mode {
 
 impl BackgroundOutput {
     /// Creates the temporary file beside `dest` (see [`AtomicOutput::create`]) and starts the
-    /// writer thread. Chunks are compressed by zstd's worker beside it.
+    /// writer thread, which also compresses the chunks.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
         let out = AtomicOutput::create(dest, opts)?;
         let dest: PathBuf = dest.to_path_buf();
@@ -127,8 +127,8 @@ impl BackgroundOutput {
     }
 
     /// The same interface without the thread: every call is written on the caller's thread, as
-    /// [`AtomicOutput`] writes (zstd's worker compresses each chunk while the caller waits for
-    /// it), for runs where each core already has a file of its own.
+    /// [`AtomicOutput`] writes (chunks compressed on the caller's thread too), for runs where
+    /// each core already has a file of its own.
     pub fn create_inline(dest: &Path, opts: &OutputOptions) -> Result<Self> {
         let out = AtomicOutput::create(dest, opts)?;
         Ok(Self::with_mode(Mode::Inline {
