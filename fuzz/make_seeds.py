@@ -10,7 +10,8 @@ decode_sources:   a selector byte (0: vision_msgs 4.x, 1: vision_msgs 2.x, 2: fo
 transforms:       the transform messages of tests/fixtures/ros2_tf/tf.mcap and two Foxglove frame
                   transform messages made here, in the framing of probmot_fuzz::read_transforms.
 
-Needs the Python packages of scripts/requirements.txt (mcap, protobuf, lz4, zstandard).
+Needs the Python packages of scripts/requirements.txt (mcap, protobuf, foxglove-schemas-protobuf,
+lz4, zstandard).
 Run from anywhere: python3 fuzz/make_seeds.py
 """
 
@@ -20,6 +21,8 @@ import json
 import pathlib
 import shutil
 
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 from google.protobuf import descriptor_pb2, descriptor_pool, message_factory
 from mcap.reader import make_reader
 from mcap.writer import CompressionType, Writer
@@ -136,9 +139,6 @@ def source_and_transform_seeds() -> None:
             for i, (_, _, message) in enumerate(make_reader(f).iter_messages()):
                 if i in (0, 1, 20):
                     put("decode_sources", bytes([selector]) + message.data)
-
-    from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
-    from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
 
     tf = b""
     with open(FIXTURES / "ros2_tf" / "tf.mcap", "rb") as f:
