@@ -29,6 +29,24 @@ pub fn probmot_ok(args: &[&str]) -> Output {
     out
 }
 
+/// Whether `python3` can import `modules` (comma-separated), for checks that need Python tools.
+pub fn python_has(modules: &str) -> bool {
+    Command::new("python3")
+        .args(["-c", &format!("import {modules}")])
+        .output()
+        .is_ok_and(|o| o.status.success())
+}
+
+/// Reports that the check `test` cannot run here, and why. Under `CI=true` this panics: CI must
+/// prove that a fresh machine runs every check, so a check that could not run is a failure there.
+/// Elsewhere it prints `SKIPPED test: reason` on stderr and the caller returns.
+pub fn skip(test: &str, reason: &str) {
+    if std::env::var("CI").is_ok_and(|v| v == "true") {
+        panic!("{test} could not run under CI=true: {reason}");
+    }
+    eprintln!("SKIPPED {test}: {reason}");
+}
+
 /// Path of a file in the repository.
 pub fn repo(p: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join(p)
