@@ -9,6 +9,7 @@ mod generated {
 pub use generated::*;
 
 pub mod cdr_cursor;
+pub mod detection_frame;
 pub mod detection_source;
 pub mod foxglove_scene;
 pub mod ros2_common;

@@ -20,15 +20,16 @@ use anyhow::{bail, Context, Result};
 use indicatif::ProgressBar;
 use mcap::records::{MessageHeader, Record};
 
-use super::detections::{convert, InputCounters, Origin};
+use super::detections::{convert, reject, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
 use super::track_outputs::ExtraOutputs;
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
 use crate::mcapio::writer::{check_output_path, OutputCompression, OutputOptions};
+use crate::msgs::detection_frame::{stamp_or_log_time, DetectionFrame};
 use crate::msgs::detection_source::{self, DetectionSource};
-use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
+use crate::msgs::{self, v3, ImageBox, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
 use crate::transforms::TransformCollector;
@@ -130,11 +131,6 @@ struct Scan {
     /// Channel of each entry of `entries`.
     entry_channels: Vec<u16>,
     transforms: TransformCollector,
-}
-
-/// Stamp of a detection message: its own `stamp`, else the MCAP `log_time`.
-fn stamp_of(msg: &Detections3D, log_time: u64) -> u64 {
-    msg.stamp.unwrap_or(log_time)
 }
 
 /// The error of a detection message that does not decode.
@@ -299,7 +295,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                         .stamp_and_count(&data)
                         .with_context(|| undecodable(&file, topic, &header, source))?;
                     check_count(count, opts, &file, topic, &header)?;
-                    let stamp = msg_stamp.unwrap_or(header.log_time);
+                    let stamp = stamp_or_log_time(msg_stamp, header.log_time);
                     note_stamp(
                         &mut last_stamp,
                         &header,
@@ -327,7 +323,7 @@ struct Pending {
     ordinal: u64,
     log_time: u64,
     topic_idx: usize,
-    msg: Detections3D,
+    msg: DetectionFrame,
 }
 
 /// Runs `track` on one file. The output appears only when everything succeeded.
@@ -625,11 +621,11 @@ fn run_pass(
                 pass.summary.messages_copied += 1;
                 if let Some(&(source, topic_idx)) = det_channels.get(&header.channel_id) {
                     let topic = &pass.topics[topic_idx];
-                    let mut msg: Detections3D = source
-                        .decode(&data)
+                    let mut msg = source
+                        .decode_frame(&data, header.log_time)
                         .with_context(|| undecodable(&file, topic, &header, &source))?;
-                    check_count(msg.detections.len(), opts, &file, topic, &header)?;
-                    let stamp = stamp_of(&msg, header.log_time);
+                    check_count(msg.len(), opts, &file, topic, &header)?;
+                    let stamp = msg.stamp;
                     schedule.on_message(header.channel_id, stamp)?;
                     // (With two passes, the first has counted them.)
                     if schedule.is_streaming() {
@@ -637,7 +633,7 @@ fn run_pass(
                         note_stamp(&mut last_stamp, &header, stamp, topic, backwards);
                     }
                     pass.ego
-                        .to_fixed(&mut msg, stamp, || describe_message(&file, topic, &header))?;
+                        .to_fixed(&mut msg, || describe_message(&file, topic, &header))?;
                     pass.pending.entry(stamp).or_default().push(Pending {
                         ordinal: pass.summary.detection_messages,
                         log_time: header.log_time,
@@ -850,11 +846,19 @@ impl FrameState {
                 topic: &topics[p.topic_idx],
                 log_time: p.log_time,
             };
-            for (di, d) in p.msg.detections.iter().enumerate() {
-                if let Some(det) = convert(d, di, tracker, counters, strict, &origin)? {
+            // Valid and rejected boxes in message order, as a --strict error names the first.
+            let mut rejected = p.msg.rejected.iter().peekable();
+            for (di, d) in p.msg.boxes.iter().enumerate() {
+                while let Some(r) = rejected.next_if(|r| r.index < d.index) {
+                    reject(r, counters, strict, &origin)?;
+                }
+                if let Some(det) = convert(d, tracker, counters, strict, &origin)? {
                     self.dets.push(det);
                     self.src.push((mi as u32, di as u32));
                 }
+            }
+            for r in rejected {
+                reject(r, counters, strict, &origin)?;
             }
         }
         tracker
@@ -870,7 +874,7 @@ impl FrameState {
         for (t, r) in self.out.tracks.iter_mut().zip(reports) {
             if let Some(i) = r.detection {
                 let (mi, di) = self.src[i as usize];
-                let d = &mut frame[mi as usize].msg.detections[di as usize];
+                let d = &mut frame[mi as usize].msg.boxes[di as usize];
                 if d.image_box.is_some() || !d.attributes.is_empty() {
                     let e = self.last_extra.entry(r.id).or_default();
                     e.image_box = d.image_box;
