@@ -23,15 +23,15 @@ use mcap::records::{MessageHeader, Record};
 use super::detections::{convert, reject, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
-use super::track_outputs::ExtraOutputs;
+use super::track_outputs::{ExtraOutputs, ExtraRequest};
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
 use crate::mcapio::writer::{check_output_path, OutputCompression, OutputOptions};
 use crate::msgs::detection_frame::{stamp_or_log_time, DetectionFrame};
 use crate::msgs::detection_source::{self, DetectionSource};
-use crate::msgs::{self, v3, ImageBox, Track3D, Tracks3D};
-use crate::sim::write::size3;
-use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
+pub use crate::msgs::track_encode::{fill_track3d, to_track3d};
+use crate::msgs::{self, ImageBox, Track3D, Tracks3D};
+use crate::tracker::{Detection, Tracker, TrackerConfig};
 use crate::transforms::TransformCollector;
 
 /// Settings of one `track` run.
@@ -542,7 +542,12 @@ fn run_pass(
     }
     summary.detection_topics = topics.clone();
     let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
-    let extra = ExtraOutputs::new(opts, &file, scan_ids.as_ref(), ids)?;
+    let request = ExtraRequest {
+        tracks_topic: &opts.tracks_topic,
+        tracks_in_ego_frame: opts.ego.tracks_in_ego_frame,
+        scene_topic: opts.scene_topic.as_deref(),
+    };
+    let extra = ExtraOutputs::new(&request, &file, scan_ids.as_ref(), ids)?;
 
     let out_opts = OutputOptions {
         profile,
@@ -910,39 +915,4 @@ impl FrameState {
             self.last_extra.remove(id);
         }
     }
-}
-
-/// Writes one reported track into an output message, reusing its allocations (the image box and
-/// attributes are left to the caller).
-pub fn fill_track3d(t: &mut Track3D, r: &TrackReport, label: &str) {
-    t.id = r.id;
-    t.label.clear();
-    t.label.push_str(label);
-    t.center = Some(v3(r.bbox.center));
-    t.size = Some(size3(r.bbox.size));
-    t.yaw = r.bbox.yaw;
-    t.velocity = Some(v3(r.velocity));
-    t.yaw_rate = r.yaw_rate;
-    t.score = r.score;
-    t.position_variance = Some(v3(r.position_variance));
-    t.yaw_variance = r.yaw_variance;
-    t.age = r.age;
-    t.hits = r.hits;
-    t.frames_since_update = r.frames_since_update;
-}
-
-/// The output message of one reported track.
-pub fn to_track3d(
-    r: &TrackReport,
-    label: &str,
-    image_box: Option<ImageBox>,
-    attributes: BTreeMap<String, String>,
-) -> Track3D {
-    let mut t = Track3D {
-        image_box,
-        attributes,
-        ..Default::default()
-    };
-    fill_track3d(&mut t, r, label);
-    t
 }

@@ -7,7 +7,6 @@ pub mod plot;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;
-pub mod scene_update;
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
