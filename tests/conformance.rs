@@ -5,9 +5,9 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use indicatif::ProgressBar;
 use mcap::records::Record;
 use probmot::mcapio::reader::read_records;
+use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_file, TrackOptions};
 use probmot::tracker::TrackerConfig;
 use serde_json::Value;
@@ -217,7 +217,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
     let mut failures = Vec::new();
     for (i, f) in files.iter().enumerate() {
         let out = dir.path().join(format!("{i}.mcap"));
-        let summary = match track_file(f, &out, &opts, &ProgressBar::hidden()) {
+        let summary = match track_file(f, &out, &opts, &no_progress) {
             Ok(s) => s,
             Err(e) => {
                 failures.push(format!("{}: cannot be copied: {e:#}", f.display()));

@@ -9,6 +9,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::ego::EgoOptions;
+use probmot::pipeline::progress::{no_progress, Progress};
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use rayon::prelude::*;
 
@@ -202,7 +203,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             } else {
                 ProgressBar::hidden()
             };
-            let s = track_file(&a.inputs[0], out, &opts, &bar)?;
+            let s = track_file(&a.inputs[0], out, &opts, &|e| show(&bar, e))?;
             bar.finish_and_clear();
             for w in &s.warnings {
                 eprintln!("warning: {w}");
@@ -295,7 +296,7 @@ fn run_many(
             .par_iter()
             .zip(&outputs)
             .map(|(input, output)| {
-                let r = track_file(input, output, opts, &ProgressBar::hidden());
+                let r = track_file(input, output, opts, &no_progress);
                 if r.is_err() {
                     failed.fetch_add(1, Ordering::Relaxed);
                 }
@@ -343,4 +344,14 @@ fn run_many(
     } else {
         ExitCode::SUCCESS
     })
+}
+
+/// Shows a progress event of the library on the bar.
+fn show(bar: &ProgressBar, e: Progress<'_>) {
+    match e {
+        Progress::Length(n) => bar.set_length(n),
+        Progress::Position(n) => bar.set_position(n),
+        Progress::Message(m) => bar.set_message(m.to_string()),
+        Progress::Done => bar.set_position(bar.length().unwrap_or(0)),
+    }
 }

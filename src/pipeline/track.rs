@@ -17,12 +17,12 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use indicatif::ProgressBar;
 use mcap::records::{MessageHeader, Record};
 
 use super::detections::{convert, reject, InputCounters, Origin};
 use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
+use super::progress::Progress;
 use super::track_outputs::{ExtraOutputs, ExtraRequest};
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
@@ -277,7 +277,7 @@ impl Scan {
     }
 }
 
-fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
+fn scan(input: &Path, opts: &TrackOptions, progress: &dyn Fn(Progress<'_>)) -> Result<Scan> {
     let file = input.display().to_string();
     let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
@@ -307,7 +307,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                     s.entry_channels.push(header.channel_id);
                 }
                 if s.entries.len().is_multiple_of(256) {
-                    progress.set_position(stats.bytes_read);
+                    progress(Progress::Position(stats.bytes_read));
                 }
             }
             _ => {}
@@ -338,7 +338,7 @@ pub fn track_file(
     input: &Path,
     output: &Path,
     opts: &TrackOptions,
-    progress: &ProgressBar,
+    progress: &dyn Fn(Progress<'_>),
 ) -> Result<TrackSummary> {
     let started = Instant::now();
     check_output_path(Some(input), output)?;
@@ -347,7 +347,7 @@ pub fn track_file(
         .with_context(|| format!("cannot read {}", input.display()))?
         .len();
     if opts.no_track {
-        progress.set_length(size);
+        progress(Progress::Length(size));
         return run_pass(
             input,
             output,
@@ -360,17 +360,17 @@ pub fn track_file(
         .map(|s| finish_summary(s, 1, started));
     }
     if let Some((plan, streaming)) = one_pass_plan(input, opts, &file) {
-        progress.set_length(size);
-        progress.set_message("tracking");
+        progress(Progress::Length(size));
+        progress(Progress::Message("tracking"));
         let r = run_pass(input, output, opts, progress, Some(plan), streaming, 0);
         match r {
             Err(e) if e.downcast_ref::<NeedsTwoPasses>().is_some() => {}
             r => return r.map(|s| finish_summary(s, 1, started)),
         }
     }
-    progress.set_length(2 * size);
-    progress.set_position(0);
-    progress.set_message("scanning");
+    progress(Progress::Length(2 * size));
+    progress(Progress::Position(0));
+    progress(Progress::Message("scanning"));
     let mut s = scan(input, opts, progress)?;
     s.entries.sort_unstable();
     // Frames in stamp order: (stamp, number of messages).
@@ -381,7 +381,7 @@ pub fn track_file(
             _ => frames.push((stamp, 1)),
         }
     }
-    progress.set_message("tracking");
+    progress(Progress::Message("tracking"));
     run_pass(
         input,
         output,
@@ -492,7 +492,7 @@ fn run_pass(
     input: &Path,
     output: &Path,
     opts: &TrackOptions,
-    progress: &ProgressBar,
+    progress: &dyn Fn(Progress<'_>),
     plan: Option<Scan>,
     mut schedule: Schedule,
     base: u64,
@@ -652,7 +652,7 @@ fn run_pass(
                     }
                 }
                 if pass.summary.messages_copied.is_multiple_of(256) {
-                    progress.set_position(base + stats.bytes_read);
+                    progress(Progress::Position(base + stats.bytes_read));
                 }
             }
             Record::Attachment { header, data, .. } => {
@@ -712,7 +712,7 @@ struct Pass<'a> {
     next_frame: usize,
     frame_state: FrameState,
     summary: TrackSummary,
-    progress: &'a ProgressBar,
+    progress: &'a dyn Fn(Progress<'_>),
 }
 
 impl Pass<'_> {
@@ -751,10 +751,11 @@ impl Pass<'_> {
         self.summary.tracks_messages += 1;
         self.next_frame += 1;
         if self.next_frame.is_multiple_of(64) {
-            self.progress.set_message(match frames {
+            let text = match frames {
                 Some(n) => format!("tracking: frame {}/{n}", self.next_frame),
                 None => format!("tracking: frame {}", self.next_frame),
-            });
+            };
+            (self.progress)(Progress::Message(&text));
         }
         Ok(())
     }
@@ -772,7 +773,7 @@ impl Pass<'_> {
             ..
         } = self;
         out.commit()?;
-        progress.set_position(progress.length().unwrap_or(0));
+        progress(Progress::Done);
         let st = tracker.stats();
         summary.frames = st.frames;
         summary.tracks_born = st.born;
