@@ -318,8 +318,9 @@ fn tmp_path(ours_dir: &Path, seq: &str, ext: &str) -> PathBuf {
     dir.join(format!("{seq}.{ext}"))
 }
 
-/// `import kitti --tracks` keeps a result file's rows: exporting the imported channel writes the
-/// same ids, types, boxes and scores; rows without a score are refused with the file and line.
+/// `import kitti --tracks` keeps a result file's rows: exporting the imported channel (here on a
+/// topic of its own) writes the same ids, types, boxes and scores; rows without a score are
+/// refused with the file and line.
 #[test]
 fn imported_results_export_unchanged() {
     let tmp = tempfile::tempdir().unwrap();
@@ -339,11 +340,21 @@ fn imported_results_export_unchanged() {
         "0001",
         "--tracks",
         s(&results),
+        "--tracks-topic",
+        "/other",
         "-o",
         s(&log),
     ]);
     let out = tmp.path().join("out.txt");
-    probmot_ok(&["export", "kitti", s(&log), "-o", s(&out)]);
+    probmot_ok(&[
+        "export",
+        "kitti",
+        s(&log),
+        "--topic",
+        "/other",
+        "-o",
+        s(&out),
+    ]);
     let (a, b) = (read_rows(&results), read_rows(&out));
     assert_eq!(a.len(), b.len());
     for (x, y) in a.iter().zip(&b) {

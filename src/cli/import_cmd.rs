@@ -285,7 +285,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic == "/tracks")?;
+            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic != "/ground_truth")?;
             println!(
                 "{}: {} rows in {} frames",
                 k.output.display(),
