@@ -78,7 +78,7 @@ fn gate_fails_a_worse_configuration() {
         worse.to_str().unwrap(),
         "--quiet",
         "--preset",
-        "ab3dmot",
+        "ab3dmot-2019",
     ]);
     let truth = good.to_str().unwrap();
     let r = probmot(&[

@@ -180,7 +180,7 @@ fn kitti_eval_table_and_gate() {
         "--dt-nominal",
         "0.1",
         "--preset",
-        "ab3dmot",
+        "ab3dmot-2019",
     ]);
     let out = probmot_ok(&["eval", "--protocol", "kitti", "--truth", s(&ab)]);
     let text = String::from_utf8_lossy(&out.stdout);

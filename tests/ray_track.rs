@@ -24,7 +24,7 @@ use serde_json::Value;
 static RAY: Mutex<()> = Mutex::new(());
 
 /// Options passed through to `probmot track` (not the defaults, so that dropping them shows).
-const TRACK_ARGS: [&str; 2] = ["--preset", "ab3dmot"];
+const TRACK_ARGS: [&str; 2] = ["--preset", "ab3dmot-2019"];
 
 fn available(test: &str) -> bool {
     let ok = Command::new("python3")

@@ -5,7 +5,9 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use probmot::pipeline::kitti_io::{export_kitti, import_kitti, resolve_detection_files};
+use probmot::pipeline::kitti_io::{
+    export_kitti, import_kitti, resolve_detection_files, TracksInput,
+};
 use probmot::pipeline::nuscenes_io::{
     export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
 };
@@ -31,8 +33,16 @@ enum ImportFormat {
 /// truncation, occlusion and the original track id are kept as attributes, so export loses
 /// nothing.
 ///
-/// Example:
+/// With --tracks, another tracker's KITTI tracking result file (e.g. AB3DMOT's) becomes a
+/// probmot.Tracks3D channel (--tracks-topic, default /tracks) of the same log, so that
+/// `probmot eval` scores it on the same truth, or compares it with probmot's tracks
+/// (--baseline). Its ids are kept (export kitti writes them back unchanged).
+///
+/// Examples:
 ///   probmot import kitti --labels label_02/0000.txt --detections pointrcnn/ -o 0000.mcap
+///   probmot import kitti --labels label_02/0000.txt --tracks ab3dmot/0000.txt -o ab_0000.mcap
+///   probmot eval --protocol kitti --truth ab_0000.mcap
+///   probmot eval --protocol kitti --truth 0000.tracked.mcap --baseline ab_0000.mcap
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 struct ImportKitti {
@@ -41,8 +51,20 @@ struct ImportKitti {
     labels: Option<PathBuf>,
     /// Detection files (`frame, type, x1, y1, x2, y2, score, h, w, l, x, y, z, rotation_y,
     /// alpha`), or directories holding `SSSS.txt` directly or one level down (e.g. pointrcnn/).
-    #[arg(long, num_args = 1.., required = true, value_name = "DIR_OR_FILE")]
+    #[arg(long, num_args = 1.., required_unless_present = "tracks", value_name = "DIR_OR_FILE")]
     detections: Vec<PathBuf>,
+    /// Another tracker's result file for this sequence (`frame id type 0 0 alpha x1 y1 x2 y2 h w
+    /// l x y z rotation_y score`), written as a tracks channel.
+    #[arg(long, value_name = "RESULTS.txt")]
+    tracks: Option<PathBuf>,
+    /// Topic of the tracks channel written from --tracks.
+    #[arg(
+        long,
+        default_value = "/tracks",
+        value_name = "TOPIC",
+        requires = "tracks"
+    )]
+    tracks_topic: String,
     /// Sequence name (default: the label file's name, e.g. 0000).
     #[arg(long)]
     sequence: Option<String>,
@@ -189,15 +211,33 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                     anyhow::bail!("give --sequence when no --labels file is given")
                 }
             };
-            let files = resolve_detection_files(&k.detections, &sequence)?;
-            let s = import_kitti(k.labels.as_deref(), &files, &sequence, &k.output)?;
+            let files = if k.detections.is_empty() {
+                Vec::new()
+            } else {
+                resolve_detection_files(&k.detections, &sequence)?
+            };
+            let tracks = k.tracks.clone().map(|file| TracksInput {
+                file,
+                topic: k.tracks_topic.clone(),
+            });
+            let s = import_kitti(
+                k.labels.as_deref(),
+                &files,
+                tracks.as_ref(),
+                &sequence,
+                &k.output,
+            )?;
             println!(
-                "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows",
+                "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows{}",
                 k.output.display(),
                 s.frames,
                 s.detections,
                 s.detection_files.len(),
-                s.truth_rows
+                s.truth_rows,
+                match &tracks {
+                    Some(t) => format!(", {} track rows on {}", s.track_rows, t.topic),
+                    None => String::new(),
+                }
             );
         }
         ImportFormat::Nuscenes(n) => {
@@ -245,7 +285,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic == "/tracks")?;
+            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic != "/ground_truth")?;
             println!(
                 "{}: {} rows in {} frames",
                 k.output.display(),

@@ -38,7 +38,7 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
-///   probmot track drive.mcap -o out.mcap --preset ab3dmot
+///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
 ///   probmot track drive.mcap -o out.mcap --fixed-frame map --tracks-frame ego --scene-topic /tracks/scene

@@ -10,11 +10,14 @@ pub mod config;
 pub mod geometry;
 pub mod kalman;
 pub mod matching;
+pub mod presets;
 pub mod track;
 #[allow(clippy::module_inception)]
 pub mod tracker;
 
 pub use boxes::{Box3, ClassId, Detection};
-pub use config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
+pub use config::{
+    BoxOrigin, ClassConfig, ConfigError, DistanceKind, MatcherKind, Preset, TrackerConfig,
+};
 pub use track::TrackReport;
 pub use tracker::{StepError, Tracker, TrackerStats};
