@@ -13,7 +13,9 @@ What is handed to the devkit (only glue is written here; all evaluation logic is
   * one `TrackingBox` per Track3D whose label is a nuScenes tracking class (others are dropped,
     exactly as the devkit drops GT of other categories): translation = center (x, y, z),
     size = [width, length, height], rotation = quaternion of `yaw` about +z, velocity = (vx, vy),
-    tracking_id = str(id), tracking_name = label, tracking_score = score (GT: -1.0, like load_gt);
+    tracking_id = f"{scene}/{id}" (ids are per log, as probmot counts them; the devkit's instance
+    tokens are unique across scenes, so repeated ids of different scenes must not meet in its
+    count of ground-truth tracks), tracking_name = label, tracking_score = score (GT: -1.0, like load_gt);
     boxes keep their order inside a message. Predicted boxes go through the devkit's own
     `load_prediction` (submission JSON written to a temporary file, including the 500-box check);
   * no range, bike-rack or lidar-points filter by default; with --max-range, the devkit's own
@@ -64,7 +66,13 @@ import traceback
 from collections import OrderedDict, defaultdict
 from importlib.metadata import version as pkg_version
 
-import numpy as np
+# OpenBLAS picks its kernel by CPU; FMA kernels change sklearn's euclidean_distances (the devkit's
+# distance) in the last bits, which moves MOTP by up to 1e-9. The committed outputs were made with
+# the generic x86-64 kernel: pin it (before numpy loads OpenBLAS) so that any machine reproduces
+# them byte for byte.
+os.environ.setdefault("OPENBLAS_CORETYPE", "Prescott")
+
+import numpy as np  # noqa: E402
 
 TRACKING_CLASSES = ("bicycle", "bus", "car", "motorcycle", "pedestrian", "trailer", "truck")
 OUTPUT_METRICS = ("amota", "amotp", "recall", "motar", "mota", "motp", "mt", "ml", "faf",
@@ -98,14 +106,14 @@ def quaternion_from_yaw(yaw):
     return tuple(float(v) for v in Quaternion(axis=[0.0, 0.0, 1.0], angle=float(yaw)).elements)
 
 
-def box_dict(sample_token, trk, gt):
+def box_dict(scene, sample_token, trk, gt):
     return {
         "sample_token": sample_token,
         "translation": [float(trk.center.x), float(trk.center.y), float(trk.center.z)],
         "size": [float(trk.size.width), float(trk.size.length), float(trk.size.height)],
         "rotation": list(quaternion_from_yaw(trk.yaw)),
         "velocity": [float(trk.velocity.x), float(trk.velocity.y)],
-        "tracking_id": str(trk.id),
+        "tracking_id": f"{scene}/{trk.id}",
         "tracking_name": trk.label,
         "tracking_score": -1.0 if gt else float(trk.score),
     }
@@ -193,13 +201,13 @@ def build_inputs(pairs, truth_topic, tracks_topic, ego_topic=None):
             for s in ns_list:
                 for trk in gt_frames.get(s, []):
                     if trk.label in TRACKING_CLASSES:
-                        gt_results[token].append(box_dict(token, trk, gt=True))
+                        gt_results[token].append(box_dict(name, token, trk, gt=True))
                         n_gt[trk.label] += 1
                     else:
                         ignored["truth:" + trk.label] += 1
                 for trk in pred_frames.get(s, []):
                     if trk.label in TRACKING_CLASSES:
-                        pred_results[token].append(box_dict(token, trk, gt=False))
+                        pred_results[token].append(box_dict(name, token, trk, gt=False))
                         n_pred[trk.label] += 1
                     else:
                         ignored["tracks:" + trk.label] += 1

@@ -404,3 +404,49 @@ fn range_filter_needs_an_ego_pose_and_the_nuscenes_protocol() {
         assert!(err.contains(want), "{a:?}: {err}");
     }
 }
+
+#[test]
+fn ids_that_restart_in_every_log_are_objects_of_their_own_log() {
+    // Three logs whose ids all start at 1 (`make_eval_fixtures.py`, `repeated_ids_*`), scored
+    // together by the devkit with scene-unique track ids. The bicycles are never matched (no
+    // recall threshold reached): ML counts 2 objects in each of 3 logs, not 2 ids.
+    let devkit: Value = serde_json::from_slice(
+        &std::fs::read(repo("tests/fixtures/eval/repeated_ids.devkit.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(devkit["classes"]["bicycle"]["ml"], 6.0);
+    assert!(devkit["metric_data"]["bicycle"]["confidence"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(Value::is_null));
+    let files: Vec<String> = ["a", "b", "c"]
+        .iter()
+        .map(|p| {
+            repo(&format!("tests/fixtures/eval/repeated_ids_{p}.mcap"))
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    let mut args = vec!["eval", "--json", "--truth"];
+    args.extend(files.iter().map(String::as_str));
+    let ours: Value = serde_json::from_slice(&probmot_ok(&args).stdout).unwrap();
+    let mut failures = Vec::new();
+    for (class, d) in devkit["classes"].as_object().unwrap() {
+        compare(
+            "repeated_ids",
+            class,
+            &ours["result"]["classes"][class],
+            d,
+            &mut failures,
+        );
+    }
+    compare(
+        "repeated_ids",
+        "overall",
+        &ours["result"]["overall"],
+        &devkit["overall"],
+        &mut failures,
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
