@@ -388,7 +388,7 @@ fn range_filter_needs_an_ego_pose_and_the_nuscenes_protocol() {
     for (args, want) in [
         (
             vec!["--protocol", "kitti", "--max-range"],
-            "--max-range is a nuScenes option",
+            "--max-range, --min-points and --bike-racks are nuScenes options",
         ),
         (vec!["--max-range", "car=-1"], "not a positive number"),
         (

@@ -58,7 +58,19 @@ pub mod attr {
     pub const NUM_LIDAR_PTS: &str = "nuscenes_num_lidar_pts";
     /// Radar points in a ground-truth box.
     pub const NUM_RADAR_PTS: &str = "nuscenes_num_radar_pts";
+    /// The annotation's full rotation quaternion `[w, x, y, z]` as a JSON array (bicycle racks:
+    /// the devkit's in-rack test uses the whole rotation, not only the yaw).
+    pub const ROTATION: &str = "nuscenes_rotation";
+    /// Original `tracking_id` of a box of an imported tracking submission.
+    pub const TRACKING_ID: &str = "nuscenes_tracking_id";
 }
+
+/// Category of the bicycle racks whose bicycles and motorcycles the devkit leaves out.
+pub const BIKE_RACK_CATEGORY: &str = "static_object.bicycle_rack";
+/// Channel of the bicycle-rack boxes (`probmot.Tracks3D`, label [`BIKE_RACK_LABEL`]).
+pub const BIKE_RACKS_TOPIC: &str = "/bicycle_racks";
+/// Label of a bicycle-rack box.
+pub const BIKE_RACK_LABEL: &str = "bicycle_rack";
 
 /// The tracking class of a nuScenes category, as the devkit maps it
 /// (`category_to_tracking_name`); `None` for categories outside the seven classes.
