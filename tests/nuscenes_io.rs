@@ -302,7 +302,9 @@ fn scene_selection_and_stdout_summary() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("1 scenes, 3 frames, 4 detections, 3 ground-truth boxes"),
+        stdout.contains(
+            "1 scenes, 3 frames, 4 detections, 0 track boxes, 0 bicycle racks, 3 ground-truth boxes"
+        ),
         "{stdout}"
     );
     assert!(dir.path().join("scene-0002.mcap").is_file());

@@ -108,7 +108,8 @@ struct ExportKitti {
     output: PathBuf,
 }
 
-/// A nuScenes detection results file -> one MCAP per scene, with /detections, /ground_truth and
+/// A nuScenes detection results file and/or tracking submission -> one MCAP per scene, with
+/// /detections and/or /tracks, /ground_truth, /bicycle_racks and
 /// /ego_pose at the dataset's samples (about 2 Hz).
 ///
 /// Scenes written: those with at least one sample token in the results (or the --scene names),
@@ -132,14 +133,27 @@ struct ExportKitti {
 /// uses. Metadata records: probmot.nuscenes (scene token and name) and
 /// probmot.nuscenes.samples (frame stamp in ns -> sample token), which `export nuscenes` reads.
 ///
-/// Example:
+/// With --tracks, a tracking submission (the format `probmot export nuscenes` writes) becomes
+/// the /tracks channel of each scene (probmot.Tracks3D; label = tracking_name, score =
+/// tracking_score, id = 1, 2, ... per scene in order of appearance, the original tracking_id
+/// kept as the attribute nuscenes_tracking_id), ready for `probmot eval`. With ground truth, the
+/// scene's bicycle racks (category static_object.bicycle_rack) go to /bicycle_racks
+/// (probmot.Tracks3D, label bicycle_rack, the full quaternion as the attribute
+/// nuscenes_rotation) for `probmot eval --bike-racks` / `--devkit`.
+///
+/// Examples:
 ///   probmot import nuscenes --detections results_val.json --meta v1.0-trainval/ -o val/
+///   probmot import nuscenes --tracks tracking_val.json --meta v1.0-trainval/ -o val/
+///   probmot eval --devkit --truth val/
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 struct ImportNuscenes {
-    /// Detection results JSON (nuScenes detection submission format).
+    /// Detection results JSON (nuScenes detection submission format), written to /detections.
+    #[arg(long, value_name = "FILE", required_unless_present = "tracks")]
+    detections: Option<PathBuf>,
+    /// Tracking submission JSON (nuScenes tracking result format), written to /tracks.
     #[arg(long, value_name = "FILE")]
-    detections: PathBuf,
+    tracks: Option<PathBuf>,
     /// Directory holding the dataset's tables (sample.json, scene.json, ...).
     #[arg(long, value_name = "DIR")]
     meta: PathBuf,
@@ -243,6 +257,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
         ImportFormat::Nuscenes(n) => {
             let s = import_nuscenes(&ImportOptions {
                 detections: n.detections.clone(),
+                tracks: n.tracks.clone(),
                 meta: n.meta.clone(),
                 out_dir: n.output.clone(),
                 scenes: n.scene.clone(),
@@ -252,16 +267,25 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
             }
             for sc in &s.scenes {
                 println!(
-                    "{}: {} frames, {} detections, {} ground-truth boxes, {} ego poses",
-                    sc.output, sc.frames, sc.detections, sc.truth_boxes, sc.ego_poses
+                    "{}: {} frames, {} detections, {} track boxes, {} ground-truth boxes, {} \
+                     bicycle racks, {} ego poses",
+                    sc.output,
+                    sc.frames,
+                    sc.detections,
+                    sc.tracks,
+                    sc.truth_boxes,
+                    sc.bike_racks,
+                    sc.ego_poses
                 );
             }
             println!(
-                "{}: {} scenes, {} frames, {} detections, {}, {}",
+                "{}: {} scenes, {} frames, {} detections, {} track boxes, {} bicycle racks, {}, {}",
                 n.output.display(),
                 s.scenes.len(),
                 s.frames,
                 s.detections,
+                s.tracks,
+                s.bike_racks,
                 if s.ground_truth {
                     format!(
                         "{} ground-truth boxes ({} outside the tracking classes skipped)",

@@ -6,6 +6,7 @@ pub mod frame_schedule;
 pub mod info;
 pub mod kitti_io;
 pub mod nuscenes_io;
+pub mod nuscenes_tracks;
 pub mod progress;
 pub mod track;
 pub mod track_outputs;

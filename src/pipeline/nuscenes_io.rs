@@ -29,6 +29,10 @@ use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 use crate::sim::write::size3;
 use crate::tracker::config::NUSCENES_CLASSES;
 
+use super::nuscenes_tracks::{
+    rack_track, read_tracking_results, track_of, RackAnn, TrackIds, TrackingResults,
+};
+
 /// Metadata record with the scene: `scene_token`, `scene_name`, `scene_description`,
 /// `nbr_samples`, `detections_file`, `ground_truth` (`true`/`false`), `ego_pose` (`true`/`false`).
 pub const NUSCENES_METADATA: &str = "probmot.nuscenes";
@@ -58,7 +62,19 @@ pub mod attr {
     pub const NUM_LIDAR_PTS: &str = "nuscenes_num_lidar_pts";
     /// Radar points in a ground-truth box.
     pub const NUM_RADAR_PTS: &str = "nuscenes_num_radar_pts";
+    /// The annotation's full rotation quaternion `[w, x, y, z]` as a JSON array (bicycle racks:
+    /// the devkit's in-rack test uses the whole rotation, not only the yaw).
+    pub const ROTATION: &str = "nuscenes_rotation";
+    /// Original `tracking_id` of a box of an imported tracking submission.
+    pub const TRACKING_ID: &str = "nuscenes_tracking_id";
 }
+
+/// Category of the bicycle racks whose bicycles and motorcycles the devkit leaves out.
+pub const BIKE_RACK_CATEGORY: &str = "static_object.bicycle_rack";
+/// Channel of the bicycle-rack boxes (`probmot.Tracks3D`, label [`BIKE_RACK_LABEL`]).
+pub const BIKE_RACKS_TOPIC: &str = "/bicycle_racks";
+/// Label of a bicycle-rack box.
+pub const BIKE_RACK_LABEL: &str = "bicycle_rack";
 
 /// The tracking class of a nuScenes category, as the devkit maps it
 /// (`category_to_tracking_name`); `None` for categories outside the seven classes.
@@ -402,8 +418,10 @@ fn read_results(path: &Path) -> Result<DetectionResults> {
 /// Settings of an import.
 #[derive(Debug, Clone)]
 pub struct ImportOptions {
-    /// Detection results JSON.
-    pub detections: PathBuf,
+    /// Detection results JSON (`/detections`).
+    pub detections: Option<PathBuf>,
+    /// Tracking submission JSON (`/tracks`).
+    pub tracks: Option<PathBuf>,
     /// Directory of the dataset's tables (`v1.0-trainval/` etc.).
     pub meta: PathBuf,
     /// Output directory (created if missing); one `<scene name>.mcap` per scene.
@@ -427,6 +445,10 @@ pub struct SceneSummary {
     pub truth_boxes: u64,
     /// Ego poses written.
     pub ego_poses: u64,
+    /// Track boxes written.
+    pub tracks: u64,
+    /// Bicycle-rack boxes written.
+    pub bike_racks: u64,
 }
 
 /// Counts of an import.
@@ -445,6 +467,10 @@ pub struct ImportSummary {
     pub truth_skipped: BTreeMap<String, u64>,
     /// Ego poses written.
     pub ego_poses: u64,
+    /// Track boxes written.
+    pub tracks: u64,
+    /// Bicycle-rack boxes written.
+    pub bike_racks: u64,
     /// Whether ground truth was written.
     pub ground_truth: bool,
     /// Whether `/ego_pose` was written.
@@ -638,8 +664,27 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
         );
     }
     let mut summary = ImportSummary::default();
-    let results = read_results(&opts.detections)?;
-    let det_file = opts.detections.display().to_string();
+    if opts.detections.is_none() && opts.tracks.is_none() {
+        bail!("give --detections, --tracks or both");
+    }
+    let results = match &opts.detections {
+        Some(p) => read_results(p)?,
+        None => DetectionResults::default(),
+    };
+    let tracking = match &opts.tracks {
+        Some(p) => Some(read_tracking_results(p)?),
+        None => None,
+    };
+    let det_file = opts
+        .detections
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    let trk_file = opts
+        .tracks
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
 
     let samples: HashMap<String, SampleRow> = read_all::<SampleRow>(&table(meta, "sample.json"))?
         .into_iter()
@@ -650,13 +695,22 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
         scenes.iter().map(|s| (s.token.as_str(), s)).collect();
 
     // Every results token must be a sample of the tables.
-    let mut result_tokens: Vec<&String> = results.boxes.keys().collect();
+    let mut result_tokens: Vec<(&String, &str)> = results
+        .boxes
+        .keys()
+        .map(|k| (k, det_file.as_str()))
+        .chain(
+            tracking
+                .iter()
+                .flat_map(|t| t.results.keys().map(|k| (k, trk_file.as_str()))),
+        )
+        .collect();
     result_tokens.sort();
     let mut scenes_with_results: HashSet<&str> = HashSet::new();
-    for tok in &result_tokens {
+    for (tok, file) in &result_tokens {
         let s = samples.get(*tok).with_context(|| {
             format!(
-                "{det_file}: sample token {tok} is not in {}",
+                "{file}: sample token {tok} is not in {}",
                 table(meta, "sample.json").display()
             )
         })?;
@@ -678,7 +732,14 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
             .filter(|s| scenes_with_results.contains(s.token.as_str()))
             .collect();
         if v.is_empty() {
-            bail!("{det_file}: the results hold no sample");
+            bail!(
+                "{}: the results hold no sample",
+                if det_file.is_empty() {
+                    &trk_file
+                } else {
+                    &det_file
+                }
+            );
         }
         v
     } else {
@@ -714,13 +775,27 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
             .iter()
             .filter(|(t, _)| !results.boxes.contains_key(t))
             .count();
-        if missing > 0 {
+        if missing > 0 && opts.detections.is_some() {
             summary.warnings.push(format!(
                 "{det_file}: {missing} of the {} samples of scene {} are not in the results; \
                  written as frames without detections",
                 list.len(),
                 scene.name
             ));
+        }
+        if let Some(t) = &tracking {
+            let missing = list
+                .iter()
+                .filter(|(tok, _)| !t.results.contains_key(tok))
+                .count();
+            if missing > 0 {
+                summary.warnings.push(format!(
+                    "{trk_file}: {missing} of the {} samples of scene {} are not in the \
+                     submission; written as frames without tracks",
+                    list.len(),
+                    scene.name
+                ));
+            }
         }
         plans.push(ScenePlan {
             scene: scene.clone(),
@@ -741,6 +816,7 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
     // Ground truth.
     let ann_path = table(meta, "sample_annotation.json");
     let mut truth: HashMap<String, Vec<TruthBox>> = HashMap::new();
+    let mut racks: HashMap<String, Vec<RackAnn>> = HashMap::new();
     if ann_path.is_file() {
         summary.ground_truth = true;
         for need in ["instance.json", "category.json"] {
@@ -788,6 +864,19 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
                     a.instance_token
                 )
             })?;
+            if category == BIKE_RACK_CATEGORY {
+                racks
+                    .entry(a.sample_token.clone())
+                    .or_default()
+                    .push(RackAnn {
+                        id: idx as u64 + 1,
+                        token: a.token,
+                        translation: a.translation,
+                        size: a.size,
+                        rotation: a.rotation,
+                    });
+                continue;
+            }
             let Some(label) = tracking_name(category) else {
                 *summary.truth_skipped.entry(category.clone()).or_default() += 1;
                 continue;
@@ -908,12 +997,15 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
     for plan in &plans {
         let s = write_scene(
             plan,
-            &results,
-            summary.ground_truth.then_some(&truth),
+            opts.detections.is_some().then_some(&results),
+            tracking.as_ref(),
+            summary.ground_truth.then_some((&truth, &racks)),
             summary.ego_pose.then_some(&ego),
-            &det_file,
+            (&det_file, &trk_file),
             &results_meta,
         )?;
+        summary.tracks += s.tracks;
+        summary.bike_racks += s.bike_racks;
         summary.frames += s.frames;
         summary.detections += s.detections;
         summary.truth_boxes += s.truth_boxes;
@@ -935,14 +1027,22 @@ pub fn import_nuscenes(opts: &ImportOptions) -> Result<ImportSummary> {
     Ok(summary)
 }
 
+/// Ground truth and bicycle racks by sample token.
+type TruthAndRacks<'a> = (
+    &'a HashMap<String, Vec<TruthBox>>,
+    &'a HashMap<String, Vec<RackAnn>>,
+);
+
 fn write_scene(
     plan: &ScenePlan,
-    results: &DetectionResults,
-    truth: Option<&HashMap<String, Vec<TruthBox>>>,
+    results: Option<&DetectionResults>,
+    tracking: Option<&TrackingResults>,
+    truth_racks: Option<TruthAndRacks>,
     ego: Option<&HashMap<String, EgoPoseRow>>,
-    det_file: &str,
+    (det_file, trk_file): (&str, &str),
     results_meta: &str,
 ) -> Result<SceneSummary> {
+    let truth = truth_racks.map(|t| t.0);
     let mut s = SceneSummary {
         name: plan.scene.name.clone(),
         output: plan.output.display().to_string(),
@@ -951,16 +1051,28 @@ fn write_scene(
     };
     let mut out = AtomicOutput::create(&plan.output, &OutputOptions::default())?;
     let w = &mut out.writer;
-    let s_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
     let none = BTreeMap::new();
-    let c_det = w.add_channel(s_det, "/detections", "protobuf", &none)?;
-    let c_gt = match truth {
+    let c_det = match results {
         Some(_) => {
-            let s_trk = w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
-            Some(w.add_channel(s_trk, "/ground_truth", "protobuf", &none)?)
+            let s_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
+            Some(w.add_channel(s_det, "/detections", "protobuf", &none)?)
         }
         None => None,
     };
+    let s_trk = if truth.is_some() || tracking.is_some() {
+        Some(w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?)
+    } else {
+        None
+    };
+    let mut tracks_channel = |topic: &str, on: bool| -> Result<Option<u16>> {
+        match (s_trk, on) {
+            (Some(schema), true) => Ok(Some(w.add_channel(schema, topic, "protobuf", &none)?)),
+            _ => Ok(None),
+        }
+    };
+    let c_gt = tracks_channel("/ground_truth", truth.is_some())?;
+    let c_racks = tracks_channel(BIKE_RACKS_TOPIC, truth.is_some())?;
+    let c_tracks = tracks_channel("/tracks", tracking.is_some())?;
     let c_ego = match ego {
         Some(_) => {
             let s_ego = w.add_schema(
@@ -980,6 +1092,7 @@ fn write_scene(
             ("scene_description", plan.scene.description.clone()),
             ("nbr_samples", plan.samples.len().to_string()),
             ("detections_file", det_file.to_string()),
+            ("tracks_file", trk_file.to_string()),
             ("detections_meta", results_meta.to_string()),
             ("ground_truth", truth.is_some().to_string()),
             ("ego_pose", ego.is_some().to_string()),
@@ -993,8 +1106,8 @@ fn write_scene(
             .map(|(tok, t)| ((t * 1000).to_string(), tok.clone()))
             .collect(),
     })?;
-    let names = &results.strings.names;
     let mut buf = Vec::new();
+    let mut track_ids = TrackIds::default();
     for (frame, (tok, t_us)) in plan.samples.iter().enumerate() {
         let stamp = t_us * 1000;
         let header = |ch| MessageHeader {
@@ -1003,30 +1116,55 @@ fn write_scene(
             log_time: stamp,
             publish_time: stamp,
         };
-        let boxes = results.boxes.get(tok).map(Vec::as_slice).unwrap_or(&[]);
-        let msg = Detections3D {
-            stamp: Some(stamp),
-            frame_id: FRAME_ID.into(),
-            detections: boxes
-                .iter()
-                .map(|b| Detection3D {
-                    center: Some(v3(b.translation)),
-                    size: Some(nusc_size(b.size)),
-                    yaw: quaternion_yaw(b.rotation),
-                    label: names[b.name as usize].clone(),
-                    score: b.score,
-                    velocity: Some(v3([b.velocity[0], b.velocity[1], 0.0])),
-                    image_box: None,
-                    attributes: attrs(&[
-                        (attr::SAMPLE_TOKEN, tok.clone()),
-                        (attr::ATTRIBUTE_NAME, names[b.attribute as usize].clone()),
-                    ]),
-                })
-                .collect(),
-        };
-        s.detections += boxes.len() as u64;
-        msgs::encode_into(&msg, &mut buf);
-        w.write_to_known_channel(&header(c_det), &buf)?;
+        if let (Some(c_det), Some(results)) = (c_det, results) {
+            let names = &results.strings.names;
+            let boxes = results.boxes.get(tok).map(Vec::as_slice).unwrap_or(&[]);
+            let msg = Detections3D {
+                stamp: Some(stamp),
+                frame_id: FRAME_ID.into(),
+                detections: boxes
+                    .iter()
+                    .map(|b| Detection3D {
+                        center: Some(v3(b.translation)),
+                        size: Some(nusc_size(b.size)),
+                        yaw: quaternion_yaw(b.rotation),
+                        label: names[b.name as usize].clone(),
+                        score: b.score,
+                        velocity: Some(v3([b.velocity[0], b.velocity[1], 0.0])),
+                        image_box: None,
+                        attributes: attrs(&[
+                            (attr::SAMPLE_TOKEN, tok.clone()),
+                            (attr::ATTRIBUTE_NAME, names[b.attribute as usize].clone()),
+                        ]),
+                    })
+                    .collect(),
+            };
+            s.detections += boxes.len() as u64;
+            msgs::encode_into(&msg, &mut buf);
+            w.write_to_known_channel(&header(c_det), &buf)?;
+        }
+        if let (Some(c_tracks), Some(tracking)) = (c_tracks, tracking) {
+            let boxes = tracking.results.get(tok).map(Vec::as_slice).unwrap_or(&[]);
+            let msg = Tracks3D {
+                stamp,
+                frame_id: FRAME_ID.into(),
+                tracks: boxes.iter().map(|b| track_of(b, &mut track_ids)).collect(),
+            };
+            s.tracks += boxes.len() as u64;
+            msgs::encode_into(&msg, &mut buf);
+            w.write_to_known_channel(&header(c_tracks), &buf)?;
+        }
+        if let (Some(c_racks), Some((_, racks))) = (c_racks, truth_racks) {
+            let boxes = racks.get(tok).map(Vec::as_slice).unwrap_or(&[]);
+            let msg = Tracks3D {
+                stamp,
+                frame_id: FRAME_ID.into(),
+                tracks: boxes.iter().map(|r| rack_track(r, tok)).collect(),
+            };
+            s.bike_racks += boxes.len() as u64;
+            msgs::encode_into(&msg, &mut buf);
+            w.write_to_known_channel(&header(c_racks), &buf)?;
+        }
         if let (Some(c_gt), Some(truth)) = (c_gt, truth) {
             let boxes = truth.get(tok).map(Vec::as_slice).unwrap_or(&[]);
             let gt = Tracks3D {
