@@ -3,6 +3,7 @@
 
 pub mod kitti;
 pub mod mot_accumulator;
+pub mod hota;
 pub mod numpy_compat;
 pub mod nuscenes;
 pub mod range;
