@@ -384,3 +384,24 @@ pub fn duplicate_id(raw: &[(Vec<i64>, Vec<i64>, Vec<f64>)]) -> Option<(usize, i6
 
 #[cfg(test)]
 mod tests;
+
+/// Columns of the HOTA table in `probmot eval`'s text report.
+pub const HOTA_COLUMNS: [&str; 8] = [
+    "hota", "deta", "assa", "loca", "detre", "detpr", "assre", "asspr",
+];
+
+/// Rows `(class + suffix, values of HOTA_COLUMNS)` for the text report.
+pub fn hota_rows(
+    classes: &std::collections::BTreeMap<String, Hota>,
+    suffix: &str,
+) -> Vec<(String, Vec<f64>)> {
+    classes
+        .iter()
+        .map(|(c, h)| {
+            let v = [
+                h.hota, h.deta, h.assa, h.loca, h.detre, h.detpr, h.assre, h.asspr,
+            ];
+            (format!("{c}{suffix}"), v.to_vec())
+        })
+        .collect()
+}
