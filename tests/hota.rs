@@ -29,7 +29,9 @@ fn compare(what: &str, reference: &Value, ours: &Value, errors: &mut Vec<String>
     rk.sort();
     ok.sort();
     if rk != ok {
-        errors.push(format!("{what}: classes {rk:?} (TrackEval) vs {ok:?} (ours)"));
+        errors.push(format!(
+            "{what}: classes {rk:?} (TrackEval) vs {ok:?} (ours)"
+        ));
         return;
     }
     for (class, want) in r {
@@ -122,7 +124,10 @@ fn nuscenes_hota_equals_trackeval_on_the_fixtures() {
 fn trackeval_fixtures_are_what_the_script_makes() {
     let test = "trackeval_fixtures_are_what_the_script_makes";
     if !python_has("trackeval, mcap_protobuf, numpy") {
-        return skip(test, "python3 cannot import trackeval, mcap_protobuf and numpy");
+        return skip(
+            test,
+            "python3 cannot import trackeval, mcap_protobuf and numpy",
+        );
     }
     for (name, files, reference) in fixture_runs() {
         let mut cmd = std::process::Command::new("python3");
@@ -202,7 +207,14 @@ fn kitti_hota_equals_trackeval_on_the_train_sequences() {
         String::from_utf8_lossy(&out.stderr)
     );
     let reference: Value = serde_json::from_slice(&out.stdout).unwrap();
-    let ours = eval_json(&["eval", "--protocol", "kitti", "--json", "--truth", s(&tracked)]);
+    let ours = eval_json(&[
+        "eval",
+        "--protocol",
+        "kitti",
+        "--json",
+        "--truth",
+        s(&tracked),
+    ]);
     let mut errors = Vec::new();
     compare(
         &format!("KITTI {} sequences", seqs.len()),

@@ -376,7 +376,9 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             a.truth_topic
         );
         print!("{}", table(&COLUMNS, &rows(&result)));
-        println!("\nHOTA (TrackEval's definition; similarity max(0, 1 - BEV centre distance / 2 m)):");
+        println!(
+            "\nHOTA (TrackEval's definition; similarity max(0, 1 - BEV centre distance / 2 m)):"
+        );
         print!("{}", table(&HOTA_COLUMNS, &hota_rows(&hota, "")));
         if let Some(base) = &baseline {
             println!("\nbaseline {}:", describe(&base_pairs, true));
@@ -508,7 +510,9 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "{}",
             table(&KITTI_COLUMNS, &kitti_rows(&result, &params.classes))
         );
-        println!("\nHOTA (TrackEval's Kitti2DBox: 2D image-box IoU; 3d: the same boxes by 3D IoU):");
+        println!(
+            "\nHOTA (TrackEval's Kitti2DBox: 2D image-box IoU; 3d: the same boxes by 3D IoU):"
+        );
         let mut h = hota_rows(&hota_2d, "");
         h.extend(hota_rows(&hota_3d, " 3d"));
         print!("{}", table(&HOTA_COLUMNS, &h));

@@ -14,7 +14,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{duplicate_id, eval_sequence, relabel, combine, Hota, EPS};
+use super::{combine, duplicate_id, eval_sequence, relabel, Hota, EPS};
 use crate::eval::scene::{EvalBox, Scene};
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
@@ -68,7 +68,11 @@ fn int_attr(b: &EvalBox, key: &str) -> i64 {
 
 /// The KITTI track id of a truth box: the `kitti_track_id` attribute, else `id - 1`.
 fn truth_id(b: &EvalBox) -> i64 {
-    match b.attributes.get("kitti_track_id").map(|v| v.trim().parse::<f64>()) {
+    match b
+        .attributes
+        .get("kitti_track_id")
+        .map(|v| v.trim().parse::<f64>())
+    {
         Some(Ok(v)) => v.trunc() as i64,
         _ => b.id as i64 - 1,
     }
@@ -76,8 +80,8 @@ fn truth_id(b: &EvalBox) -> i64 {
 
 /// 2D IoU of `x1 y1 x2 y2` boxes as TrackEval's `_calculate_box_ious`.
 pub fn iou2d(a: &[f64; 4], b: &[f64; 4]) -> f64 {
-    let inter = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0)
-        * (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let inter =
+        (a[2].min(b[2]) - a[0].max(b[0])).max(0.0) * (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
     let area1 = (a[2] - a[0]) * (a[3] - a[1]);
     let area2 = (b[2] - b[0]) * (b[3] - b[1]);
     let union = area1 + area2 - inter;
@@ -89,8 +93,8 @@ pub fn iou2d(a: &[f64; 4], b: &[f64; 4]) -> f64 {
 
 /// Share of `a`'s area inside `b` (TrackEval's `do_ioa`); 0 for a box with area <= eps.
 fn ioa(a: &[f64; 4], b: &[f64; 4]) -> f64 {
-    let inter = (a[2].min(b[2]) - a[0].max(b[0])).max(0.0)
-        * (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
+    let inter =
+        (a[2].min(b[2]) - a[0].max(b[0])).max(0.0) * (a[3].min(b[3]) - a[1].max(b[1])).max(0.0);
     let area1 = (a[2] - a[0]) * (a[3] - a[1]);
     if area1 > EPS {
         inter / area1

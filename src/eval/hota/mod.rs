@@ -73,6 +73,74 @@ struct Pair {
     matches: [f64; N_ALPHA],
 }
 
+/// The first pass over a sequence: detection counts per id and, per pair of ids that is ever
+/// similar, the summed normalised similarity.
+struct Alignment {
+    gt_count: Vec<f64>,
+    tr_count: Vec<f64>,
+    pairs: Vec<Pair>,
+    index: HashMap<(u32, u32), usize>,
+    /// Global alignment score per pair.
+    score: Vec<f64>,
+}
+
+impl Alignment {
+    fn new(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> Alignment {
+        let mut a = Alignment {
+            gt_count: vec![0.0; n_gt],
+            tr_count: vec![0.0; n_tr],
+            pairs: Vec::new(),
+            index: HashMap::new(),
+            score: Vec::new(),
+        };
+        let (mut row_sum, mut col_sum) = (Vec::new(), Vec::new());
+        for f in frames {
+            let nt = f.tr.len();
+            row_sum.clear();
+            row_sum.extend(f.sim.chunks_exact(nt.max(1)).map(|r| r.iter().sum::<f64>()));
+            col_sum.clear();
+            col_sum.extend((0..nt).map(|j| f.sim.iter().skip(j).step_by(nt).sum::<f64>()));
+            for (i, (&g, rs)) in f.gt.iter().zip(&row_sum).enumerate() {
+                for (j, (&t, cs)) in f.tr.iter().zip(&col_sum).enumerate() {
+                    let s = f.sim[i * nt + j];
+                    let denom = cs + rs - s;
+                    if s != 0.0 && denom > EPS {
+                        let k = a.pair(g, t);
+                        a.pairs[k].potential += s / denom;
+                    }
+                }
+            }
+            for &g in &f.gt {
+                a.gt_count[g as usize] += 1.0;
+            }
+            for &t in &f.tr {
+                a.tr_count[t as usize] += 1.0;
+            }
+        }
+        a.score = a
+            .pairs
+            .iter()
+            .map(|p| {
+                p.potential / (a.gt_count[p.gt as usize] + a.tr_count[p.tr as usize] - p.potential)
+            })
+            .collect();
+        a
+    }
+
+    /// Index of the pair `(g, t)`, added if new.
+    fn pair(&mut self, g: u32, t: u32) -> usize {
+        let pairs = &mut self.pairs;
+        *self.index.entry((g, t)).or_insert_with(|| {
+            pairs.push(Pair {
+                gt: g,
+                tr: t,
+                ..Pair::default()
+            });
+            pairs.len() - 1
+        })
+    }
+}
+
 /// Evaluates one sequence; `n_gt`/`n_tr` bound the ids of the frames.
 pub fn eval_sequence(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCounts {
     let mut res = HotaCounts::default();
@@ -84,57 +152,40 @@ pub fn eval_sequence(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCoun
         res.loc_a = [1.0; N_ALPHA];
         return res;
     }
-    let mut gt_count = vec![0.0f64; n_gt];
-    let mut tr_count = vec![0.0f64; n_tr];
-    let mut pairs: Vec<Pair> = Vec::new();
-    let mut index: HashMap<(u32, u32), usize> = HashMap::new();
-    let mut row_sum = Vec::new();
-    let mut col_sum = Vec::new();
-    for f in frames {
-        let (ng, nt) = (f.gt.len(), f.tr.len());
-        row_sum.clear();
-        row_sum.extend((0..ng).map(|i| f.sim[i * nt..(i + 1) * nt].iter().sum::<f64>()));
-        col_sum.clear();
-        col_sum.extend((0..nt).map(|j| (0..ng).map(|i| f.sim[i * nt + j]).sum::<f64>()));
-        for i in 0..ng {
-            for j in 0..nt {
-                let s = f.sim[i * nt + j];
-                let denom = col_sum[j] + row_sum[i] - s;
-                if s != 0.0 && denom > EPS {
-                    let (g, t) = (f.gt[i], f.tr[j]);
-                    let k = *index.entry((g, t)).or_insert_with(|| {
-                        pairs.push(Pair {
-                            gt: g,
-                            tr: t,
-                            ..Pair::default()
-                        });
-                        pairs.len() - 1
-                    });
-                    pairs[k].potential += s / denom;
-                }
+    let mut al = Alignment::new(frames, n_gt, n_tr);
+    let loc_sum = match_frames(frames, &mut al, &mut res);
+    for (a, loc) in loc_sum.iter().enumerate() {
+        let (mut ass_a, mut ass_re, mut ass_pr) = (0.0, 0.0, 0.0);
+        for p in &al.pairs {
+            let m = p.matches[a];
+            if m == 0.0 {
+                continue;
             }
+            let (gc, tc) = (al.gt_count[p.gt as usize], al.tr_count[p.tr as usize]);
+            ass_a += m * (m / (gc + tc - m).max(1.0));
+            ass_re += m * (m / gc.max(1.0));
+            ass_pr += m * (m / tc.max(1.0));
         }
-        for &g in &f.gt {
-            gt_count[g as usize] += 1.0;
-        }
-        for &t in &f.tr {
-            tr_count[t as usize] += 1.0;
-        }
+        let tp = res.tp[a].max(1.0);
+        res.ass_a[a] = ass_a / tp;
+        res.ass_re[a] = ass_re / tp;
+        res.ass_pr[a] = ass_pr / tp;
+        res.loc_a[a] = loc.max(1e-10) / res.tp[a].max(1e-10);
     }
-    let alignment: Vec<f64> = pairs
-        .iter()
-        .map(|p| p.potential / (gt_count[p.gt as usize] + tr_count[p.tr as usize] - p.potential))
-        .collect();
+    res
+}
+
+/// The second pass: matches every frame, counts TP/FN/FP and each pair's matches per alpha;
+/// returns the summed similarity of the TPs per alpha.
+fn match_frames(frames: &[HotaFrame], al: &mut Alignment, res: &mut HotaCounts) -> [f64; N_ALPHA] {
     let alpha = alphas();
     let mut loc_sum = [0.0f64; N_ALPHA];
     let mut matched = Vec::new();
     for f in frames {
         let (ng, nt) = (f.gt.len(), f.tr.len());
         if ng == 0 || nt == 0 {
-            for a in 0..N_ALPHA {
-                res.fp[a] += nt as f64;
-                res.fn_[a] += ng as f64;
-            }
+            res.fp.iter_mut().for_each(|v| *v += nt as f64);
+            res.fn_.iter_mut().for_each(|v| *v += ng as f64);
             continue;
         }
         let score = |i: usize, j: usize| {
@@ -142,21 +193,21 @@ pub fn eval_sequence(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCoun
             if s == 0.0 {
                 return 0.0;
             }
-            index
+            al.index
                 .get(&(f.gt[i], f.tr[j]))
-                .map_or(0.0, |&k| alignment[k] * s)
+                .map_or(0.0, |&k| al.score[k] * s)
         };
         best_assignment(ng, nt, score, &mut matched);
-        for a in 0..N_ALPHA {
+        for (a, &alpha) in alpha.iter().enumerate() {
             let mut n = 0usize;
             let mut s_sum = 0.0f64;
             for &(i, j) in &matched {
                 let s = f.sim[i * nt + j];
-                if s >= alpha[a] - EPS {
+                if s >= alpha - EPS {
                     n += 1;
                     s_sum += s;
-                    let k = index[&(f.gt[i], f.tr[j])];
-                    pairs[k].matches[a] += 1.0;
+                    let k = al.index[&(f.gt[i], f.tr[j])];
+                    al.pairs[k].matches[a] += 1.0;
                 }
             }
             res.tp[a] += n as f64;
@@ -167,25 +218,7 @@ pub fn eval_sequence(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCoun
             }
         }
     }
-    for a in 0..N_ALPHA {
-        let (mut ass_a, mut ass_re, mut ass_pr) = (0.0, 0.0, 0.0);
-        for p in &pairs {
-            let m = p.matches[a];
-            if m == 0.0 {
-                continue;
-            }
-            let (gc, tc) = (gt_count[p.gt as usize], tr_count[p.tr as usize]);
-            ass_a += m * (m / (gc + tc - m).max(1.0));
-            ass_re += m * (m / gc.max(1.0));
-            ass_pr += m * (m / tc.max(1.0));
-        }
-        let tp = res.tp[a].max(1.0);
-        res.ass_a[a] = ass_a / tp;
-        res.ass_re[a] = ass_re / tp;
-        res.ass_pr[a] = ass_pr / tp;
-        res.loc_a[a] = loc_sum[a].max(1e-10) / res.tp[a].max(1e-10);
-    }
-    res
+    loc_sum
 }
 
 /// The optimal assignment maximising `score` over a `rows x cols` frame, as
@@ -238,22 +271,22 @@ pub fn combine(seqs: &[HotaCounts]) -> HotaCounts {
     let mut res = HotaCounts::default();
     let mut loc = [0.0f64; N_ALPHA];
     for s in seqs {
-        for a in 0..N_ALPHA {
+        for (a, loc) in loc.iter_mut().enumerate() {
             res.tp[a] += s.tp[a];
             res.fn_[a] += s.fn_[a];
             res.fp[a] += s.fp[a];
             res.ass_a[a] += s.ass_a[a] * s.tp[a];
             res.ass_re[a] += s.ass_re[a] * s.tp[a];
             res.ass_pr[a] += s.ass_pr[a] * s.tp[a];
-            loc[a] += s.loc_a[a] * s.tp[a];
+            *loc += s.loc_a[a] * s.tp[a];
         }
     }
-    for a in 0..N_ALPHA {
+    for (a, loc) in loc.iter().enumerate() {
         let tp = res.tp[a].max(1.0);
         res.ass_a[a] /= tp;
         res.ass_re[a] /= tp;
         res.ass_pr[a] /= tp;
-        res.loc_a[a] = loc[a].max(1e-10) / res.tp[a].max(1e-10);
+        res.loc_a[a] = loc.max(1e-10) / res.tp[a].max(1e-10);
     }
     res
 }
