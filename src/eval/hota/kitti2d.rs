@@ -260,3 +260,65 @@ pub fn kitti_hota(
     }
     (out, notes)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn b(id: u64, kind: &str, img: [f64; 4], occluded: u8, truncated: u8) -> EvalBox {
+        let attributes = [
+            ("kitti_type", kind.to_string()),
+            ("kitti_occluded", occluded.to_string()),
+            ("kitti_truncated", truncated.to_string()),
+        ]
+        .into_iter()
+        .map(|(k, v)| (k.to_string(), v))
+        .collect();
+        EvalBox {
+            id,
+            label: kind.to_lowercase(),
+            center: [10.0 * id as f64, 0.0, 0.0],
+            size: [4.0, 2.0, 1.5],
+            yaw: 0.0,
+            score: 1.0,
+            attributes,
+            image_box: Some(img),
+        }
+    }
+
+    #[test]
+    fn iou_without_the_plus_one() {
+        assert!(
+            (iou2d(&[0.0, 0.0, 10.0, 10.0], &[5.0, 0.0, 15.0, 10.0]) - 1.0 / 3.0).abs() < 1e-15
+        );
+        assert_eq!(iou2d(&[0.0, 0.0, 0.0, 10.0], &[0.0, 0.0, 0.0, 10.0]), 0.0);
+    }
+
+    /// Kitti2DBox's rules, one box each: a track on a van (distractor) leaves, a track on a
+    /// heavily occluded car leaves, an unmatched 25 px track leaves, an unmatched track 60 %
+    /// inside a DontCare region leaves; a 26 px unmatched track and a track on a visible car
+    /// stay. The van and the occluded car leave the truth.
+    #[test]
+    fn kitti2dbox_removes_what_trackeval_removes() {
+        let truth = vec![
+            b(1, "Car", [0.0, 0.0, 100.0, 100.0], 0, 0),
+            b(2, "Van", [200.0, 0.0, 300.0, 100.0], 0, 0),
+            b(3, "Car", [400.0, 0.0, 500.0, 100.0], 3, 0),
+            b(0, "DontCare", [600.0, 0.0, 700.0, 100.0], 0, 0),
+        ];
+        let tracks = vec![
+            b(11, "Car", [0.0, 0.0, 100.0, 90.0], 0, 0), // on car 1: stays
+            b(12, "Car", [200.0, 0.0, 300.0, 90.0], 0, 0), // on the van: leaves
+            b(13, "Car", [400.0, 0.0, 500.0, 90.0], 0, 0), // on occluded car 3: leaves
+            b(14, "Car", [800.0, 0.0, 900.0, 25.0], 0, 0), // 25 px: leaves
+            b(15, "Car", [800.0, 50.0, 900.0, 76.0], 0, 0), // 26 px: stays
+            b(16, "Car", [640.0, 0.0, 740.0, 100.0], 0, 0), // 60 % in DontCare: leaves
+            b(17, "Pedestrian", [0.0, 0.0, 100.0, 100.0], 0, 0), // other class
+        ];
+        let (g, t, s) = prepare_frame(&truth, &tracks, 1, 2, KittiSimilarity::Image);
+        assert_eq!(g, vec![0]); // car 1 (KITTI id = id - 1)
+        assert_eq!(t, vec![11, 15]);
+        assert_eq!(s.len(), 2);
+        assert!((s[0] - 0.9).abs() < 1e-12 && s[1] == 0.0);
+    }
+}
