@@ -7,6 +7,9 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts};
+use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
+use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
+use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
 use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
@@ -371,6 +374,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
     let result = evaluate(&scenes, &params);
+    let (hota, hota_notes) = centre_hota(&scenes, &params.classes);
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",
@@ -415,6 +419,8 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             "logs": paths(&pairs), "result": result, "per_log": per_log,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
+            "hota": {"similarity": "bev_centre_distance", "zero_distance_m": ZERO_DISTANCE,
+                     "classes": hota, "notes": hota_notes},
             "range_filter": a.max_range.as_ref().map(|f| {
                 let r = removed.range.unwrap_or_default();
                 serde_json::json!({
@@ -433,6 +439,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             a.truth_topic
         );
         print!("{}", table(&COLUMNS, &rows(&result)));
+        println!(
+            "\nHOTA (TrackEval's definition; similarity max(0, 1 - BEV centre distance / 2 m)):"
+        );
+        print!("{}", table(&HOTA_COLUMNS, &hota_rows(&hota, "")));
         if let Some(base) = &baseline {
             println!("\nbaseline {}:", describe(&base_pairs, true));
             print!("{}", table(&COLUMNS, &rows(base)));
@@ -446,7 +456,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         for line in filter_notes(&removed, a.min_points) {
             println!("note: {line}");
         }
-        for n in &result.notes {
+        for n in result.notes.iter().chain(&hota_notes) {
             println!("note: {n}");
         }
         let _ = fmt_value;
@@ -547,6 +557,9 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, _) = load_logs(&a, &pairs, true)?;
     let result = kitti::evaluate(&scenes, &params);
+    let (hota_2d, mut hota_notes) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Image);
+    let (hota_3d, _) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Box3d);
+    hota_notes.dedup();
     if result.classes.is_empty() {
         bail!(
             "{}: topic {} has no track box of the evaluated classes ({}); nothing to evaluate",
@@ -579,6 +592,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "logs": paths(&pairs), "result": result,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
+            "hota": {"image_2d": hota_2d, "iou_3d": hota_3d, "notes": hota_notes},
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -594,6 +608,12 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "{}",
             table(&KITTI_COLUMNS, &kitti_rows(&result, &params.classes))
         );
+        println!(
+            "\nHOTA (TrackEval's Kitti2DBox: 2D image-box IoU; 3d: the same boxes by 3D IoU):"
+        );
+        let mut h = hota_rows(&hota_2d, "");
+        h.extend(hota_rows(&hota_3d, " 3d"));
+        print!("{}", table(&HOTA_COLUMNS, &h));
         if let Some(base) = &baseline {
             println!("\nbaseline {}:", describe(&base_pairs, true));
             print!(
@@ -612,7 +632,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             }
             print!("{}", table(&KITTI_COLUMNS, &delta));
         }
-        for n in &result.notes {
+        for n in result.notes.iter().chain(&hota_notes) {
             println!("note: {n}");
         }
     }

@@ -2,6 +2,7 @@
 //! KITTI-style 3D MOT metrics, on probmot's `Tracks3D` channels.
 
 pub mod filters;
+pub mod hota;
 pub mod kitti;
 pub mod mot_accumulator;
 pub mod numpy_compat;
