@@ -10,7 +10,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{detections, messages, probmot, probmot_ok, repo, tracks};
+use common::{detections, messages, probmot, probmot_ok, python_has, repo, skip, tracks};
 use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Track3D, Tracks3D};
 use probmot::pipeline::nuscenes_io::{
@@ -111,17 +111,12 @@ fn read_submission(path: &Path) -> (Value, Submission) {
 /// when it is not.
 fn devkit_check(results: &Path, extra: &[&str]) -> Option<std::process::Output> {
     static HAVE_DEVKIT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let have = *HAVE_DEVKIT.get_or_init(|| {
-        Command::new("python3")
-            .args(["-c", "import nuscenes"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    });
+    let have = *HAVE_DEVKIT.get_or_init(|| python_has("nuscenes"));
     if !have {
-        eprintln!(
-            "SKIPPED the devkit check of {}: `python3 -c \"import nuscenes\"` failed \
+        skip(
+            &format!("the devkit check of {}", results.display()),
+            "`python3 -c \"import nuscenes\"` failed \
              (pip install -r scripts/requirements-devkit.txt to run it)",
-            results.display()
         );
         return None;
     }

@@ -40,11 +40,17 @@ pub fn python_has(modules: &str) -> bool {
 /// Reports that the check `test` cannot run here, and why. Under `CI=true` this panics: CI must
 /// prove that a fresh machine runs every check, so a check that could not run is a failure there.
 /// Elsewhere it prints `SKIPPED test: reason` on stderr and the caller returns.
+///
+/// The line goes straight to the process's stderr (`write_all` on `std::io::stderr()`), not
+/// through `eprintln!`: libtest captures the `eprint!` output of passing tests, which would turn a
+/// skipped check into a silent `ok` in the `cargo test` output.
 pub fn skip(test: &str, reason: &str) {
+    use std::io::Write as _;
     if std::env::var("CI").is_ok_and(|v| v == "true") {
         panic!("{test} could not run under CI=true: {reason}");
     }
-    eprintln!("SKIPPED {test}: {reason}");
+    let line = format!("SKIPPED {test}: {reason}\n");
+    let _ = std::io::stderr().lock().write_all(line.as_bytes());
 }
 
 /// Path of a file in the repository.
