@@ -10,7 +10,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{detections, messages, probmot, probmot_ok, python_has, repo, skip, tracks};
+use common::{
+    detections, devkit_has, devkit_python, messages, probmot, probmot_ok, repo, skip, tracks,
+};
 use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Track3D, Tracks3D};
 use probmot::pipeline::nuscenes_io::{
@@ -111,16 +113,16 @@ fn read_submission(path: &Path) -> (Value, Submission) {
 /// when it is not.
 fn devkit_check(results: &Path, extra: &[&str]) -> Option<std::process::Output> {
     static HAVE_DEVKIT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let have = *HAVE_DEVKIT.get_or_init(|| python_has("nuscenes"));
+    let have = *HAVE_DEVKIT.get_or_init(|| devkit_has("nuscenes"));
     if !have {
         skip(
             &format!("the devkit check of {}", results.display()),
-            "`python3 -c \"import nuscenes\"` failed \
-             (pip install -r scripts/requirements-devkit.txt to run it)",
+            "`$PROBMOT_DEVKIT_PYTHON -c \"import nuscenes\"` failed (default python3; \
+             pip install -r scripts/requirements-devkit.txt in a venv to run it)",
         );
         return None;
     }
-    let out = Command::new("python3")
+    let out = Command::new(devkit_python())
         .arg(repo("scripts/check_nuscenes_export.py"))
         .arg(results)
         .arg("--meta")

@@ -31,7 +31,23 @@ pub fn probmot_ok(args: &[&str]) -> Output {
 
 /// Whether `python3` can import `modules` (comma-separated), for checks that need Python tools.
 pub fn python_has(modules: &str) -> bool {
-    Command::new("python3")
+    can_import("python3", modules)
+}
+
+/// The Python of the nuScenes devkit checks: `$PROBMOT_DEVKIT_PYTHON` when set (the devkit's
+/// numpy<2 conflicts with scripts/requirements.txt, so it lives in a virtual environment of its
+/// own, which `.ci/run` makes), else `python3`.
+pub fn devkit_python() -> String {
+    std::env::var("PROBMOT_DEVKIT_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+/// Whether the devkit's Python ([`devkit_python`]) can import `modules`.
+pub fn devkit_has(modules: &str) -> bool {
+    can_import(&devkit_python(), modules)
+}
+
+fn can_import(python: &str, modules: &str) -> bool {
+    Command::new(python)
         .args(["-c", &format!("import {modules}")])
         .output()
         .is_ok_and(|o| o.status.success())
