@@ -2,6 +2,8 @@
 //! message, attachment and metadata record listed in each file's `.json` must come out unchanged.
 //! Reads `../shared/data/mcap-conformance/` beside the repository; skips when it is absent.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -175,9 +177,12 @@ fn actual(path: &Path) -> Content {
 fn corpus() -> Option<Vec<PathBuf>> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mcap-conformance");
     if !dir.is_dir() {
-        eprintln!(
-            "SKIPPED: {} is absent; the conformance test needs the MCAP conformance corpus",
-            dir.display()
+        common::skip(
+            "copy_path_keeps_every_record_of_the_conformance_corpus",
+            &format!(
+                "{} is absent; the conformance test needs the MCAP conformance corpus",
+                dir.display()
+            ),
         );
         return None;
     }

@@ -10,7 +10,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{detections, messages, probmot, probmot_ok, repo, tracks};
+use common::{
+    detections, devkit_has, devkit_python, messages, probmot, probmot_ok, repo, skip, tracks,
+};
 use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Track3D, Tracks3D};
 use probmot::pipeline::nuscenes_io::{
@@ -111,21 +113,16 @@ fn read_submission(path: &Path) -> (Value, Submission) {
 /// when it is not.
 fn devkit_check(results: &Path, extra: &[&str]) -> Option<std::process::Output> {
     static HAVE_DEVKIT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let have = *HAVE_DEVKIT.get_or_init(|| {
-        Command::new("python3")
-            .args(["-c", "import nuscenes"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    });
+    let have = *HAVE_DEVKIT.get_or_init(|| devkit_has("nuscenes"));
     if !have {
-        eprintln!(
-            "SKIPPED the devkit check of {}: `python3 -c \"import nuscenes\"` failed \
-             (pip install -r scripts/requirements-devkit.txt to run it)",
-            results.display()
+        skip(
+            &format!("the devkit check of {}", results.display()),
+            "`$PROBMOT_DEVKIT_PYTHON -c \"import nuscenes\"` failed (default python3; \
+             pip install -r scripts/requirements-devkit.txt in a venv to run it)",
         );
         return None;
     }
-    let out = Command::new("python3")
+    let out = Command::new(devkit_python())
         .arg(repo("scripts/check_nuscenes_export.py"))
         .arg(results)
         .arg("--meta")

@@ -110,7 +110,7 @@ fn plot_draws_three_panels_with_colours_per_track_and_text() {
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     assert!(
-        names.iter().all(|n| !n.starts_with(".probmot-")),
+        names.iter().all(|n| !n.contains(".probmot-")),
         "{names:?}"
     );
 

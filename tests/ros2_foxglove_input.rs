@@ -777,20 +777,16 @@ fn foxglove_metadata_convention() {
 
 // ---- Regenerating the fixtures (needs the Python packages of scripts/requirements.txt) ----
 
-fn python_has(modules: &str) -> bool {
-    Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
 #[test]
 fn fixtures_regenerate_byte_identical() {
     let needed = "mcap, mcap_protobuf, mcap_ros2, foxglove_schemas_protobuf";
-    if !python_has(needed) {
-        eprintln!(
-            "SKIPPED fixtures_regenerate_byte_identical: python3 cannot import {needed}; \
-             install with `python3 -m pip install -r scripts/requirements.txt`"
+    if !common::python_has(needed) {
+        common::skip(
+            "fixtures_regenerate_byte_identical",
+            &format!(
+                "python3 cannot import {needed}; \
+                 install with `python3 -m pip install -r scripts/requirements.txt`"
+            ),
         );
         return;
     }

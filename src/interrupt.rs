@@ -1,0 +1,73 @@
+//! SIGINT, SIGTERM and SIGHUP (Ctrl-C, `kill`, a closed terminal): the partial files of the
+//! outputs being written are removed, one line says which outputs were left unwritten, and the
+//! process exits with the conventional status 128 + signal number (130, 143, 129).
+//!
+//! The signals are received on a thread of their own (`signal-hook`'s iterator): the clean-up
+//! runs as ordinary code there, not in a signal handler, and it knows which signal arrived (which
+//! `ctrlc` does not tell), so the exit status can follow the convention shells use.
+
+use std::path::PathBuf;
+
+use probmot::mcapio::writer::abandon_partials;
+
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+
+/// Starts the thread that handles the three signals. Without it (a failure to register, which
+/// should not happen) the signals keep their default action and a warning says so.
+pub fn install() {
+    {
+        let mut signals = match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("warning: cannot handle interrupts ({e}); an interrupted run may leave a .probmot-partial file");
+                return;
+            }
+        };
+        std::thread::Builder::new()
+            .name("probmot-signals".into())
+            .spawn(move || {
+                if let Some(sig) = signals.forever().next() {
+                    let unwritten = abandon_partials();
+                    eprintln!("{}", message(sig, &unwritten));
+                    std::process::exit(128 + sig);
+                }
+            })
+            .expect("start the signal thread");
+    }
+}
+
+/// The one line printed on an interrupt.
+fn message(sig: i32, unwritten: &[PathBuf]) -> String {
+    let name = match sig {
+        SIGINT => "SIGINT",
+        SIGTERM => "SIGTERM",
+        SIGHUP => "SIGHUP",
+        _ => "a signal",
+    };
+    if unwritten.is_empty() {
+        return format!("probmot: interrupted by {name}; no output was being written");
+    }
+    let list: Vec<String> = unwritten.iter().map(|p| p.display().to_string()).collect();
+    format!(
+        "probmot: interrupted by {name}; not written (partial file removed): {}",
+        list.join(", ")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_message_names_the_signal_and_every_unwritten_output() {
+        let m = message(
+            SIGTERM,
+            &[PathBuf::from("a.mcap"), PathBuf::from("out/b.mcap")],
+        );
+        assert_eq!(
+            m,
+            "probmot: interrupted by SIGTERM; not written (partial file removed): a.mcap, out/b.mcap"
+        );
+        assert!(message(SIGHUP, &[]).contains("SIGHUP; no output was being written"));
+    }
+}
