@@ -3,6 +3,7 @@
 
 pub mod background;
 pub mod reader;
+pub mod recording;
 pub mod topic;
 pub mod writer;
 
