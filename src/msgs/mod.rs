@@ -15,6 +15,7 @@ pub mod detection_source;
 pub mod foxglove_scene;
 pub mod ros2_common;
 pub mod ros2_tf;
+pub mod ros2_tracks;
 pub mod ros2_vision;
 pub mod scene_update;
 pub mod track_encode;
