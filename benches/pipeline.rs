@@ -36,6 +36,7 @@ fn bench(c: &mut Criterion) {
     let mut opts = TrackOptions {
         detection_topics: vec![],
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,

@@ -210,6 +210,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
     let opts = TrackOptions {
         detection_topics: vec![],
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,

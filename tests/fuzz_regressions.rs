@@ -67,6 +67,7 @@ fn options() -> TrackOptions {
     TrackOptions {
         detection_topics: Vec::new(),
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,

@@ -11,6 +11,7 @@ use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::progress::{no_progress, Progress};
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
+use probmot::pipeline::tracks_format::TracksFormat;
 use rayon::prelude::*;
 
 use super::config_cmd::TrackerArgs;
@@ -20,8 +21,9 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// Track the detections of MCAP recordings and write each back with a tracks channel added.
 ///
 /// Every input record (schemas, channels, messages with their times and sequence numbers,
-/// attachments, metadata) is copied unchanged; the tracks are written as `probmot.Tracks3D`
-/// messages, one per frame, with log_time = the frame's stamp. Frames are the distinct
+/// attachments, metadata) is copied unchanged; the tracks are written one message per frame,
+/// with log_time = the frame's stamp, as `probmot.Tracks3D` or, for ROS 2 inputs,
+/// `vision_msgs/msg/Detection3DArray` (see --tracks-format). Frames are the distinct
 /// detection stamps, replayed in stamp order. The output is written to a temporary file and
 /// renamed at the end; the input is never modified.
 ///
@@ -38,6 +40,7 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
+///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks; --tracks-format probmot for probmot's)
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
@@ -66,6 +69,14 @@ pub struct TrackArgs {
     /// Topic of the tracks channel to write.
     #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
     tracks_topic: String,
+    /// Message type of the tracks channel: `probmot` (probmot.Tracks3D, protobuf: velocities,
+    /// variances, ages) or `ros2` (vision_msgs/msg/Detection3DArray, CDR: track id in
+    /// Detection3D.id, label and score in the hypothesis, box in bbox; readable by ROS 2 tools).
+    /// Default: ros2 when the input is a ROS 2 bag (MCAP profile `ros2`) or its detections are
+    /// ROS 2 messages, else probmot. With ros2, --scene-topic and --tracks-frame ego are refused.
+    /// Example: probmot track bag.mcap -o out.mcap --tracks-format probmot
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    tracks_format: Option<TracksFormatArg>,
     #[command(flatten)]
     tracker: TrackerArgs,
     /// Copy the log without tracking (measures the cost of plain I/O).
@@ -108,6 +119,15 @@ pub struct TrackArgs {
     /// Print the summary as JSON on stdout.
     #[arg(long)]
     json: bool,
+}
+
+/// `--tracks-format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum TracksFormatArg {
+    /// probmot.Tracks3D (protobuf).
+    Probmot,
+    /// vision_msgs/msg/Detection3DArray (ROS 2, CDR).
+    Ros2,
 }
 
 /// Frames the tracks are written in.
@@ -177,6 +197,10 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
     let opts = TrackOptions {
         detection_topics: a.detections_topics.clone(),
         tracks_topic: a.tracks_topic.clone(),
+        tracks_format: a.tracks_format.map(|f| match f {
+            TracksFormatArg::Probmot => TracksFormat::Probmot,
+            TracksFormatArg::Ros2 => TracksFormat::Ros2,
+        }),
         config,
         no_track: a.no_track,
         strict: a.strict,

@@ -10,3 +10,4 @@ pub mod nuscenes_tracks;
 pub mod progress;
 pub mod track;
 pub mod track_outputs;
+pub mod tracks_format;

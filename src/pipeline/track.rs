@@ -24,6 +24,7 @@ use super::ego::{EgoMotion, EgoOptions, EgoSummary};
 use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
 use super::progress::Progress;
 use super::track_outputs::{ExtraOutputs, ExtraRequest};
+use super::tracks_format::TracksFormat;
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
 use crate::mcapio::writer::{check_output_path, OutputCompression, OutputOptions};
@@ -42,6 +43,8 @@ pub struct TrackOptions {
     pub detection_topics: Vec<String>,
     /// Topic of the tracks channel written.
     pub tracks_topic: String,
+    /// Message type of the tracks channel; `None`: by input ([`TracksFormat::resolve`]).
+    pub tracks_format: Option<TracksFormat>,
     /// Tracker configuration.
     pub config: TrackerConfig,
     /// Copy only, no tracking (for measuring the cost of I/O).
@@ -541,6 +544,18 @@ fn run_pass(
         scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
     }
     summary.detection_topics = topics.clone();
+    let format = TracksFormat::resolve(
+        opts.tracks_format,
+        &profile,
+        det_channels.values().map(|d| &d.0),
+    );
+    if ids.is_some() {
+        format.check_extras(
+            &file,
+            opts.ego.tracks_in_ego_frame,
+            opts.scene_topic.is_some(),
+        )?;
+    }
     let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
     let request = ExtraRequest {
         tracks_topic: &opts.tracks_topic,
@@ -560,18 +575,14 @@ fn run_pass(
         BackgroundOutput::create_inline(output, &out_opts)?
     };
     if let Some((schema_id, channel_id)) = ids {
-        out.add_schema_with_id(
-            schema_id,
-            msgs::TRACKS_SCHEMA,
-            "protobuf",
-            msgs::DESCRIPTOR_SET,
-        )?;
+        let (name, schema_encoding, data, message_encoding) = format.schema();
+        out.add_schema_with_id(schema_id, name, schema_encoding, data)?;
         out.add_channel_with_id(
             channel_id,
             schema_id,
             &opts.tracks_topic,
-            "protobuf",
-            &BTreeMap::new(),
+            message_encoding,
+            &format.channel_metadata(),
         )?;
         extra.add_channels(&mut out, schema_id)?;
     }
@@ -581,6 +592,7 @@ fn run_pass(
         file: &file,
         topics,
         ids,
+        format,
         out,
         extra,
         ego,
@@ -702,6 +714,8 @@ struct Pass<'a> {
     topics: Vec<String>,
     /// `(schema id, channel id)` of the tracks channel.
     ids: Option<(u16, u16)>,
+    /// Message type of the tracks channel.
+    format: TracksFormat,
     out: BackgroundOutput,
     extra: ExtraOutputs,
     ego: EgoMotion,
@@ -730,7 +744,8 @@ impl Pass<'_> {
             self.file,
             &self.topics,
         )?;
-        msgs::encode_into(&self.frame_state.out, &mut self.frame_state.buf);
+        self.format
+            .encode_into(&self.frame_state.out, &mut self.frame_state.buf);
         let sequence = self.next_frame as u32;
         self.out.write_to_known_channel(
             &MessageHeader {
