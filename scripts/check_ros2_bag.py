@@ -8,7 +8,9 @@ metadata.yaml, or a single .mcap file), decodes each one, and checks the tracks 
 - their Detection3D.id values hold `--ids` distinct track ids,
 - with `--truth FILE` (the JSON lines printed by scripts/make_rosbag_fixture.py): every track's
   box centre is within 0.5 m of the true centre of one object, the same object for all of that
-  track's frames, with the object's label.
+  track's frames, with the object's label;
+- for a bag directory: its metadata.yaml (read by rosbags' rosbag2 Reader, as `ros2 bag info`
+  shows it) lists every topic with the number of messages actually read, and its total.
 
     python3 scripts/check_ros2_bag.py tracked_bag/ --tracks-topic /tracks --messages 60 --ids 3 \
         --truth truth.jsonl
@@ -27,6 +29,7 @@ from pathlib import Path
 
 try:
     from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import Reader
 except ImportError as e:  # pragma: no cover - depends on the environment
     sys.stderr.write(f"check_ros2_bag.py: error: {e}; install `rosbags` (scripts/requirements.txt)\n")
     sys.exit(2)
@@ -77,6 +80,13 @@ def main() -> int:
                                   "is not at one true object of its label")
                 elif track_object.setdefault(det.id, near[0]["label"]) != near[0]["label"]:
                     errors.append(f"frame {frame}: track {det.id} switched objects")
+    if args.bag.is_dir():
+        with Reader(args.bag) as bag:
+            listed = {c.topic: c.msgcount for c in bag.connections}
+            if listed != per_topic:
+                errors.append(f"metadata.yaml lists {listed}, the messages read are {per_topic}")
+            if bag.message_count != sum(per_topic.values()):
+                errors.append(f"metadata.yaml message_count {bag.message_count}")
     if tracks_messages != args.messages:
         errors.append(f"{args.tracks_topic}: {tracks_messages} messages, expected {args.messages}")
     if len(ids) != args.ids:

@@ -100,6 +100,38 @@ fn rosbags_bag_round_trips_through_track() {
     assert!(!ok, "rosbags should not decode probmot.Tracks3D: {text}");
 }
 
+#[test]
+fn rosbags_bag_directory_in_bag_directory_out() {
+    if !python_has("rosbags, numpy") {
+        skip(
+            "rosbags_bag_directory_in_bag_directory_out",
+            "python3 cannot import rosbags (pip install -r scripts/requirements.txt)",
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let bag = make_bag(dir.path());
+    let out = dir.path().join("tracked_bag");
+    probmot_ok(&[
+        "track",
+        bag.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+    ]);
+    assert!(out.join("metadata.yaml").is_file());
+    // rosbags opens the directory through its metadata.yaml; the checker also compares the
+    // topics and counts listed there with the messages read.
+    let (ok, text) = check_with_rosbags(&out, &dir.path().join("truth.jsonl"));
+    assert!(ok, "rosbags on the tracked bag directory: {text}");
+    let yaml = std::fs::read_to_string(out.join("metadata.yaml")).unwrap();
+    assert!(yaml.contains("name: \"/tracks\""), "{yaml}");
+    // An existing, non-empty output directory is refused.
+    let again = probmot(&["track", bag.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert!(!again.status.success());
+    assert!(String::from_utf8_lossy(&again.stderr).contains("exists"));
+}
+
 /// The tracks channel of `path`: (schema name, message encoding, message bytes).
 fn tracks_channel(path: &Path) -> Vec<(String, String, Vec<u8>)> {
     messages(path)

@@ -10,6 +10,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::progress::{no_progress, Progress};
+use probmot::pipeline::rosbag_dir;
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use probmot::pipeline::tracks_format::TracksFormat;
 use rayon::prelude::*;
@@ -41,6 +42,7 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
 ///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks; --tracks-format probmot for probmot's)
+///   probmot track my_bag/ -o my_bag_tracked/       (rosbag2 directory in and out, with metadata.yaml)
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
@@ -48,10 +50,11 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct TrackArgs {
-    /// Input MCAP file(s).
+    /// Input MCAP file(s), or one rosbag2 bag directory (metadata.yaml + one .mcap file; the
+    /// output -o is then a new bag directory with an updated metadata.yaml).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
-    /// Output file (one input).
+    /// Output file (one input); a new bag directory when the input is a bag directory.
     #[arg(short, long, conflicts_with = "out_dir")]
     output: Option<PathBuf>,
     /// Output directory (any number of inputs; each output keeps its input's file name).
@@ -227,7 +230,22 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             } else {
                 ProgressBar::hidden()
             };
-            let s = track_file(&a.inputs[0], out, &opts, &|e| show(&bar, e))?;
+            // A bag directory in: a bag directory out, with its metadata.yaml.
+            let bag = rosbag_dir::bag_mcap(&a.inputs[0])?;
+            let (input, out) = match &bag {
+                Some(mcap) => (mcap.clone(), rosbag_dir::prepare_output(out, mcap)?),
+                None => (a.inputs[0].clone(), out.clone()),
+            };
+            let s = track_file(&input, &out, &opts, &|e| show(&bar, e));
+            if let (Err(_), Some(dir)) = (&s, out.parent().filter(|_| bag.is_some())) {
+                // Leave no empty bag directory behind (fails harmlessly when not empty).
+                let _ = std::fs::remove_dir(dir);
+            }
+            let s = s?;
+            if let (Some(_), Some(dir)) = (&bag, out.parent()) {
+                rosbag_dir::write_metadata(dir, &out)?;
+            }
+            let out = &out;
             bar.finish_and_clear();
             for w in &s.warnings {
                 eprintln!("warning: {w}");
@@ -295,6 +313,13 @@ fn run_many(
     }
     let mut outputs = Vec::new();
     for i in &a.inputs {
+        if i.is_dir() {
+            bail!(
+                "{}: a directory (a rosbag2 bag?); track a bag directory with -o OUT_BAG_DIR, \
+                 one at a time",
+                i.display()
+            );
+        }
         let o = output_in(dir, i)?;
         if outputs.contains(&o) {
             bail!("two inputs would both be written to {}", o.display());

@@ -11,3 +11,4 @@ pub mod progress;
 pub mod track;
 pub mod track_outputs;
 pub mod tracks_format;
+pub mod rosbag_dir;
