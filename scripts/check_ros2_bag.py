@@ -9,6 +9,8 @@ metadata.yaml, or a single .mcap file), decodes each one, and checks the tracks 
 - with `--truth FILE` (the JSON lines printed by scripts/make_rosbag_fixture.py): every track's
   box centre is within 0.5 m of the true centre of one object, the same object for all of that
   track's frames, with the object's label;
+- when `mcap-ros2-support` is installed, it decodes the tracks topic too (its own CDR decoder,
+  driven by the schema text): the same number of messages and the same ids;
 - for a bag directory: its metadata.yaml (read by rosbags' rosbag2 Reader, as `ros2 bag info`
   shows it) lists every topic with the number of messages actually read, and its total.
 
@@ -35,6 +37,26 @@ except ImportError as e:  # pragma: no cover - depends on the environment
     sys.exit(2)
 
 TRACKS_TYPE = "vision_msgs/msg/Detection3DArray"
+
+
+def mcap_ros2_check(bag: Path, topic: str, count: int, ids: set, errors: list) -> str:
+    """Decodes the tracks with mcap-ros2-support when installed; returns a note for the summary."""
+    try:
+        from mcap.reader import make_reader
+        from mcap_ros2.decoder import DecoderFactory
+    except ImportError:
+        return ""
+    files = sorted(bag.glob("*.mcap")) if bag.is_dir() else [bag]
+    n, seen = 0, set()
+    for path in files:
+        with open(path, "rb") as f:
+            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            for _, _, _, msg in reader.iter_decoded_messages(topics=[topic]):
+                n += 1
+                seen |= {d.id for d in msg.detections}
+    if (n, seen) != (count, ids):
+        errors.append(f"mcap-ros2-support decodes {n} messages with ids {sorted(seen)}")
+    return f"; mcap-ros2-support: {n} messages, {len(seen)} ids"
 
 
 def main() -> int:
@@ -80,6 +102,7 @@ def main() -> int:
                                   "is not at one true object of its label")
                 elif track_object.setdefault(det.id, near[0]["label"]) != near[0]["label"]:
                     errors.append(f"frame {frame}: track {det.id} switched objects")
+    mcap_ros2 = mcap_ros2_check(args.bag, args.tracks_topic, tracks_messages, ids, errors)
     if args.bag.is_dir():
         with Reader(args.bag) as bag:
             listed = {c.topic: c.msgcount for c in bag.connections}
@@ -95,7 +118,7 @@ def main() -> int:
     if errors:
         print("\n".join(errors[:20]))
         return 1
-    print(f"ok: {summary}; {len(ids)} track ids")
+    print(f"ok: {summary}; {len(ids)} track ids{mcap_ros2}")
     return 0
 
 
