@@ -84,6 +84,13 @@ fn rosbags_bag_round_trips_through_track() {
         text.contains("/perception/detections 60, /tracks 60"),
         "{text}"
     );
+    if python_has("mcap_ros2") {
+        // The second independent decoder (mcap-ros2-support) agrees.
+        assert!(
+            text.contains("mcap-ros2-support: 60 messages, 3 ids"),
+            "{text}"
+        );
+    }
 
     // The same check fails on probmot's own tracks (the report): it is not vacuous.
     let pb = dir.path().join("tracked-probmot.mcap");
