@@ -77,6 +77,7 @@ pub struct TrackArgs {
     /// Detection3D.id, label and score in the hypothesis, box in bbox; readable by ROS 2 tools).
     /// Default: ros2 when the input is a ROS 2 bag (MCAP profile `ros2`) or its detections are
     /// ROS 2 messages, else probmot. With ros2, --scene-topic and --tracks-frame ego are refused.
+    /// See docs/ros2.md.
     /// Example: probmot track bag.mcap -o out.mcap --tracks-format probmot
     #[arg(long, value_enum, value_name = "FORMAT")]
     tracks_format: Option<TracksFormatArg>,

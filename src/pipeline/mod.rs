@@ -8,7 +8,7 @@ pub mod kitti_io;
 pub mod nuscenes_io;
 pub mod nuscenes_tracks;
 pub mod progress;
+pub mod rosbag_dir;
 pub mod track;
 pub mod track_outputs;
 pub mod tracks_format;
-pub mod rosbag_dir;
