@@ -304,6 +304,9 @@ fn plot_draws_ros2_and_foxglove_detections_like_probmot_ones() {
             "-o",
             tracked.to_str().unwrap(),
             "--quiet",
+            // plot reads probmot.Tracks3D tracks (a ROS 2 input's default is ROS 2 tracks).
+            "--tracks-format",
+            "probmot",
         ]);
         let png = dir.path().join(format!("{name}.png"));
         probmot_ok(&[

@@ -29,6 +29,8 @@ const PROBMOT_LOG: &str = "sample_logs/city.mcap";
 const ROS2_V2_FIXTURE: &str = "tests/fixtures/ros2/turning-car-vision_msgs2.mcap";
 const PROBMOT_V2_LOG: &str = "sample_logs/turning-car.mcap";
 
+/// Tracks into probmot.Tracks3D (every field, to compare in full; a ROS 2 input's default is
+/// ROS 2 tracks, compared with these in tests/ros2_bag_output.rs).
 fn track(input: &Path, output: &Path) {
     probmot_ok(&[
         "track",
@@ -36,6 +38,8 @@ fn track(input: &Path, output: &Path) {
         "-o",
         output.to_str().unwrap(),
         "--quiet",
+        "--tracks-format",
+        "probmot",
     ]);
 }
 
