@@ -41,8 +41,8 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
-///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks; --tracks-format probmot for probmot's)
-///   probmot track my_bag/ -o my_bag_tracked/       (rosbag2 directory in and out, with metadata.yaml)
+///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks: see --tracks-format)
+///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out)
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
