@@ -8,4 +8,6 @@ pub mod kitti_io;
 pub mod nuscenes_io;
 pub mod progress;
 pub mod track;
+pub mod track_options;
 pub mod track_outputs;
+pub mod track_session;
