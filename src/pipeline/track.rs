@@ -355,6 +355,45 @@ fn selection_warnings(s: &Scan, opts: &TrackOptions, file: &str, warnings: &mut 
     }
 }
 
+/// Creates the output (written on a thread of its own with [`TrackOptions::background_writer`])
+/// and adds the tracks channel and the extra channels when there are detections (`ids`).
+fn create_output(
+    output: &Path,
+    opts: &TrackOptions,
+    profile: String,
+    ids: Option<(u16, u16)>,
+    extra: &ExtraOutputs,
+) -> Result<BackgroundOutput> {
+    let out_opts = OutputOptions {
+        profile,
+        compression: opts.compression,
+        ..Default::default()
+    };
+    let mut out = if opts.background_writer {
+        BackgroundOutput::create(output, &out_opts)?
+    } else {
+        BackgroundOutput::create_inline(output, &out_opts)?
+    };
+    if let Some((schema_id, channel_id)) = ids {
+        out.add_schema_with_id(
+            schema_id,
+            msgs::TRACKS_SCHEMA,
+            "protobuf",
+            msgs::DESCRIPTOR_SET,
+        )?;
+        out.add_channel_with_id(
+            channel_id,
+            schema_id,
+            &opts.tracks_topic,
+            "protobuf",
+            &BTreeMap::new(),
+        )?;
+        extra.add_channels(&mut out, schema_id)?;
+    }
+
+    Ok(out)
+}
+
 /// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
 /// the first pass or the summary; `None` with `--no-track`), `base` the progress already made.
 fn run_pass(
@@ -418,32 +457,7 @@ fn run_pass(
     };
     let extra = ExtraOutputs::new(&request, &file, scan_ids.as_ref(), ids)?;
 
-    let out_opts = OutputOptions {
-        profile,
-        compression: opts.compression,
-        ..Default::default()
-    };
-    let mut out = if opts.background_writer {
-        BackgroundOutput::create(output, &out_opts)?
-    } else {
-        BackgroundOutput::create_inline(output, &out_opts)?
-    };
-    if let Some((schema_id, channel_id)) = ids {
-        out.add_schema_with_id(
-            schema_id,
-            msgs::TRACKS_SCHEMA,
-            "protobuf",
-            msgs::DESCRIPTOR_SET,
-        )?;
-        out.add_channel_with_id(
-            channel_id,
-            schema_id,
-            &opts.tracks_topic,
-            "protobuf",
-            &BTreeMap::new(),
-        )?;
-        extra.add_channels(&mut out, schema_id)?;
-    }
+    let out = create_output(output, opts, profile, ids, &extra)?;
 
     let mut session = TrackSession {
         opts,
