@@ -9,4 +9,6 @@ pub mod nuscenes_io;
 pub mod nuscenes_tracks;
 pub mod progress;
 pub mod track;
+pub mod track_options;
 pub mod track_outputs;
+pub mod track_session;
