@@ -11,11 +11,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use common::{detections, messages, probmot, probmot_ok, repo, tracks};
-use probmot::mcapio::reader::read_records;
-use probmot::msgs::{self, Track3D, Tracks3D};
-use probmot::pipeline::nuscenes_io::{
+use probmot::formats::nuscenes::{
     quaternion_yaw, Submission, EGO_POSE_SCHEMA, NUSCENES_METADATA, SAMPLES_METADATA,
 };
+use probmot::mcapio::reader::read_records;
+use probmot::msgs::{self, Track3D, Tracks3D};
 use serde_json::{json, Value};
 
 const CLASSES: [&str; 7] = [

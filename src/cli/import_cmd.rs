@@ -5,10 +5,10 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use probmot::pipeline::kitti_io::{export_kitti, import_kitti, resolve_detection_files};
-use probmot::pipeline::nuscenes_io::{
+use probmot::formats::nuscenes::{
     export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
 };
+use probmot::pipeline::kitti_io::{export_kitti, import_kitti, resolve_detection_files};
 
 /// Convert a dataset's files to an MCAP recording.
 #[derive(Debug, Args)]
