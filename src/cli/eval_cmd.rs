@@ -15,7 +15,7 @@ use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_with, Scene};
-use probmot::pipeline::nuscenes_io::BIKE_RACKS_TOPIC;
+use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use rayon::prelude::*;
 
 /// Evaluation protocols.

@@ -5,11 +5,11 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
+use probmot::formats::nuscenes::{
+    export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
+};
 use probmot::pipeline::kitti_io::{
     export_kitti, import_kitti, resolve_detection_files, TracksInput,
-};
-use probmot::pipeline::nuscenes_io::{
-    export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
 };
 
 /// Convert a dataset's files to an MCAP recording.

@@ -5,8 +5,6 @@ pub mod ego;
 pub mod frame_schedule;
 pub mod info;
 pub mod kitti_io;
-pub mod nuscenes_io;
-pub mod nuscenes_tracks;
 pub mod progress;
 pub mod track;
 pub mod track_options;
