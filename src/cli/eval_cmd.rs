@@ -373,8 +373,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
-    let result = evaluate(&scenes, &params);
-    let (hota, hota_notes) = centre_hota(&scenes, &params.classes);
+    let (result, (hota, hota_notes)) = rayon::join(
+        || evaluate(&scenes, &params),
+        || centre_hota(&scenes, &params.classes),
+    );
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",
