@@ -16,7 +16,13 @@ use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 /// should not happen) the signals keep their default action and a warning says so.
 pub fn install() {
     {
-        let mut signals = match signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) {
+        // A signal the parent set to be ignored stays ignored: `nohup` (SIGHUP) and background
+        // jobs of a non-interactive shell (SIGINT) rely on it.
+        let wanted: Vec<i32> = [SIGINT, SIGTERM, SIGHUP]
+            .into_iter()
+            .filter(|&sig| !ignored(sig))
+            .collect();
+        let mut signals = match signal_hook::iterator::Signals::new(wanted) {
             Ok(s) => s,
             Err(e) => {
                 eprintln!("warning: cannot handle interrupts ({e}); an interrupted run may leave a .probmot-partial file");
@@ -33,6 +39,16 @@ pub fn install() {
                 }
             })
             .expect("start the signal thread");
+    }
+}
+
+/// Whether `sig` is set to be ignored (inherited from the parent process).
+fn ignored(sig: i32) -> bool {
+    // SAFETY: sigaction with a null new action only reads the current one into `old`, a
+    // zero-initialised plain C struct.
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
     }
 }
 

@@ -524,7 +524,13 @@ fn devkit_flag_on_imported_tables_equals_the_devkits_whole_evaluation() {
     // --devkit is the three filters spelled out, and leaving any one out changes the result.
     let spelled = eval_json(
         &logs,
-        &["--max-range", "nuscenes", "--min-points", "1", "--bike-racks"],
+        &[
+            "--max-range",
+            "nuscenes",
+            "--min-points",
+            "1",
+            "--bike-racks",
+        ],
     );
     assert_eq!(spelled["result"], ours["result"]);
     for partial in [
@@ -533,7 +539,10 @@ fn devkit_flag_on_imported_tables_equals_the_devkits_whole_evaluation() {
         vec!["--max-range", "--min-points", "1"],
     ] {
         let r = eval_json(&logs, &partial);
-        assert_ne!(r["result"]["overall"], ours["result"]["overall"], "{partial:?}");
+        assert_ne!(
+            r["result"]["overall"], ours["result"]["overall"],
+            "{partial:?}"
+        );
     }
 }
 

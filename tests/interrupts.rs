@@ -48,7 +48,12 @@ fn entries(dir: &Path) -> Vec<String> {
 
 /// Starts `probmot track ARGS` and waits until a partial file shows up in `out_dir`.
 fn start_track(args: &[&str], out_dir: &Path) -> Child {
-    let mut child = bin()
+    start_track_with(bin(), args, out_dir)
+}
+
+/// As [`start_track`], the binary started by `cmd` (e.g. through `nohup`).
+fn start_track_with(mut cmd: std::process::Command, args: &[&str], out_dir: &Path) -> Child {
+    let mut child = cmd
         .arg("track")
         .args(args)
         .stdout(Stdio::piped())
@@ -168,4 +173,24 @@ fn a_stale_partial_file_of_a_killed_run_is_removed_by_the_next_run() {
     );
     // The output is the complete, normal one.
     assert!(!common::tracks(&out, "/tracks").is_empty());
+}
+
+#[test]
+fn sighup_stays_ignored_under_nohup() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.mcap");
+    let mut nohup = std::process::Command::new("nohup");
+    nohup.arg(env!("CARGO_BIN_EXE_probmot"));
+    let args = [long_log().to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let mut child = start_track_with(nohup, &args, dir.path());
+    signal(&child, libc::SIGHUP);
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "SIGHUP ended a nohup run"
+    );
+    signal(&child, libc::SIGTERM);
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(128 + libc::SIGTERM));
+    assert_eq!(entries(dir.path()), Vec::<String>::new());
 }

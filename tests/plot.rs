@@ -109,10 +109,7 @@ fn plot_draws_three_panels_with_colours_per_track_and_text() {
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
-    assert!(
-        names.iter().all(|n| !n.contains(".probmot-")),
-        "{names:?}"
-    );
+    assert!(names.iter().all(|n| !n.contains(".probmot-")), "{names:?}");
 
     let pic = Picture::read(&png);
     assert_eq!((pic.width, pic.height), (w, h), "size as requested");

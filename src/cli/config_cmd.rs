@@ -13,9 +13,9 @@ use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 /// Print a built-in preset as JSON, or load, validate and print a config file.
 ///
 /// Examples:
-///   probmot config --preset nuscenes-chiu2019 > my.json
-///   probmot config --check my.json
-///   probmot config --preset ab3dmot-kitti
+///   probmot config --preset nuscenes-chiu2019 > my.json   # a preset to edit
+///   probmot config --config my.json                      # validate the edited file, print it
+///   probmot config --preset ab3dmot-kitti                # AB3DMOT's own KITTI settings
 ///   probmot config --list
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]

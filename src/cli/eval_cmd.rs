@@ -15,7 +15,7 @@ use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_with, Scene};
-use probmot::pipeline::nuscenes_io::BIKE_RACKS_TOPIC;
+use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use rayon::prelude::*;
 
 /// Evaluation protocols.
@@ -373,8 +373,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
-    let result = evaluate(&scenes, &params);
-    let (hota, hota_notes) = centre_hota(&scenes, &params.classes);
+    let (result, (hota, hota_notes)) = rayon::join(
+        || evaluate(&scenes, &params),
+        || centre_hota(&scenes, &params.classes),
+    );
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",

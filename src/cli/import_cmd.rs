@@ -5,15 +5,20 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
+use probmot::formats::nuscenes::{
+    export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
+};
 use probmot::pipeline::kitti_io::{
     export_kitti, import_kitti, resolve_detection_files, TracksInput,
 };
-use probmot::pipeline::nuscenes_io::{
-    export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
-};
 
 /// Convert a dataset's files to an MCAP recording.
+///
+/// Examples:
+///   probmot import kitti --labels label_02/0000.txt --detections pointrcnn/ -o 0000.mcap
+///   probmot import nuscenes --detections results.json --meta v1.0-trainval/ -o scenes/
 #[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
 pub struct ImportArgs {
     #[command(subcommand)]
     format: ImportFormat,
@@ -74,7 +79,12 @@ struct ImportKitti {
 }
 
 /// Write a tracks (or ground-truth) channel in a dataset's result format.
+///
+/// Examples:
+///   probmot export kitti 0000.tracked.mcap -o results/0000.txt
+///   probmot export nuscenes scenes_tracked/*.mcap -o tracking_results.json
 #[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
 pub struct ExportArgs {
     #[command(subcommand)]
     format: ExportFormat,

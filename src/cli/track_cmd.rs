@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use probmot::mcapio::writer::OutputCompression;
+use probmot::mcapio::writer::{check_output_path, OutputCompression};
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::progress::{no_progress, Progress};
 use probmot::pipeline::rosbag_dir;
@@ -25,8 +25,9 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// attachments, metadata) is copied unchanged; the tracks are written one message per frame,
 /// with log_time = the frame's stamp, as `probmot.Tracks3D` or, for ROS 2 inputs,
 /// `vision_msgs/msg/Detection3DArray` (see --tracks-format). Frames are the distinct
-/// detection stamps, replayed in stamp order. The output is written to a temporary file and
-/// renamed at the end; the input is never modified.
+/// detection stamps, replayed in stamp order. The output is written to a partial file beside it
+/// (.NAME.probmot-partial) and renamed at the end; the input is never modified. --out-dir is
+/// created when missing. Ctrl-C, SIGTERM or SIGHUP remove the partial files (exit 130/143/129).
 ///
 /// Detection inputs, chosen by each channel's schema and encodings (no flag needed):
 ///   probmot.Detections3D               protobuf or json
@@ -57,7 +58,8 @@ pub struct TrackArgs {
     /// Output file (one input); a new bag directory when the input is a bag directory.
     #[arg(short, long, conflicts_with = "out_dir")]
     output: Option<PathBuf>,
-    /// Output directory (any number of inputs; each output keeps its input's file name).
+    /// Output directory, created when missing (any number of inputs; each output keeps its
+    /// input's file name).
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
     /// Threads to use (default: number of cores). With --out-dir, files run in parallel on N
@@ -176,7 +178,51 @@ fn print_summary(s: &TrackSummary) {
     );
 }
 
+/// Checks every output path before any work, creating `--out-dir` when it does not exist; returns
+/// the `--out-dir` outputs (empty with `-o`).
+fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
+    match (&a.output, &a.out_dir) {
+        (Some(out), None) => {
+            if a.inputs.len() != 1 {
+                bail!("-o takes one input; use --out-dir DIR for several inputs");
+            }
+            // A bag directory's output is a new bag directory, checked (and created) by
+            // rosbag_dir::prepare_output before any work.
+            if !a.inputs[0].is_dir() {
+                check_output_path(Some(&a.inputs[0]), out)?;
+            }
+            Ok(Vec::new())
+        }
+        (None, Some(dir)) => {
+            if let Some(i) = a.inputs.iter().find(|i| i.is_dir()) {
+                bail!(
+                    "{}: a directory (a rosbag2 bag?); track a bag directory with -o \
+                     OUT_BAG_DIR, one at a time",
+                    i.display()
+                );
+            }
+            if dir.exists() && !dir.is_dir() {
+                bail!("--out-dir {} exists and is not a directory", dir.display());
+            }
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+            let mut outputs = Vec::new();
+            for i in &a.inputs {
+                let o = output_in(dir, i)?;
+                if outputs.contains(&o) {
+                    bail!("two inputs would both be written to {}", o.display());
+                }
+                check_output_path(Some(i), &o)?;
+                outputs.push(o);
+            }
+            Ok(outputs)
+        }
+        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
+    }
+}
+
 pub fn run(a: TrackArgs) -> Result<ExitCode> {
+    let outputs = check_outputs(&a)?;
     if let Some(rrd) = &a.rerun {
         if !cfg!(feature = "rerun") {
             bail!("--rerun: {NEEDS_FEATURE}");
@@ -223,9 +269,6 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {
         (Some(out), None) => {
-            if a.inputs.len() != 1 {
-                bail!("-o takes one input; use --out-dir DIR for several inputs");
-            }
             let bar = if progress {
                 ProgressBar::new(0).with_style(bar_style())
             } else {
@@ -261,8 +304,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        (None, Some(dir)) => run_many(&a, dir, &opts, jobs, progress),
-        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
+        _ => run_many(&a, &outputs, &opts, jobs, progress),
     }
 }
 
@@ -304,29 +346,11 @@ fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
 
 fn run_many(
     a: &TrackArgs,
-    dir: &Path,
+    outputs: &[PathBuf],
     opts: &TrackOptions,
     jobs: usize,
     progress: bool,
 ) -> Result<ExitCode> {
-    if !dir.is_dir() {
-        bail!("output directory {} does not exist", dir.display());
-    }
-    let mut outputs = Vec::new();
-    for i in &a.inputs {
-        if i.is_dir() {
-            bail!(
-                "{}: a directory (a rosbag2 bag?); track a bag directory with -o OUT_BAG_DIR, \
-                 one at a time",
-                i.display()
-            );
-        }
-        let o = output_in(dir, i)?;
-        if outputs.contains(&o) {
-            bail!("two inputs would both be written to {}", o.display());
-        }
-        outputs.push(o);
-    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs.max(1))
         .build()
@@ -344,7 +368,7 @@ fn run_many(
     let results: Vec<Result<TrackSummary>> = pool.install(|| {
         a.inputs
             .par_iter()
-            .zip(&outputs)
+            .zip(outputs)
             .map(|(input, output)| {
                 let r = track_file(input, output, opts, &no_progress);
                 if r.is_err() {

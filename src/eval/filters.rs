@@ -19,7 +19,7 @@ use serde::Serialize;
 
 use super::range::RangeRemoved;
 use super::scene::{read_tracks_topic, EvalBox, Scene};
-use crate::pipeline::nuscenes_io::attr;
+use crate::formats::nuscenes::attr;
 
 /// Boxes each filter removed, in the devkit's order; `None` for a filter that was off.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]

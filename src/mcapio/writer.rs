@@ -182,8 +182,15 @@ pub fn library_string() -> String {
     format!("probmot {}", env!("CARGO_PKG_VERSION"))
 }
 
-/// Checks an output path before any work: its directory exists and it is not the input.
+/// Checks an output path before any work: it is not a directory, its directory exists and it is
+/// not the input.
 pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {
+    if dest.is_dir() {
+        bail!(
+            "output {} is a directory; give the path of a file to write",
+            dest.display()
+        );
+    }
     let dir = parent_dir(dest);
     if !dir.is_dir() {
         bail!(

@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use mcap::records::MessageHeader;
 use nalgebra::Isometry3;
 
-use crate::mcapio::background::BackgroundOutput;
+use crate::mcapio::sink::RecordSink;
 use crate::msgs::scene_update::{
     scene_update_descriptor, SceneEncoder, OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA,
 };
@@ -100,7 +100,7 @@ impl ExtraOutputs {
 
     /// Adds the planned channels to the output (`tracks_schema`: the `probmot.Tracks3D` schema
     /// id already added).
-    pub fn add_channels(&self, w: &mut BackgroundOutput, tracks_schema: u16) -> Result<()> {
+    pub fn add_channels(&self, w: &mut impl RecordSink, tracks_schema: u16) -> Result<()> {
         if let Some((topic, id)) = &self.ego {
             w.add_channel_with_id(*id, tracks_schema, topic, "protobuf", &BTreeMap::new())?;
         }
@@ -123,7 +123,7 @@ impl ExtraOutputs {
     /// deletions for the tracks shown before and not reported now).
     pub fn write_frame(
         &mut self,
-        w: &mut BackgroundOutput,
+        w: &mut impl RecordSink,
         tracks: &Tracks3D,
         ego: Option<(String, Isometry3<f64>)>,
         sequence: u32,

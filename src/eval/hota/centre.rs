@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{combine, duplicate_id, eval_sequence, relabel, Hota};
+use super::{eval_scenes, Hota};
 use crate::eval::scene::Scene;
 
 /// Distance (m) at which the similarity reaches 0.
@@ -25,11 +25,9 @@ pub fn centre_similarity(gt: &[f64; 3], tr: &[f64; 3]) -> f64 {
 pub fn centre_hota(scenes: &[Scene], classes: &[String]) -> (BTreeMap<String, Hota>, Vec<String>) {
     let mut out = BTreeMap::new();
     let mut notes = Vec::new();
-    'class: for c in classes {
-        let mut seqs = Vec::with_capacity(scenes.len());
-        let mut any = false;
-        for scene in scenes {
-            let raw: Vec<_> = scene
+    for c in classes {
+        let prepared = eval_scenes(scenes, |scene| {
+            scene
                 .frames
                 .iter()
                 .map(|(_, g, t)| {
@@ -40,26 +38,19 @@ pub fn centre_hota(scenes: &[Scene], classes: &[String]) -> (BTreeMap<String, Ho
                         .flat_map(|a| t.iter().map(|b| centre_similarity(&a.center, &b.center)))
                         .collect();
                     (
-                        g.iter().map(|b| b.id as i64).collect::<Vec<_>>(),
-                        t.iter().map(|b| b.id as i64).collect::<Vec<_>>(),
+                        g.iter().map(|b| b.id as i64).collect(),
+                        t.iter().map(|b| b.id as i64).collect(),
                         sim,
                     )
                 })
-                .collect();
-            any |= raw.iter().any(|(g, t, _)| !g.is_empty() || !t.is_empty());
-            if let Some((frame, id, what)) = duplicate_id(&raw) {
-                notes.push(format!(
-                    "HOTA: class {c} is not evaluated: {}, frame {frame}: {what} id {id} occurs \
-                     twice",
-                    scene.name
-                ));
-                continue 'class;
+                .collect()
+        });
+        match prepared {
+            Ok((counts, true)) => {
+                out.insert(c.clone(), Hota::from_counts(&counts));
             }
-            let (frames, n_gt, n_tr) = relabel(raw);
-            seqs.push(eval_sequence(&frames, n_gt, n_tr));
-        }
-        if any {
-            out.insert(c.clone(), Hota::from_counts(&combine(&seqs)));
+            Ok((_, false)) => {}
+            Err(e) => notes.push(format!("HOTA: class {c} is not evaluated: {e}")),
         }
     }
     (out, notes)

@@ -14,7 +14,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{combine, duplicate_id, eval_sequence, relabel, Hota, EPS};
+use super::{eval_scenes, Hota, RawFrame, EPS};
 use crate::eval::scene::{EvalBox, Scene};
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
@@ -119,9 +119,6 @@ struct Gt<'a> {
     truncation: i64,
     b: &'a EvalBox,
 }
-
-/// One frame of one class, after the preprocessing: `(truth ids, track ids, similarity)`.
-type RawFrame = (Vec<i64>, Vec<i64>, Vec<f64>);
 
 fn prepare_frame(
     truth: &[EvalBox],
@@ -232,30 +229,20 @@ pub fn kitti_hota(
                 continue;
             }
         };
-        let mut seqs = Vec::with_capacity(scenes.len());
-        let mut refused = None;
-        for scene in scenes {
-            let raw: Vec<RawFrame> = scene
+        let prepared = eval_scenes(scenes, |scene| {
+            scene
                 .frames
                 .iter()
                 .map(|(_, g, t)| prepare_frame(g, t, cls, distractor, sim))
-                .collect();
-            if let Some((frame, id, what)) = duplicate_id(&raw) {
-                refused = Some(format!(
-                    "HOTA: class {c} is not evaluated: {}, frame {frame}: {what} id {id} occurs \
-                     twice (TrackEval refuses such data)",
-                    scene.name
-                ));
-                break;
+                .collect()
+        });
+        match prepared {
+            Ok((counts, _)) => {
+                out.insert(c, Hota::from_counts(&counts));
             }
-            let (frames, n_gt, n_tr) = relabel(raw);
-            seqs.push(eval_sequence(&frames, n_gt, n_tr));
-        }
-        match refused {
-            Some(n) => notes.push(n),
-            None => {
-                out.insert(c, Hota::from_counts(&combine(&seqs)));
-            }
+            Err(e) => notes.push(format!(
+                "HOTA: class {c} is not evaluated: {e} (TrackEval refuses such data)"
+            )),
         }
     }
     (out, notes)

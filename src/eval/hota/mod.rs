@@ -383,7 +383,7 @@ impl Hota {
 
 /// Maps the ids of one sequence's frames (given as raw ids) to `0..n`; returns the frames and the
 /// number of distinct truth and track ids.
-pub fn relabel(raw: Vec<(Vec<i64>, Vec<i64>, Vec<f64>)>) -> (Vec<HotaFrame>, usize, usize) {
+pub fn relabel(raw: Vec<RawFrame>) -> (Vec<HotaFrame>, usize, usize) {
     let mut gt_ids: HashMap<i64, u32> = HashMap::new();
     let mut tr_ids: HashMap<i64, u32> = HashMap::new();
     let next = |map: &mut HashMap<i64, u32>, id: i64| {
@@ -401,9 +401,48 @@ pub fn relabel(raw: Vec<(Vec<i64>, Vec<i64>, Vec<f64>)>) -> (Vec<HotaFrame>, usi
     (frames, gt_ids.len(), tr_ids.len())
 }
 
+/// One frame of one class before relabelling: `(truth ids, track ids, similarity)`.
+pub type RawFrame = (Vec<i64>, Vec<i64>, Vec<f64>);
+
+/// Prepares (with `prepare`) and evaluates every scene as one sequence, in parallel, and
+/// combines them in scene order. Also says whether any box was there. `Err`: the first scene
+/// whose frames hold an id twice, as `"scene, frame F: truth/track id N occurs twice"`.
+pub fn eval_scenes<F>(
+    scenes: &[crate::eval::scene::Scene],
+    prepare: F,
+) -> Result<(HotaCounts, bool), String>
+where
+    F: Fn(&crate::eval::scene::Scene) -> Vec<RawFrame> + Sync,
+{
+    use rayon::prelude::*;
+    let per_scene: Vec<Result<(HotaCounts, bool), String>> = scenes
+        .par_iter()
+        .map(|scene| {
+            let raw = prepare(scene);
+            if let Some((frame, id, what)) = duplicate_id(&raw) {
+                return Err(format!(
+                    "{}, frame {frame}: {what} id {id} occurs twice",
+                    scene.name
+                ));
+            }
+            let any = raw.iter().any(|(g, t, _)| !g.is_empty() || !t.is_empty());
+            let (frames, n_gt, n_tr) = relabel(raw);
+            Ok((eval_sequence(&frames, n_gt, n_tr), any))
+        })
+        .collect();
+    let mut seqs = Vec::with_capacity(per_scene.len());
+    let mut any = false;
+    for r in per_scene {
+        let (c, a) = r?;
+        seqs.push(c);
+        any |= a;
+    }
+    Ok((combine(&seqs), any))
+}
+
 /// The first id that occurs twice in one frame, as `(frame index, id, "truth"/"track")`;
 /// TrackEval refuses such data.
-pub fn duplicate_id(raw: &[(Vec<i64>, Vec<i64>, Vec<f64>)]) -> Option<(usize, i64, &'static str)> {
+pub fn duplicate_id(raw: &[RawFrame]) -> Option<(usize, i64, &'static str)> {
     for (fi, (g, t, _)) in raw.iter().enumerate() {
         for (ids, what) in [(g, "truth"), (t, "track")] {
             let mut seen = std::collections::HashSet::new();

@@ -10,9 +10,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use serde::Deserialize;
 
-use super::nuscenes_io::{
-    attr, quaternion_yaw, TrackingBox, BIKE_RACK_LABEL, MAX_BOXES_PER_SAMPLE,
-};
+use super::{attr, quaternion_yaw, TrackingBox, BIKE_RACK_LABEL, MAX_BOXES_PER_SAMPLE};
 use crate::msgs::{v3, Size3, Track3D};
 use crate::tracker::config::NUSCENES_CLASSES;
 
