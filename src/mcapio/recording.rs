@@ -16,6 +16,8 @@ use mcap::records::Record;
 use super::reader::read_records;
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
+use crate::msgs::ros2_tracks;
+use crate::msgs::ros2_vision::{self, VisionLayout};
 use crate::msgs::{self, Detection3D, Encoding, Track3D, Tracks3D, TRACKS_SCHEMA};
 
 /// What a requested topic holds.
@@ -23,7 +25,9 @@ use crate::msgs::{self, Detection3D, Encoding, Track3D, Tracks3D, TRACKS_SCHEMA}
 pub enum TopicKind {
     /// Detections of any supported input schema ([`DetectionSource`]).
     Detections,
-    /// `probmot.Tracks3D` (tracks or ground truth) in protobuf or JSON.
+    /// `probmot.Tracks3D` (tracks or ground truth) in protobuf or JSON, or ROS 2
+    /// `vision_msgs/msg/Detection3DArray` tracks (track id in `Detection3D.id`, as `track
+    /// --tracks-format ros2` writes them).
     Tracks,
 }
 
@@ -81,6 +85,7 @@ pub fn tracks_stamp(stamp: u64, log_time: u64) -> u64 {
 enum Decoder {
     Detections(DetectionSource),
     Tracks(Encoding),
+    Ros2Tracks(VisionLayout),
 }
 
 /// A schema record: name, encoding, data.
@@ -114,9 +119,22 @@ fn decoder_for(
         .map(Decoder::Detections)
         .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}")),
         TopicKind::Tracks => {
+            if ros2_vision::SCHEMA_NAMES.contains(&schema.name.as_str()) {
+                return match DetectionSource::for_channel(
+                    &schema.name,
+                    &schema.encoding,
+                    &schema.data,
+                    message_encoding,
+                ) {
+                    Ok(DetectionSource::Ros2Vision(layout)) => Ok(Decoder::Ros2Tracks(layout)),
+                    Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
+                    Err(why) => bail!("{file}: {req}: {why}"),
+                };
+            }
             if schema.name != TRACKS_SCHEMA {
                 bail!(
-                    "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} for the {}",
+                    "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
+                     vision_msgs/msg/Detection3DArray tracks) for the {}",
                     req.topic,
                     schema.name,
                     req.role
@@ -182,6 +200,14 @@ pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
                             stamp: stamp_or_log_time(m.stamp, header.log_time),
                             log_time: header.log_time,
                             boxes: Boxes::Detections(m.detections),
+                        }
+                    }
+                    Decoder::Ros2Tracks(layout) => {
+                        let m = ros2_tracks::decode_tracks(&data, *layout).with_context(ctx)?;
+                        Frame {
+                            stamp: tracks_stamp(m.stamp, header.log_time),
+                            log_time: header.log_time,
+                            boxes: Boxes::Tracks(m.tracks),
                         }
                     }
                     Decoder::Tracks(enc) => {

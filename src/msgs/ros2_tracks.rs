@@ -17,7 +17,8 @@
 //! Velocities and track ages have no field in this message; `--tracks-format probmot` writes
 //! them (`probmot.Tracks3D`).
 
-use super::{Track3D, Tracks3D};
+use super::ros2_vision::{self, VisionLayout};
+use super::{DecodeError, Track3D, Tracks3D};
 
 /// Schema name of the tracks channel, as rosbag2 names the type.
 pub const SCHEMA_NAME: &str = "vision_msgs/msg/Detection3DArray";
@@ -212,6 +213,48 @@ pub fn encode_tracks_into(tracks: &Tracks3D, buf: &mut Vec<u8>) {
     }
 }
 
+/// Reads one CDR `vision_msgs/msg/Detection3DArray` message as tracks (the inverse of
+/// [`encode_tracks_into`], for `plot`, `viz`, `eval` and `fit` of a ROS 2 tracks channel): the
+/// track id is `Detection3D.id` (vision_msgs 2.x: `tracking_id`), which must be a decimal
+/// integer; label, score, centre, size and yaw as [`ros2_vision`] reads detections. A zero
+/// `header.stamp` gives stamp 0 (the caller uses the log_time). Velocities, variances and ages
+/// stay unset.
+pub fn decode_tracks(bytes: &[u8], layout: VisionLayout) -> Result<Tracks3D, DecodeError> {
+    let m = ros2_vision::decode(bytes, layout)?;
+    let mut tracks = Vec::with_capacity(m.detections.len());
+    for (i, mut d) in m.detections.into_iter().enumerate() {
+        let id = match d.attributes.remove("id") {
+            Some(text) => text.parse::<u64>().map_err(|_| {
+                DecodeError::Content(format!(
+                    "detection {i}: id '{text}' is not a track number (probmot reads ROS 2 \
+                     tracks whose Detection3D.id is a decimal integer)"
+                ))
+            })?,
+            None => {
+                return Err(DecodeError::Content(format!(
+                    "detection {i} has an empty id; tracks need Detection3D.id set to the \
+                     track id (a decimal integer)"
+                )))
+            }
+        };
+        tracks.push(Track3D {
+            id,
+            label: d.label,
+            center: d.center,
+            size: d.size,
+            yaw: d.yaw,
+            score: d.score,
+            attributes: d.attributes,
+            ..Default::default()
+        });
+    }
+    Ok(Tracks3D {
+        stamp: m.stamp.unwrap_or(0),
+        frame_id: m.frame_id,
+        tracks,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,6 +313,56 @@ mod tests {
         let first = buf.clone();
         encode_tracks_into(&msg, &mut buf);
         assert_eq!(buf, first);
+    }
+
+    #[test]
+    fn tracks_read_back_with_their_ids() {
+        let msg = Tracks3D {
+            stamp: 1_700_000_000_250_000_000,
+            frame_id: "map".into(),
+            tracks: vec![
+                track(7, "car", [10.0, -2.5, 0.8], 0.3, 0.9),
+                track(12345678901, "pedestrian", [-1.0, 3.0, 0.9], -2.0, 0.55),
+            ],
+        };
+        let mut buf = Vec::new();
+        encode_tracks_into(&msg, &mut buf);
+        let back = decode_tracks(&buf, VisionLayout::V4).unwrap();
+        assert_eq!((back.stamp, back.frame_id.as_str()), (msg.stamp, "map"));
+        let ids: Vec<u64> = back.tracks.iter().map(|t| t.id).collect();
+        assert_eq!(ids, [7, 12345678901]);
+        for (t, b) in msg.tracks.iter().zip(&back.tracks) {
+            assert_eq!((&b.label, b.score), (&t.label, t.score));
+            assert_eq!((b.center, b.size), (t.center, t.size));
+            assert!((b.yaw - t.yaw).abs() < 1e-12);
+            assert!(b.attributes.is_empty());
+        }
+    }
+
+    #[test]
+    fn tracks_without_a_numeric_id_are_refused() {
+        // Detections (no id) written in the same layout: no track id to read.
+        let mut buf = Vec::new();
+        let mut msg = Tracks3D {
+            stamp: 5,
+            tracks: vec![track(3, "car", [1.0, 2.0, 0.0], 0.0, 0.5)],
+            ..Default::default()
+        };
+        encode_tracks_into(&msg, &mut buf);
+        // Replace the id "3" (length 2 with its NUL, the last string of the message) by "x".
+        let n = buf.len();
+        assert_eq!(&buf[n - 2..], b"3\0");
+        buf[n - 2] = b'x';
+        let err = decode_tracks(&buf, VisionLayout::V4)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("id 'x' is not a track number"), "{err}");
+        msg.tracks.clear();
+        encode_tracks_into(&msg, &mut buf);
+        assert!(decode_tracks(&buf, VisionLayout::V4)
+            .unwrap()
+            .tracks
+            .is_empty());
     }
 
     #[test]
