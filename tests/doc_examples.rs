@@ -21,6 +21,9 @@ struct Block {
     line: usize,
     text: String,
     skip: Option<String>,
+    /// Indentation of the fence (a block inside a list item); removed from each line, the rest of
+    /// a line's indentation is kept (a here-document or `python3 -c` needs it).
+    indent: usize,
 }
 
 /// The ```sh blocks of a Markdown text. Panics on a shell block in another fence language, so
@@ -35,7 +38,8 @@ fn blocks(doc: &str, name: &str) -> Vec<Block> {
             if t == "```" {
                 out.push(current.take().unwrap());
             } else {
-                b.text.push_str(t);
+                let lead = line.len() - line.trim_start().len();
+                b.text.push_str(&line[lead.min(b.indent)..]);
                 b.text.push('\n');
             }
             continue;
@@ -60,6 +64,7 @@ fn blocks(doc: &str, name: &str) -> Vec<Block> {
                     line: i + 1,
                     text: String::new(),
                     skip,
+                    indent: line.len() - line.trim_start().len(),
                 });
             }
         }
@@ -160,9 +165,13 @@ fn markers_and_blocks_are_parsed() {
     let b = blocks(doc, "t");
     assert_eq!(b.len(), 2);
     assert_eq!(b[0].skip.as_deref(), Some("needs a cluster"));
-    assert_eq!(b[0].text, "a \\\nb\n");
+    // Indentation inside the block is kept.
+    assert_eq!(b[0].text, "a \\\n  b\n");
     assert_eq!(
         (b[1].skip.as_deref(), b[1].text.as_str(), b[1].line),
         (None, "c\n", 9)
     );
+    // The fence's own indentation (a block inside a list item) is removed.
+    let listed = blocks("- item\n\n  ```sh\n  a\n    b\n  ```\n", "t");
+    assert_eq!(listed[0].text, "a\n  b\n");
 }
