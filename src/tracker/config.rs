@@ -4,6 +4,8 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+pub use super::levers::{Levers, ScoreMode};
+
 /// How a detection is compared with a track's predicted box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -75,6 +77,9 @@ pub struct ClassConfig {
     /// Number of samples the noise was fitted from, when fitted (informational).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<u64>,
+    /// Options beyond the paper (all off by default; see [`Levers`]).
+    #[serde(default, skip_serializing_if = "Levers::is_off")]
+    pub levers: Levers,
 }
 
 /// The full tracker configuration.
@@ -242,6 +247,7 @@ fn chiu_class(p0: [f64; 11], q4: [f64; 4]) -> ClassConfig {
         angular_velocity: true,
         score_floor: None,
         samples: None,
+        levers: Levers::default(),
     }
 }
 
@@ -260,6 +266,7 @@ pub fn ab3dmot_class() -> ClassConfig {
         angular_velocity: false,
         score_floor: None,
         samples: None,
+        levers: Levers::default(),
     }
 }
 
@@ -415,7 +422,7 @@ impl ClassConfig {
                 return Err(ConfigError(format!("score_floor must be finite, got {f}")));
             }
         }
-        Ok(())
+        self.levers.validate()
     }
 }
 

@@ -1,6 +1,7 @@
 //! One track: its filter, its life-cycle counters and what the tracker reports of it.
 
 use super::boxes::{Box3, ClassId};
+use super::confidence::Confidence;
 use super::kalman::{Innovation, KalmanState};
 
 /// A live track inside the tracker.
@@ -26,6 +27,8 @@ pub struct Track {
     pub confirmed: bool,
     /// Association cache of the current frame.
     pub(crate) innovation: Option<Innovation>,
+    /// Refined and mean score (see [`super::levers`]).
+    pub conf: Confidence,
 }
 
 /// What the tracker reports for one track in one frame.
