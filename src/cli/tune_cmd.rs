@@ -30,7 +30,7 @@ use rayon::prelude::*;
 /// distance, matcher, min_hits, max_age, yaw rate, Q and R factors, score floor, two-stage birth
 /// score, NMS, reported score and its refinement, life cycle by confidence -- and keeps the best
 /// when it raises the training score (sAMOTA for kitti, AMOTA for nuscenes). Bound the work with
-/// --budget (configurations per class and search; about 70 make one round) and --rounds; the
+/// --budget (configurations per class and search; about 80 make one round) and --rounds; the
 /// total is at most (folds + 1) x classes x budget evaluations. Deterministic for the same inputs
 /// and options, whatever --jobs.
 ///
@@ -63,7 +63,7 @@ pub struct TuneArgs {
     #[arg(long, value_name = "NAME")]
     preset: Option<String>,
     /// Largest number of configurations evaluated per class in one search.
-    #[arg(long, default_value_t = 150, value_name = "N")]
+    #[arg(long, default_value_t = 100, value_name = "N")]
     budget: usize,
     /// Largest number of coordinate-descent rounds per search.
     #[arg(long, default_value_t = 3, value_name = "N")]
@@ -123,7 +123,11 @@ fn pct(v: f64) -> String {
 fn table(cv: &CvReport, metric: &str) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "held-out {metric} (x100): base (fitted noise) vs tuned");
-    let _ = writeln!(s, "{:<28} {:<12} {:>8} {:>8}", "held-out logs", "class", "base", "tuned");
+    let _ = writeln!(
+        s,
+        "{:<28} {:<12} {:>8} {:>8}",
+        "held-out logs", "class", "base", "tuned"
+    );
     let mut rows = |name: &str, base: &BTreeMap<String, f64>, tuned: &BTreeMap<String, f64>| {
         for (c, b) in base {
             let t = tuned.get(c).copied().unwrap_or(f64::NAN);
@@ -148,7 +152,11 @@ fn table(cv: &CvReport, metric: &str) -> String {
 /// Runs `probmot tune`.
 pub fn run(a: TuneArgs) -> Result<ExitCode> {
     ensure!(a.budget >= 1, "--budget must be at least 1");
-    ensure!(a.iou > 0.0 && a.iou <= 1.0, "--iou must lie in (0, 1], got {}", a.iou);
+    ensure!(
+        a.iou > 0.0 && a.iou <= 1.0,
+        "--iou must lie in (0, 1], got {}",
+        a.iou
+    );
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
     }
@@ -184,14 +192,19 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     let all: Vec<&TuneLog> = logs.iter().collect();
     let n_classes = tune::classes(&all, &scoring).len();
     if n_classes == 0 {
-        bail!("no detections of the {:?} classes in the inputs", scoring.classes());
+        bail!(
+            "no detections of the {:?} classes in the inputs",
+            scoring.classes()
+        );
     }
     let cv_folds = if a.folds >= 2 { a.folds } else { 0 };
     let pb = if super::show_progress(a.quiet) {
         let total = (cv_folds + 1) * n_classes * a.budget;
         ProgressBar::new(total as u64).with_style(
-            ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/~{len} configs {msg} ETA {eta}")
-                .expect("valid template"),
+            ProgressStyle::with_template(
+                "{spinner} [{bar:30}] {pos}/~{len} configs {msg} ETA {eta}",
+            )
+            .expect("valid template"),
         )
     } else {
         ProgressBar::hidden()

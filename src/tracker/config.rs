@@ -288,9 +288,10 @@ impl TrackerConfig {
                     default,
                 })
             }
-            // Noise fitted with `probmot fit --fold-yaw --dt-nominal 0.1` on the ten KITTI tracking
-            // train sequences (PointRCNN detections); gates and life cycle tuned per class on
-            // the same sequences (scripts/kitti_benchmark.sh, README "Results on KITTI").
+            // Made by `probmot tune --budget 100` (noise fitted, per-class settings and levers
+            // tuned) on the ten KITTI tracking train sequences in ../shared/data/kitti-tracking-train
+            // only (PointRCNN detections); see docs/tune.md. In-sample on those sequences: use the
+            // cross-validated numbers of docs/tune.md to judge it.
             "kitti-pointrcnn" => {
                 let mut cfg =
                     TrackerConfig::from_json(include_str!("presets/kitti-pointrcnn.json"))?;

@@ -48,7 +48,11 @@ pub struct Tuned {
 
 /// The base config with the noise fitted on `logs` (yaw residuals folded, as
 /// `probmot fit --fold-yaw`).
-pub fn fit_noise(base: &TrackerConfig, logs: &[&TuneLog], o: &TuneOptions) -> Result<TrackerConfig> {
+pub fn fit_noise(
+    base: &TrackerConfig,
+    logs: &[&TuneLog],
+    o: &TuneOptions,
+) -> Result<TrackerConfig> {
     let fit_logs: Vec<_> = logs.iter().map(|l| l.fit_log()).collect();
     let dt_nominal = match o.dt_nominal {
         Some(d) => d,
@@ -91,7 +95,9 @@ pub fn tune(
         }
         let stats = ScoreStats::of(logs.iter().flat_map(|l| l.scores(&label)).collect());
         let space = dims(stats);
-        let r = search::tune_class(logs, &fitted, &label, &space, &o.scoring, o.limits, progress)?;
+        let r = search::tune_class(
+            logs, &fitted, &label, &space, &o.scoring, o.limits, progress,
+        )?;
         tuned.classes.insert(label.clone(), r.config.clone());
         out.push(r);
     }

@@ -101,17 +101,24 @@ pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
         },
         Dim {
             name: "min_hits",
-            values: vec![Keep, MinHits(1), MinHits(2), MinHits(3), MinHits(4), MinHits(5)],
+            values: vec![
+                Keep,
+                MinHits(1),
+                MinHits(2),
+                MinHits(3),
+                MinHits(4),
+                MinHits(5),
+            ],
         },
         Dim {
             name: "max_age",
-            values: [1, 2, 3, 4, 6, 8, 12, 16]
-                .map(MaxAge)
-                .into_iter()
-                .fold(vec![Keep], |mut v, x| {
+            values: [1, 2, 3, 4, 6, 8, 12, 16].map(MaxAge).into_iter().fold(
+                vec![Keep],
+                |mut v, x| {
                     v.push(x);
                     v
-                }),
+                },
+            ),
         },
         Dim {
             name: "angular_velocity",
@@ -119,7 +126,14 @@ pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
         },
         Dim {
             name: "q_factor",
-            values: vec![Keep, QFactor(0.1), QFactor(0.3), QFactor(3.0), QFactor(10.0), QFactor(30.0)],
+            values: vec![
+                Keep,
+                QFactor(0.1),
+                QFactor(0.3),
+                QFactor(3.0),
+                QFactor(10.0),
+                QFactor(30.0),
+            ],
         },
         Dim {
             name: "r_factor",
@@ -127,7 +141,14 @@ pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
         },
         Dim {
             name: "nms_iou",
-            values: vec![Keep, Nms(None), Nms(Some(0.05)), Nms(Some(0.1)), Nms(Some(0.3)), Nms(Some(0.5))],
+            values: vec![
+                Keep,
+                Nms(None),
+                Nms(Some(0.05)),
+                Nms(Some(0.1)),
+                Nms(Some(0.3)),
+                Nms(Some(0.5)),
+            ],
         },
         Dim {
             name: "score",
@@ -147,24 +168,58 @@ pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
         let q = |i: usize| Some(s.q[i]);
         d.push(Dim {
             name: "score_floor",
-            values: vec![Keep, ScoreFloor(None), ScoreFloor(q(0)), ScoreFloor(q(1)), ScoreFloor(q(2)), ScoreFloor(q(3))],
+            values: vec![
+                Keep,
+                ScoreFloor(None),
+                ScoreFloor(q(0)),
+                ScoreFloor(q(1)),
+                ScoreFloor(q(2)),
+                ScoreFloor(q(3)),
+            ],
         });
         d.push(Dim {
             name: "birth_score",
-            values: vec![Keep, BirthScore(None), BirthScore(q(1)), BirthScore(q(2)), BirthScore(q(3)), BirthScore(q(4))],
+            values: vec![
+                Keep,
+                BirthScore(None),
+                BirthScore(q(1)),
+                BirthScore(q(2)),
+                BirthScore(q(3)),
+                BirthScore(q(4)),
+            ],
         });
         let sd = s.std;
         d.push(Dim {
             name: "boost",
-            values: vec![Keep, Boost(0.0), Boost(0.02 * sd), Boost(0.1 * sd), Boost(0.3 * sd), Boost(1.0 * sd)],
+            values: vec![
+                Keep,
+                Boost(0.0),
+                Boost(0.02 * sd),
+                Boost(0.1 * sd),
+                Boost(0.3 * sd),
+                Boost(1.0 * sd),
+            ],
         });
         d.push(Dim {
             name: "decay",
-            values: vec![Keep, Decay(0.0), Decay(0.05 * sd), Decay(0.2 * sd), Decay(0.5 * sd), Decay(1.0 * sd)],
+            values: vec![
+                Keep,
+                Decay(0.0),
+                Decay(0.05 * sd),
+                Decay(0.2 * sd),
+                Decay(0.5 * sd),
+                Decay(1.0 * sd),
+            ],
         });
         d.push(Dim {
             name: "keep_score",
-            values: vec![Keep, KeepScore(None), KeepScore(q(4)), KeepScore(q(5)), KeepScore(q(6))],
+            values: vec![
+                Keep,
+                KeepScore(None),
+                KeepScore(q(4)),
+                KeepScore(q(5)),
+                KeepScore(q(6)),
+            ],
         });
     }
     d
