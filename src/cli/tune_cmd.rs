@@ -62,6 +62,9 @@ pub struct TuneArgs {
     /// Base preset (default nuscenes-chiu2019).
     #[arg(long, value_name = "NAME")]
     preset: Option<String>,
+    /// Classes to tune and score, comma-separated (default: the protocol's classes).
+    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    classes: Vec<String>,
     /// Largest number of configurations evaluated per class in one search.
     #[arg(long, default_value_t = 100, value_name = "N")]
     budget: usize,
@@ -188,9 +191,10 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         },
         dt_nominal: a.dt_nominal,
         min_samples: a.min_samples,
+        classes: a.classes.iter().map(|c| c.to_lowercase()).collect(),
     };
     let all: Vec<&TuneLog> = logs.iter().collect();
-    let n_classes = tune::classes(&all, &scoring).len();
+    let n_classes = tune::classes(&all, &o).len();
     if n_classes == 0 {
         bail!(
             "no detections of the {:?} classes in the inputs",

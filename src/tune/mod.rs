@@ -33,6 +33,8 @@ pub struct TuneOptions {
     pub dt_nominal: Option<f64>,
     /// Minimum matched pairs for fitted noise (as `probmot fit --min-samples`).
     pub min_samples: u64,
+    /// Classes to tune and score; empty: every class of the protocol.
+    pub classes: Vec<String>,
 }
 
 /// A config fitted and tuned on some logs, with the per-class search outcomes.
@@ -70,10 +72,15 @@ pub fn fit_noise(
     Ok(fitted_config(base, &mut report, &options)?)
 }
 
-/// The classes a tune works on: the protocol's classes that have detections in `logs`.
-pub fn classes(logs: &[&TuneLog], scoring: &Scoring) -> Vec<String> {
-    scoring
-        .classes()
+/// The classes a tune works on: the chosen classes (default: the protocol's) that have
+/// detections in `logs`.
+pub fn classes(logs: &[&TuneLog], o: &TuneOptions) -> Vec<String> {
+    let wanted = if o.classes.is_empty() {
+        o.scoring.classes()
+    } else {
+        o.classes.clone()
+    };
+    wanted
         .into_iter()
         .filter(|c| logs.iter().any(|l| l.scores(c).next().is_some()))
         .collect()
@@ -89,7 +96,7 @@ pub fn tune(
     let fitted = fit_noise(base, logs, o)?;
     let mut tuned = fitted.clone();
     let mut out = Vec::new();
-    for label in classes(logs, &o.scoring) {
+    for label in classes(logs, o) {
         if fitted.class(&label).is_none() {
             continue;
         }
@@ -182,7 +189,7 @@ pub fn cross_validate(
         ));
     }
     let all: Vec<&TuneLog> = logs.iter().collect();
-    let classes = classes(&all, &o.scoring);
+    let classes = classes(&all, o);
     let (mut base_scenes, mut tuned_scenes) = (Vec::new(), Vec::new());
     let mut reports = Vec::new();
     let mut fold_configs = Vec::new();
