@@ -3,6 +3,7 @@
 //! positives and identity switches.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use probmot::eval::hota::centre::centre_hota;
 use probmot::eval::nuscenes::{evaluate, NuscenesParams};
 use probmot::eval::scene::{EvalBox, Scene};
 use probmot::tracker::config::NUSCENES_CLASSES;
@@ -99,6 +100,10 @@ fn bench(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("nuscenes_val_sized_150x40x80", |b| {
         b.iter(|| evaluate(&scenes, &params))
+    });
+    // What `probmot eval` adds to that for HOTA (BEV centre distance, all seven classes).
+    g.bench_function("hota_centre_val_sized_150x40x80", |b| {
+        b.iter(|| centre_hota(&scenes, &params.classes))
     });
     g.finish();
 }

@@ -5,8 +5,8 @@
 //! thread (`zstd-inline`, what each file gets when `--jobs` runs files on every core).
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
-use indicatif::ProgressBar;
 use probmot::mcapio::writer::OutputCompression;
+use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_file, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::sim::{write_simulation, Scenario, SimOptions};
 use probmot::tracker::TrackerConfig;
@@ -36,6 +36,7 @@ fn bench(c: &mut Criterion) {
     let mut opts = TrackOptions {
         detection_topics: vec![],
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,
@@ -58,11 +59,11 @@ fn bench(c: &mut Criterion) {
         opts.background_writer = background;
         g.bench_function(format!("copy_no_track/{name}"), |b| {
             opts.no_track = true;
-            b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())
+            b.iter(|| track_file(&input, &out, &opts, &no_progress).unwrap())
         });
         g.bench_function(format!("track/{name}"), |b| {
             opts.no_track = false;
-            b.iter(|| track_file(&input, &out, &opts, &ProgressBar::hidden()).unwrap())
+            b.iter(|| track_file(&input, &out, &opts, &no_progress).unwrap())
         });
     }
     g.finish();

@@ -74,7 +74,7 @@ fn run(cfg: &TrackerConfig, frames: &[Vec<Detection>]) -> usize {
 
 fn bench(c: &mut Criterion) {
     let paper = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
-    let baseline = TrackerConfig::preset("ab3dmot").unwrap();
+    let baseline = TrackerConfig::preset("ab3dmot-2019").unwrap();
     let mut g = c.benchmark_group("tracker_core");
     g.sample_size(20);
     for n in [20usize, 100, 200, 500] {

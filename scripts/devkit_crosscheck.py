@@ -13,7 +13,9 @@ What is handed to the devkit (only glue is written here; all evaluation logic is
   * one `TrackingBox` per Track3D whose label is a nuScenes tracking class (others are dropped,
     exactly as the devkit drops GT of other categories): translation = center (x, y, z),
     size = [width, length, height], rotation = quaternion of `yaw` about +z, velocity = (vx, vy),
-    tracking_id = str(id), tracking_name = label, tracking_score = score (GT: -1.0, like load_gt);
+    tracking_id = f"{scene}/{id}" (ids are per log, as probmot counts them; the devkit's instance
+    tokens are unique across scenes, so repeated ids of different scenes must not meet in its
+    count of ground-truth tracks), tracking_name = label, tracking_score = score (GT: -1.0, like load_gt);
     boxes keep their order inside a message. Predicted boxes go through the devkit's own
     `load_prediction` (submission JSON written to a temporary file, including the 500-box check);
   * no range, bike-rack or lidar-points filter by default; with --max-range, the devkit's own
@@ -64,7 +66,13 @@ import traceback
 from collections import OrderedDict, defaultdict
 from importlib.metadata import version as pkg_version
 
-import numpy as np
+# OpenBLAS picks its kernel by CPU; FMA kernels change sklearn's euclidean_distances (the devkit's
+# distance) in the last bits, which moves MOTP by up to 1e-9. The committed outputs were made with
+# the generic x86-64 kernel: pin it (before numpy loads OpenBLAS) so that any machine reproduces
+# them byte for byte.
+os.environ.setdefault("OPENBLAS_CORETYPE", "Prescott")
+
+import numpy as np  # noqa: E402
 
 TRACKING_CLASSES = ("bicycle", "bus", "car", "motorcycle", "pedestrian", "trailer", "truck")
 OUTPUT_METRICS = ("amota", "amotp", "recall", "motar", "mota", "motp", "mt", "ml", "faf",
@@ -98,14 +106,14 @@ def quaternion_from_yaw(yaw):
     return tuple(float(v) for v in Quaternion(axis=[0.0, 0.0, 1.0], angle=float(yaw)).elements)
 
 
-def box_dict(sample_token, trk, gt):
+def box_dict(scene, sample_token, trk, gt):
     return {
         "sample_token": sample_token,
         "translation": [float(trk.center.x), float(trk.center.y), float(trk.center.z)],
         "size": [float(trk.size.width), float(trk.size.length), float(trk.size.height)],
         "rotation": list(quaternion_from_yaw(trk.yaw)),
         "velocity": [float(trk.velocity.x), float(trk.velocity.y)],
-        "tracking_id": str(trk.id),
+        "tracking_id": f"{scene}/{trk.id}",
         "tracking_name": trk.label,
         "tracking_score": -1.0 if gt else float(trk.score),
     }
@@ -193,13 +201,13 @@ def build_inputs(pairs, truth_topic, tracks_topic, ego_topic=None):
             for s in ns_list:
                 for trk in gt_frames.get(s, []):
                     if trk.label in TRACKING_CLASSES:
-                        gt_results[token].append(box_dict(token, trk, gt=True))
+                        gt_results[token].append(box_dict(name, token, trk, gt=True))
                         n_gt[trk.label] += 1
                     else:
                         ignored["truth:" + trk.label] += 1
                 for trk in pred_frames.get(s, []):
                     if trk.label in TRACKING_CLASSES:
-                        pred_results[token].append(box_dict(token, trk, gt=False))
+                        pred_results[token].append(box_dict(name, token, trk, gt=False))
                         n_pred[trk.label] += 1
                     else:
                         ignored["tracks:" + trk.label] += 1
@@ -427,11 +435,67 @@ def evaluate(scenes, keep_devkit_scene_order, verbose, max_range=False):
         return out
 
 
+# ----------------------------------------------------------------------------------------------
+# Whole pipeline on nuScenes tables: the devkit's own NuScenes, TrackingEval and every filter.
+# ----------------------------------------------------------------------------------------------
+def evaluate_tables(dataroot, version, split, submission, verbose):
+    """Runs the devkit's TrackingEval as its own `evaluate.py` does, on tables under
+    dataroot/version (custom split `split` from splits.json there) and a tracking submission:
+    its loaders, add_center_dist, filter_eval_boxes (range, points, bicycle racks), create_tracks
+    and evaluate. Returns (doc, filter counts parsed from the devkit's verbose output)."""
+    import re
+    from nuscenes.eval.common.config import config_factory
+    from nuscenes.eval.tracking.constants import TRACKING_METRICS
+    from nuscenes.eval.tracking.evaluate import TrackingEval
+
+    cfg = config_factory("tracking_nips_2019")
+    with tempfile.TemporaryDirectory(prefix="probmot-devkit-") as tmp:
+        # The devkit's NuScenes checks that each map's mask file exists (it never reads it here).
+        root = os.path.join(tmp, "data")
+        os.makedirs(os.path.join(root, "maps"))
+        os.symlink(os.path.abspath(os.path.join(dataroot, version)), os.path.join(root, version))
+        with open(os.path.join(root, version, "map.json")) as f:
+            for m in json.load(f):
+                open(os.path.join(root, m["filename"]), "wb").close()
+        sink = io.StringIO()
+        with contextlib.redirect_stdout(sink):
+            ev = TrackingEval(config=cfg, result_path=submission, eval_set=split,
+                              output_dir=os.path.join(tmp, "out"), nusc_version=version,
+                              nusc_dataroot=root, verbose=True)
+        log = sink.getvalue()
+        with contextlib.redirect_stdout(sink if not verbose else sys.stdout):
+            metrics, md_list = ev.evaluate()
+    # filter_eval_boxes prints four counts per call: predictions first, then ground truth.
+    nums = [int(v) for v in re.findall(r"=> (?:Original number of boxes|After [^:]+): (\d+)", log)]
+    assert len(nums) == 8, log
+    counts = {}
+    for who, (total, dist, pts, rack) in (("tracks", nums[:4]), ("truth", nums[4:])):
+        counts[who] = {"total": total, "range": total - dist, "points": dist - pts,
+                       "bike_racks": pts - rack}
+    summary = metrics.serialize()
+    label_metrics = summary["label_metrics"]
+    out = {"classes": {c: {m: label_metrics[m][c] for m in OUTPUT_METRICS}
+                       for c in sorted(TRACKING_CLASSES)},
+           "overall": {m: summary[m] for m in OUTPUT_METRICS}}
+    md_keys = ["confidence", "recall_hypo"] + [m for m in TRACKING_METRICS
+                                               if m not in ("amota", "amotp")]
+    out["metric_data"] = {c: {k: md_list[c].serialize()[k] for k in md_keys}
+                          for c in sorted(TRACKING_CLASSES)}
+    return out, counts
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--truth", action="append", required=True,
+    ap.add_argument("--truth", action="append", default=[],
                     help="MCAP file with ground truth (one scene); repeatable")
+    ap.add_argument("--tables", metavar="DATAROOT",
+                    help="instead of --truth: nuScenes tables under DATAROOT/VERSION, evaluated by "
+                         "the devkit's own TrackingEval (every filter of filter_eval_boxes) with the "
+                         "tracking submission --submission and the custom split --split")
+    ap.add_argument("--version", default="v1.0-probmot")
+    ap.add_argument("--split", default="probmot_filters")
+    ap.add_argument("--submission", help="tracking submission JSON (with --tables)")
     ap.add_argument("--tracks", action="append", default=[],
                     help="MCAP file with the predicted tracks, paired with --truth in order; "
                          "default: the truth file itself")
@@ -446,6 +510,10 @@ def main(argv=None):
     ap.add_argument("-v", "--verbose", action="store_true", help="let the devkit print")
     ap.add_argument("-o", "--output", required=True, help="output JSON file ('-' for stdout)")
     args = ap.parse_args(argv)
+    if args.tables:
+        return main_tables(args)
+    if not args.truth:
+        ap.error("give --truth (MCAP files) or --tables")
 
     if args.tracks and len(args.tracks) != len(args.truth):
         ap.error("give --tracks once per --truth, or not at all")
@@ -499,6 +567,37 @@ def main(argv=None):
         o = result["overall"]
         print(f"{args.output}: AMOTA {o['amota']:.6f} AMOTP {o['amotp']:.6f} MOTA {o['mota']:.6f} "
               f"IDS {o['ids']:g} FRAG {o['frag']:g}", file=sys.stderr)
+    return 0
+
+
+def main_tables(args):
+    """--tables: the devkit's whole tracking evaluation on nuScenes tables."""
+    result, counts = evaluate_tables(args.tables, args.version, args.split, args.submission,
+                                     args.verbose)
+    doc = OrderedDict()
+    doc["protocol"] = "nuscenes"
+    doc["devkit_version"] = pkg_version("nuscenes-devkit")
+    doc["motmetrics_version"] = pkg_version("motmetrics")
+    doc["config"] = "tracking_nips_2019"
+    doc["classes"] = result["classes"]
+    doc["overall"] = result["overall"]
+    doc["inputs"] = {"tables": f"{os.path.basename(os.path.normpath(args.tables))}/{args.version}",
+                     "split": args.split, "submission": os.path.basename(args.submission),
+                     "filters": "the devkit's TrackingEval: add_center_dist + filter_eval_boxes "
+                                "(class_range, num_pts == 0, bicycle racks) on GT and predictions",
+                     "removed_boxes": counts}
+    doc["environment"] = {p: pkg_version(p) for p in ("numpy", "pandas", "scipy", "scikit-learn",
+                                                      "pyquaternion")}
+    doc["metric_data"] = result["metric_data"]
+    text = to_json(nan_to_none(doc)) + "\n"
+    if args.output == "-":
+        sys.stdout.write(text)
+    else:
+        with open(args.output, "w") as f:
+            f.write(text)
+    o = result["overall"]
+    print(f"{args.output}: AMOTA {o['amota']:.6f} AMOTP {o['amotp']:.6f} MOTA {o['mota']:.6f} "
+          f"removed {counts}", file=sys.stderr)
     return 0
 
 

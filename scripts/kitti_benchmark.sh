@@ -36,7 +36,9 @@ declare -A rows=(
   [3_iou3d]="--config {noise} --distance iou3d"
   [4_hungarian]="--config {noise} --matcher hungarian"
   [5_no_angular_velocity]="--config {noise} --no-angular-velocity"
-  [6_ab3dmot_preset]="--preset ab3dmot --dt-nominal 0.1"
+  # AB3DMOT exactly as its code runs on KITTI (docs/ab3dmot.md); its settings were chosen by
+  # its authors on the other eleven train sequences, so this row is held out too.
+  [6_ab3dmot_kitti_preset]="--preset ab3dmot-kitti"
   # Tuned on all ten sequences, so this row is in-sample (not cross-validated).
   [7_kitti_pointrcnn_preset]="--preset kitti-pointrcnn"
 )

@@ -451,7 +451,252 @@ def range_filter():
     return s
 
 
-FIXTURES = [perfect, idswitch_frag, false_positives, gaps_multiclass, ties, range_filter]
+def repeated_ids(part):
+    """One of three logs whose ids all start at 1 (as KITTI label files and `simulate` number
+    them): evaluated together they check that every per-id count takes (log, id) as the object."""
+    seed = {"a": 1007, "b": 1008, "c": 1009}[part]
+    s = Scene(f"repeated_ids_{part}", 20, seed,
+              "ids 1.. in every log: cars 1-2 tracked by tracks 1-2 (log b: a switch of track 1 to "
+              "track 2 on car 1), bicycles 5-6 never matched (no recall threshold reached), "
+              "motorcycle 7 tracked by track 7 at a score that differs per log")
+    off = {"a": 0.0, "b": 7.0, "c": -6.0}[part]
+    car1 = s.path((-20.0 + off, -4.0), (6.0, 0.2))
+    car2 = s.path((10.0, 6.0 + off), (-4.0, 0.5))
+    s.add_gt(1, "car", car1, range(20))
+    s.add_gt(2, "car", car2, range(2, 20))
+    if part == "b":
+        s.add_track(1, "car", car1, range(0, 10), 0.8)
+        s.add_track(2, "car", car1, range(10, 20), 0.8)
+        s.add_track(3, "car", car2, range(4, 20), 0.6)
+    else:
+        s.add_track(1, "car", car1, range(1, 20), 0.8)
+        s.add_track(2, "car", car2, range(2, 16), 0.6)
+    # Bicycles that nothing matches; a false bicycle track far away in log a only.
+    s.add_gt(5, "bicycle", s.path((30.0, -30.0 + off), (1.0, 1.0)), range(20))
+    s.add_gt(6, "bicycle", s.path((-35.0, 25.0), (0.0, -1.5)), range(5, 20))
+    if part == "a":
+        s.add_track(5, "bicycle", s.path((60.0, 60.0), (0.0, 0.0)), range(3, 12), 0.4)
+    # Motorcycle 7 in logs a and c, tracked by track 7 (0.9 in a, 0.2 in c) and, in c, a false
+    # track 8 at 0.5: with per-log mean scores the false track ranks between the true ones.
+    if part in ("a", "c"):
+        moto = s.path((0.0, -15.0), (5.0, 2.0))
+        s.add_gt(7, "motorcycle", moto, range(20))
+        s.add_track(7, "motorcycle", moto, range(20), 0.9 if part == "a" else 0.2)
+        if part == "c":
+            s.add_track(8, "motorcycle", s.path((-40.0, -40.0), (0.0, 1.0)), range(6, 14), 0.5)
+    return s
+
+
+FIXTURES = [perfect, idswitch_frag, false_positives, gaps_multiclass, ties, range_filter,
+            lambda: repeated_ids("a"), lambda: repeated_ids("b"), lambda: repeated_ids("c")]
+
+
+# ----------------------------------------------------------------------------------------------
+# nuScenes tables: the devkit's filters end to end (import nuscenes --tracks, eval --devkit)
+# ----------------------------------------------------------------------------------------------
+CATEGORIES = {"car": "vehicle.car", "pedestrian": "human.pedestrian.adult",
+              "bicycle": "vehicle.bicycle", "motorcycle": "vehicle.motorcycle",
+              "truck": "vehicle.truck", "bus": "vehicle.bus.rigid", "trailer": "vehicle.trailer",
+              "rack": "static_object.bicycle_rack"}
+RACK_SIZE = (6.0, 2.0, 1.5)  # length, width, height
+
+
+def quat_yaw(yaw, pitch=0.0):
+    """Quaternion [w, x, y, z] of a yaw about z followed by a small pitch about the box's y axis."""
+    cy, sy, cp, sp = math.cos(yaw / 2), math.sin(yaw / 2), math.cos(pitch / 2), math.sin(pitch / 2)
+    return [cy * cp, -sy * sp, cy * sp, sy * cp]
+
+
+class TablesScene:
+    """One scene of nuScenes tables: samples, ego poses, annotated objects and submitted tracks."""
+
+    def __init__(self, name, n, t0_us, ego, seed):
+        self.name, self.n, self.rng = name, n, np.random.default_rng(seed)
+        self.samples = [f"{name}-s{i:02d}" for i in range(n)]
+        self.times = [t0_us + 500_000 * i for i in range(n)]
+        self.ego = ego  # (x, y) per sample
+        self.objects = []  # (key, class, positions per sample or None, yaw, pitch, points per sample)
+        self.tracks = []  # (tracking_id, class, positions per sample or None, score)
+
+    def obj(self, key, cls, pos, yaw=0.0, pitch=0.0, points=None, z=None):
+        size = RACK_SIZE if cls == "rack" else SIZES[cls]
+        z = size[2] / 2 if z is None else z
+        pos = [None if p is None else (float(p[0]), float(p[1]), z) for p in pos]
+        pts = points or [(12, 1)] * self.n
+        self.objects.append((f"{self.name}-{key}", cls, pos, yaw, pitch, pts))
+
+    def track(self, tid, cls, pos, score, noise=0.15, z=None):
+        z = SIZES[cls][2] / 2 if z is None else z
+        out = []
+        for p in pos:
+            if p is None:
+                out.append(None)
+                continue
+            d = self.rng.normal(0.0, noise, 2)
+            out.append((float(p[0] + d[0]), float(p[1] + d[1]), z))
+        self.tracks.append((f"{self.name}-{tid}", cls, out, score))
+
+
+def filters_scene_1():
+    n = 20
+    ego = [(500.0 + 5.0 * i, 1000.0) for i in range(n)]
+    s = TablesScene("scene-f001", n, 1_767_225_600_000_000, ego, 2001)
+    ex = np.array([e[0] for e in ego])
+    # A parked car that comes into the 50 m range at frame 6 (58 m ahead at the start).
+    car_a = [(ego[0][0] + 58.0, 1004.0)] * n
+    s.obj("car-a", "car", car_a)
+    s.track("car-a", "car", car_a, 0.8)
+    # A car always 60-70 m away: removed by the range filter (GT and track).
+    car_b = [(x + 60.0 + 0.5 * i, 990.0) for i, x in enumerate(ex)]
+    s.obj("car-b", "car", car_b)
+    s.track("car-b", "car", car_b, 0.6)
+    # A car beside the road whose annotations in frames 7-9 have no lidar or radar point.
+    car_c = [(520.0 + 2.0 * i, 1007.0) for i in range(n)]
+    s.obj("car-c", "car", car_c, points=[(0, 0) if 7 <= i <= 9 else (30, 2) for i in range(n)])
+    s.track("car-c", "car", car_c, 0.7)
+    # A pedestrian without points in its first four annotations, tracked throughout.
+    ped = [(530.0, 1012.0 - 0.6 * i) for i in range(n)]
+    s.obj("ped-a", "pedestrian", ped, points=[(0, 0) if i < 4 else (8, 0) for i in range(n)])
+    s.track("ped-a", "pedestrian", ped, 0.55)
+    # A pedestrian with radar points only (kept).
+    ped_b = [(540.0 - 0.5 * i, 995.0) for i in range(n)]
+    s.obj("ped-b", "pedestrian", ped_b, points=[(0, 1)] * n)
+    s.track("ped-b", "pedestrian", ped_b, 0.5)
+    # A bicycle rack at (545, 1003), turned by 0.3 rad and pitched by 0.05 rad.
+    rack = [(545.0, 1003.0)] * n
+    s.obj("rack", "rack", rack, yaw=0.3, pitch=0.05, z=0.75)
+    # Bicycles parked in the rack (GT and tracks removed), a motorcycle in it (removed), a
+    # pedestrian standing in it (kept), a bicycle ridden past it (kept), a false bicycle track
+    # just outside it (kept: FP).
+    c, sn = math.cos(0.3), math.sin(0.3)
+    in_rack = lambda u, v: (545.0 + c * u - sn * v, 1003.0 + sn * u + c * v)
+    for k, u in enumerate((-2.0, 0.0, 2.0)):
+        p = [in_rack(u, 0.2)] * n
+        s.obj(f"bike-rack-{k}", "bicycle", p, yaw=0.3 + math.pi / 2, z=0.6)
+        s.track(f"bike-rack-{k}", "bicycle", p, 0.4 + 0.1 * k, noise=0.05, z=0.6)
+    moto = [in_rack(1.0, -0.4)] * n
+    s.obj("moto-rack", "motorcycle", moto, z=0.7)
+    s.track("moto-rack", "motorcycle", moto, 0.45, noise=0.05, z=0.7)
+    ped_r = [in_rack(-1.0, -0.3)] * n
+    s.obj("ped-rack", "pedestrian", ped_r, z=0.9)
+    s.track("ped-rack", "pedestrian", ped_r, 0.6, noise=0.05, z=0.9)
+    bike = [(535.0 + 1.5 * i, 1001.0 - 0.3 * i) for i in range(n)]
+    s.obj("bike-ride", "bicycle", bike)
+    s.track("bike-ride", "bicycle", bike, 0.65)
+    s.track("bike-false", "bicycle", [in_rack(0.0, 1.6)] * n, 0.3, noise=0.02, z=0.6)
+    # A motorcycle on the road, tracked from frame 3, beyond 40 m from frame 14 on.
+    moto_r = [(530.0 + 0.5 * i, 998.0) for i in range(n)]
+    s.obj("moto-road", "motorcycle", moto_r)
+    s.track("moto-road", "motorcycle", [None] * 3 + moto_r[3:], 0.5)
+    return s
+
+
+def filters_scene_2():
+    n = 16
+    ego = [(2000.0, 3000.0 + 1.0 * i) for i in range(n)]
+    s = TablesScene("scene-f002", n, 1_767_226_000_000_000, ego, 2002)
+    # A truck at 45-55 m from the ego (range 50 m), tracked.
+    truck = [(2000.0 + 50.0 + 5.0 * math.sin(0.7 * i), 3000.0 + i) for i in range(n)]
+    s.obj("truck", "truck", truck)
+    s.track("truck", "truck", truck, 0.7)
+    # A bus tracked with a lag, and a trailer whose annotations all lack points (no GT left).
+    bus = [(2010.0 + 2.0 * i, 3020.0) for i in range(n)]
+    s.obj("bus", "bus", bus)
+    s.track("bus", "bus", [(x - 1.2, y) for x, y in bus], 0.6)
+    trailer = [(1985.0, 3010.0)] * n
+    s.obj("trailer", "trailer", trailer, points=[(0, 0)] * n)
+    s.track("trailer", "trailer", trailer, 0.5)
+    # A rack without yaw: a bicycle in it for the first half only (it then rides away).
+    s.obj("rack", "rack", [(1995.0, 2990.0)] * n, z=0.75)
+    bike = [(1995.0 + (0.0 if i < 8 else 1.5 * (i - 7)), 2990.0 + (0.0 if i < 8 else 2.0)) for i in range(n)]
+    s.obj("bike", "bicycle", bike, z=0.6)
+    s.track("bike", "bicycle", bike, 0.5, noise=0.05, z=0.6)
+    # Cars: one tracked, one missed.
+    car = [(2005.0, 2995.0 + 0.8 * i) for i in range(n)]
+    s.obj("car", "car", car)
+    s.track("car", "car", car, 0.9)
+    s.obj("car-missed", "car", [(1990.0 - 0.5 * i, 3005.0) for i in range(n)])
+    return s
+
+
+def write_tables(out_dir, scenes, version="v1.0-probmot"):
+    """Writes the scenes as nuScenes tables under out_dir/version and the tracking submission."""
+    tdir = os.path.join(out_dir, version)
+    os.makedirs(tdir, exist_ok=True)
+    t = {k: [] for k in ("category", "attribute", "visibility", "instance", "sensor",
+                         "calibrated_sensor", "ego_pose", "log", "scene", "sample", "sample_data",
+                         "sample_annotation", "map")}
+    for cls, cat in CATEGORIES.items():
+        t["category"].append({"token": f"cat-{cls}", "name": cat, "description": ""})
+    t["visibility"].append({"token": "4", "level": "v80-100", "description": ""})
+    t["sensor"].append({"token": "sensor-lidar", "channel": "LIDAR_TOP", "modality": "lidar"})
+    t["calibrated_sensor"].append({"token": "cs-lidar", "sensor_token": "sensor-lidar",
+                                   "translation": [0.9, 0.0, 1.8], "rotation": [1.0, 0.0, 0.0, 0.0],
+                                   "camera_intrinsic": []})
+    results = {}
+    for sc in scenes:
+        log = f"log-{sc.name}"
+        t["log"].append({"token": log, "logfile": sc.name, "vehicle": "probmot",
+                         "date_captured": "2026-01-01", "location": "singapore-onenorth"})
+        t["scene"].append({"token": f"tok-{sc.name}", "name": sc.name, "description": "",
+                           "log_token": log, "nbr_samples": sc.n,
+                           "first_sample_token": sc.samples[0], "last_sample_token": sc.samples[-1]})
+        for i, (tok, ts) in enumerate(zip(sc.samples, sc.times)):
+            t["sample"].append({"token": tok, "timestamp": ts, "scene_token": f"tok-{sc.name}",
+                                "prev": sc.samples[i - 1] if i else "",
+                                "next": sc.samples[i + 1] if i + 1 < sc.n else ""})
+            t["ego_pose"].append({"token": f"ep-{tok}", "timestamp": ts,
+                                  "translation": [sc.ego[i][0], sc.ego[i][1], 0.0],
+                                  "rotation": [1.0, 0.0, 0.0, 0.0]})
+            t["sample_data"].append({"token": f"sd-{tok}", "sample_token": tok,
+                                     "ego_pose_token": f"ep-{tok}", "calibrated_sensor_token": "cs-lidar",
+                                     "timestamp": ts, "fileformat": "pcd", "is_key_frame": True,
+                                     "height": 0, "width": 0,
+                                     "filename": f"samples/LIDAR_TOP/{tok}.pcd.bin",
+                                     "prev": "", "next": ""})
+        for key, cls, pos, yaw, pitch, pts in sc.objects:
+            frames = [i for i, p in enumerate(pos) if p is not None]
+            anns = [f"ann-{key}-{i:02d}" for i in frames]
+            size = RACK_SIZE if cls == "rack" else SIZES[cls]
+            t["instance"].append({"token": f"inst-{key}", "category_token": f"cat-{cls}",
+                                  "nbr_annotations": len(anns), "first_annotation_token": anns[0],
+                                  "last_annotation_token": anns[-1]})
+            for k, i in enumerate(frames):
+                t["sample_annotation"].append({
+                    "token": anns[k], "sample_token": sc.samples[i], "instance_token": f"inst-{key}",
+                    "visibility_token": "4", "attribute_tokens": [],
+                    "translation": list(pos[i]), "size": [size[1], size[0], size[2]],
+                    "rotation": quat_yaw(yaw, pitch), "prev": anns[k - 1] if k else "",
+                    "next": anns[k + 1] if k + 1 < len(anns) else "",
+                    "num_lidar_pts": pts[i][0], "num_radar_pts": pts[i][1]})
+        for tok in sc.samples:
+            results[tok] = []
+        for tid, cls, pos, score in sc.tracks:
+            for i, p in enumerate(pos):
+                if p is None:
+                    continue
+                sz = SIZES[cls]
+                results[sc.samples[i]].append({
+                    "sample_token": sc.samples[i], "translation": list(p),
+                    "size": [sz[1], sz[0], sz[2]], "rotation": quat_yaw(0.2),
+                    "velocity": [0.0, 0.0], "tracking_id": tid, "tracking_name": cls,
+                    "tracking_score": float(np.clip(score + sc.rng.normal(0.0, 0.05), 0.01, 0.99))})
+    t["map"].append({"token": "map-probmot", "log_tokens": [lg["token"] for lg in t["log"]],
+                     "category": "semantic_prior", "filename": "maps/probmot.png"})
+    for name, rows in t.items():
+        with open(os.path.join(tdir, name + ".json"), "w") as f:
+            json.dump(rows, f, indent=0)
+    with open(os.path.join(tdir, "splits.json"), "w") as f:
+        json.dump({"probmot_filters": [sc.name for sc in scenes]}, f)
+    sub = {"meta": {"use_camera": False, "use_lidar": True, "use_radar": False, "use_map": False,
+                    "use_external": False}, "results": results}
+    path = os.path.join(out_dir, "tracking_results.json")
+    with open(path, "w") as f:
+        json.dump(sub, f)
+    n_ann = len(t["sample_annotation"])
+    n_trk = sum(len(v) for v in results.values())
+    print(f"{tdir}: {len(scenes)} scenes, {len(t['sample'])} samples, {n_ann} annotations; "
+          f"{path}: {n_trk} track boxes")
 
 
 def main(argv):
@@ -470,6 +715,7 @@ def main(argv):
         n_pred = sum(len(b) for b in scene.pred)
         print(f"{path}: {scene.n} frames, {n_gt} GT boxes, {n_pred} track boxes, "
               f"{os.path.getsize(path)} bytes")
+    write_tables(os.path.join(out_dir, "nuscenes_filters"), [filters_scene_1(), filters_scene_2()])
     return 0
 
 

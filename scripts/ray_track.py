@@ -7,7 +7,7 @@ Usage:
 INPUT: MCAP files, directories (their *.mcap), glob patterns, or URIs that pyarrow.fs understands
 (s3://bucket/logs/*.mcap, gs://..., file:///abs/path.mcap; a glob only in the last component).
 Each output is PREFIX/<input file name>, the name `probmot track --out-dir` would give it.
-Everything after `--` is passed to `probmot track` unchanged (e.g. `-- --preset ab3dmot`).
+Everything after `--` is passed to `probmot track` unchanged (e.g. `-- --preset ab3dmot-kitti`).
 
 Local paths are used in place, so on a cluster they must name the same file on every node (a
 shared mount); URIs are copied to a temporary file on the worker, tracked there, and the output is

@@ -1,6 +1,8 @@
 //! The `probmot` command-line tool.
 
 mod cli;
+#[cfg(unix)]
+mod interrupt;
 
 use std::process::ExitCode;
 
@@ -8,6 +10,8 @@ use clap::Parser;
 
 fn main() -> ExitCode {
     restore_sigpipe();
+    #[cfg(unix)]
+    interrupt::install();
     let args = cli::Cli::parse();
     match cli::run(args) {
         Ok(code) => code,

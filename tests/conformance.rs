@@ -2,12 +2,14 @@
 //! message, attachment and metadata record listed in each file's `.json` must come out unchanged.
 //! Reads `../shared/data/mcap-conformance/` beside the repository; skips when it is absent.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use indicatif::ProgressBar;
 use mcap::records::Record;
 use probmot::mcapio::reader::read_records;
+use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_file, TrackOptions};
 use probmot::tracker::TrackerConfig;
 use serde_json::Value;
@@ -175,9 +177,12 @@ fn actual(path: &Path) -> Content {
 fn corpus() -> Option<Vec<PathBuf>> {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/mcap-conformance");
     if !dir.is_dir() {
-        eprintln!(
-            "SKIPPED: {} is absent; the conformance test needs the MCAP conformance corpus",
-            dir.display()
+        common::skip(
+            "copy_path_keeps_every_record_of_the_conformance_corpus",
+            &format!(
+                "{} is absent; the conformance test needs the MCAP conformance corpus",
+                dir.display()
+            ),
         );
         return None;
     }
@@ -205,6 +210,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
     let opts = TrackOptions {
         detection_topics: vec![],
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,
@@ -217,7 +223,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
     let mut failures = Vec::new();
     for (i, f) in files.iter().enumerate() {
         let out = dir.path().join(format!("{i}.mcap"));
-        let summary = match track_file(f, &out, &opts, &ProgressBar::hidden()) {
+        let summary = match track_file(f, &out, &opts, &no_progress) {
             Ok(s) => s,
             Err(e) => {
                 failures.push(format!("{}: cannot be copied: {e:#}", f.display()));

@@ -78,7 +78,7 @@ fn gate_fails_a_worse_configuration() {
         worse.to_str().unwrap(),
         "--quiet",
         "--preset",
-        "ab3dmot",
+        "ab3dmot-2019",
     ]);
     let truth = good.to_str().unwrap();
     let r = probmot(&[
@@ -388,7 +388,7 @@ fn range_filter_needs_an_ego_pose_and_the_nuscenes_protocol() {
     for (args, want) in [
         (
             vec!["--protocol", "kitti", "--max-range"],
-            "--max-range is a nuScenes option",
+            "--max-range, --min-points and --bike-racks are nuScenes options",
         ),
         (vec!["--max-range", "car=-1"], "not a positive number"),
         (
@@ -403,4 +403,176 @@ fn range_filter_needs_an_ego_pose_and_the_nuscenes_protocol() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(err.contains(want), "{a:?}: {err}");
     }
+}
+
+#[test]
+fn ids_that_restart_in_every_log_are_objects_of_their_own_log() {
+    // Three logs whose ids all start at 1 (`make_eval_fixtures.py`, `repeated_ids_*`), scored
+    // together by the devkit with scene-unique track ids. The bicycles are never matched (no
+    // recall threshold reached): ML counts 2 objects in each of 3 logs, not 2 ids.
+    let devkit: Value = serde_json::from_slice(
+        &std::fs::read(repo("tests/fixtures/eval/repeated_ids.devkit.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(devkit["classes"]["bicycle"]["ml"], 6.0);
+    assert!(devkit["metric_data"]["bicycle"]["confidence"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(Value::is_null));
+    let files: Vec<String> = ["a", "b", "c"]
+        .iter()
+        .map(|p| {
+            repo(&format!("tests/fixtures/eval/repeated_ids_{p}.mcap"))
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    let mut args = vec!["eval", "--json", "--truth"];
+    args.extend(files.iter().map(String::as_str));
+    let ours: Value = serde_json::from_slice(&probmot_ok(&args).stdout).unwrap();
+    let mut failures = Vec::new();
+    for (class, d) in devkit["classes"].as_object().unwrap() {
+        compare(
+            "repeated_ids",
+            class,
+            &ours["result"]["classes"][class],
+            d,
+            &mut failures,
+        );
+    }
+    compare(
+        "repeated_ids",
+        "overall",
+        &ours["result"]["overall"],
+        &devkit["overall"],
+        &mut failures,
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+/// Imports the nuScenes tables fixture (`make_eval_fixtures.py`: two scenes with zero-point
+/// ground truth, boxes beyond the class ranges and bicycle racks holding ground truth and
+/// predictions) with its tracking submission; returns the output directory.
+fn import_filters_fixture(dir: &std::path::Path) -> std::path::PathBuf {
+    let f = repo("tests/fixtures/eval/nuscenes_filters");
+    let out = dir.join("logs");
+    probmot_ok(&[
+        "import",
+        "nuscenes",
+        "--tracks",
+        f.join("tracking_results.json").to_str().unwrap(),
+        "--meta",
+        f.join("v1.0-probmot").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    out
+}
+
+fn eval_json(truth: &std::path::Path, extra: &[&str]) -> Value {
+    let mut args = vec!["eval", "--json", "--truth", truth.to_str().unwrap()];
+    args.extend(extra);
+    serde_json::from_slice(&probmot_ok(&args).stdout).unwrap()
+}
+
+#[test]
+fn devkit_flag_on_imported_tables_equals_the_devkits_whole_evaluation() {
+    // `nuscenes_filters.devkit.json`: the devkit's own TrackingEval (NuScenes tables, custom
+    // split, add_center_dist + filter_eval_boxes + create_tracks + evaluate) on the same files.
+    let devkit: Value = serde_json::from_slice(
+        &std::fs::read(repo("tests/fixtures/eval/nuscenes_filters.devkit.json")).unwrap(),
+    )
+    .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let logs = import_filters_fixture(dir.path());
+    let ours = eval_json(&logs, &["--devkit"]);
+    let mut failures = Vec::new();
+    for (class, d) in devkit["classes"].as_object().unwrap() {
+        compare(
+            "nuscenes_filters",
+            class,
+            &ours["result"]["classes"][class],
+            d,
+            &mut failures,
+        );
+    }
+    compare(
+        "nuscenes_filters",
+        "overall",
+        &ours["result"]["overall"],
+        &devkit["overall"],
+        &mut failures,
+    );
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+    // Boxes removed by each filter, in the devkit's order.
+    let removed = &devkit["inputs"]["removed_boxes"];
+    let f = &ours["filters"];
+    for (ours_key, devkit_key) in [
+        ("range", "range"),
+        ("min_points", "points"),
+        ("bike_racks", "bike_racks"),
+    ] {
+        let truth = removed["truth"][devkit_key].as_u64().unwrap();
+        assert!(truth > 0, "{devkit_key}: the fixture must exercise it");
+        assert_eq!(f[ours_key]["removed_truth_boxes"].as_u64(), Some(truth));
+        assert_eq!(
+            f[ours_key]["removed_track_boxes"],
+            removed["tracks"][devkit_key]
+        );
+    }
+    // --devkit is the three filters spelled out, and leaving any one out changes the result.
+    let spelled = eval_json(
+        &logs,
+        &[
+            "--max-range",
+            "nuscenes",
+            "--min-points",
+            "1",
+            "--bike-racks",
+        ],
+    );
+    assert_eq!(spelled["result"], ours["result"]);
+    for partial in [
+        vec!["--min-points", "1", "--bike-racks"],
+        vec!["--max-range", "--bike-racks"],
+        vec!["--max-range", "--min-points", "1"],
+    ] {
+        let r = eval_json(&logs, &partial);
+        assert_ne!(
+            r["result"]["overall"], ours["result"]["overall"],
+            "{partial:?}"
+        );
+    }
+}
+
+#[test]
+fn filters_need_their_inputs() {
+    let dir = tempfile::tempdir().unwrap();
+    // Simulated-style fixtures carry no point counts and no racks.
+    let perfect = repo("tests/fixtures/eval/perfect.mcap");
+    for (args, want) in [
+        (vec!["--min-points", "1"], "nuscenes_num_lidar_pts"),
+        (vec!["--bike-racks"], "no channel with topic /bicycle_racks"),
+        (vec!["--min-points", "0"], "0 is not in 1.."),
+    ] {
+        let mut a = vec!["eval", "--truth", perfect.to_str().unwrap()];
+        a.extend(args);
+        let r = probmot(&a);
+        assert_eq!(r.status.code(), Some(2), "{a:?}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(err.contains(want), "{a:?}: {err}");
+    }
+    // The KITTI protocol has none of these filters.
+    let logs = import_filters_fixture(dir.path());
+    let r = probmot(&[
+        "eval",
+        "--protocol",
+        "kitti",
+        "--devkit",
+        "--truth",
+        logs.to_str().unwrap(),
+    ]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("are nuScenes options"));
 }

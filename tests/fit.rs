@@ -303,7 +303,7 @@ fn fit_errors_few_samples_and_rescaling() {
         "--min-samples",
         "5",
         "--base-preset",
-        "ab3dmot",
+        "ab3dmot-2019",
         "--dt-nominal",
         "0.1",
     ]);

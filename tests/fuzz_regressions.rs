@@ -11,10 +11,10 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 use common::repo;
-use indicatif::ProgressBar;
 use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Detections3D, DetectionsEnvelope, Encoding};
 use probmot::pipeline::info::file_info;
+use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_file, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::tracker::TrackerConfig;
 
@@ -67,6 +67,7 @@ fn options() -> TrackOptions {
     TrackOptions {
         detection_topics: Vec::new(),
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,
         strict: false,
@@ -106,8 +107,7 @@ fn assert_refused(name: &str, expect: &str) {
 
     let dir = tempfile::tempdir().unwrap();
     let output = dir.path().join("out.mcap");
-    let (res, peak) =
-        largest_allocation(|| track_file(&input, &output, &options(), &ProgressBar::hidden()));
+    let (res, peak) = largest_allocation(|| track_file(&input, &output, &options(), &no_progress));
     assert!(res.is_err(), "{name}: track_file accepted it");
     assert!(
         peak < ALLOCATION_BOUND,
@@ -256,7 +256,7 @@ fn sample_log_still_tracks() {
         &repo("sample_logs/turning-car.mcap"),
         &out,
         &options(),
-        &ProgressBar::hidden(),
+        &no_progress,
     )
     .unwrap();
     assert_eq!(s.frames, 40);

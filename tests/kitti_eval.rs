@@ -12,7 +12,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{probmot_ok, repo};
+use common::{probmot_ok, repo, skip};
 use serde_json::Value;
 
 fn data_dir() -> Option<PathBuf> {
@@ -62,9 +62,9 @@ fn compare_class(what: &str, reference: &Value, ours: &Value, errors: &mut Vec<S
 #[test]
 fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
     let Some(data) = data_dir() else {
-        eprintln!(
-            "skipping kitti_eval: no KITTI tracking data at ../shared/data/kitti-tracking-train \
-             beside the repository"
+        skip(
+            "kitti_eval_agrees_with_the_ab3dmot_evaluation",
+            "no KITTI tracking data at ../shared/data/kitti-tracking-train beside the repository",
         );
         return;
     };
@@ -110,10 +110,11 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
         if digest != run["result_fnv1a64"].as_str().unwrap() {
             // The reference numbers belong to one exact result file; a changed tracker gives
             // another one, which the reference evaluation has not seen.
-            eprintln!(
-                "SKIPPED {what}: the tracker's output (the exported KITTI result file) is not the \
-                 one the reference numbers were computed on: the tracker has changed. Regenerate \
-                 tests/fixtures/kitti/reference.json as tests/fixtures/kitti/README.md describes."
+            skip(
+                &what,
+                "the tracker's output (the exported KITTI result file) is not the one the \
+                 reference numbers were computed on: the tracker has changed. Regenerate \
+                 tests/fixtures/kitti/reference.json as tests/fixtures/kitti/README.md describes.",
             );
             continue;
         }
@@ -141,9 +142,9 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
 #[test]
 fn kitti_eval_table_and_gate() {
     let Some(data) = data_dir() else {
-        eprintln!(
-            "skipping kitti_eval: no KITTI tracking data at ../shared/data/kitti-tracking-train \
-             beside the repository"
+        skip(
+            "kitti_eval_table_and_gate",
+            "no KITTI tracking data at ../shared/data/kitti-tracking-train beside the repository",
         );
         return;
     };
@@ -180,7 +181,7 @@ fn kitti_eval_table_and_gate() {
         "--dt-nominal",
         "0.1",
         "--preset",
-        "ab3dmot",
+        "ab3dmot-2019",
     ]);
     let out = probmot_ok(&["eval", "--protocol", "kitti", "--truth", s(&ab)]);
     let text = String::from_utf8_lossy(&out.stdout);

@@ -10,12 +10,14 @@ use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{detections, messages, probmot, probmot_ok, repo, tracks};
-use probmot::mcapio::reader::read_records;
-use probmot::msgs::{self, Track3D, Tracks3D};
-use probmot::pipeline::nuscenes_io::{
+use common::{
+    detections, devkit_has, devkit_python, messages, probmot, probmot_ok, repo, skip, tracks,
+};
+use probmot::formats::nuscenes::{
     quaternion_yaw, Submission, EGO_POSE_SCHEMA, NUSCENES_METADATA, SAMPLES_METADATA,
 };
+use probmot::mcapio::reader::read_records;
+use probmot::msgs::{self, Track3D, Tracks3D};
 use serde_json::{json, Value};
 
 const CLASSES: [&str; 7] = [
@@ -111,21 +113,16 @@ fn read_submission(path: &Path) -> (Value, Submission) {
 /// when it is not.
 fn devkit_check(results: &Path, extra: &[&str]) -> Option<std::process::Output> {
     static HAVE_DEVKIT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
-    let have = *HAVE_DEVKIT.get_or_init(|| {
-        Command::new("python3")
-            .args(["-c", "import nuscenes"])
-            .output()
-            .is_ok_and(|o| o.status.success())
-    });
+    let have = *HAVE_DEVKIT.get_or_init(|| devkit_has("nuscenes"));
     if !have {
-        eprintln!(
-            "SKIPPED the devkit check of {}: `python3 -c \"import nuscenes\"` failed \
-             (pip install -r scripts/requirements-devkit.txt to run it)",
-            results.display()
+        skip(
+            &format!("the devkit check of {}", results.display()),
+            "`$PROBMOT_DEVKIT_PYTHON -c \"import nuscenes\"` failed (default python3; \
+             pip install -r scripts/requirements-devkit.txt in a venv to run it)",
         );
         return None;
     }
-    let out = Command::new("python3")
+    let out = Command::new(devkit_python())
         .arg(repo("scripts/check_nuscenes_export.py"))
         .arg(results)
         .arg("--meta")
@@ -302,7 +299,9 @@ fn scene_selection_and_stdout_summary() {
     ]);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.contains("1 scenes, 3 frames, 4 detections, 3 ground-truth boxes"),
+        stdout.contains(
+            "1 scenes, 3 frames, 4 detections, 0 track boxes, 0 bicycle racks, 3 ground-truth boxes"
+        ),
         "{stdout}"
     );
     assert!(dir.path().join("scene-0002.mcap").is_file());
@@ -900,4 +899,134 @@ fn eval_range_filter_reads_the_imported_ego_poses() {
             "range {range}"
         );
     }
+}
+
+#[test]
+fn import_reads_every_float_exactly_and_writes_a_tracking_submission_as_tracks() {
+    // 17-digit numbers that serde_json's default (fast, inexact) float parser reads one ulp off;
+    // Rust's own parser (`str::parse`, correctly rounded) is the reference.
+    let xs: [f64; 3] = [
+        "93.66745596122337".parse().unwrap(),
+        "-1462.8248718212421".parse().unwrap(),
+        "1681.5221252502379".parse().unwrap(),
+    ];
+    let ts: [f64; 3] = [
+        "411.05632224727196".parse().unwrap(),
+        "93.66745596122337".parse().unwrap(),
+        "-1462.8248718212421".parse().unwrap(),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let det = dir.path().join("det.json");
+    let trk = dir.path().join("trk.json");
+    let meta = json!({"use_camera": false, "use_lidar": true, "use_radar": false,
+                      "use_map": false, "use_external": false});
+    // Written as text so that the digits are exactly the ones above.
+    let rot = "[1.0, 0.0, 0.0, 0.0]";
+    std::fs::write(
+        &det,
+        format!(
+            r#"{{"meta": {meta}, "results": {{"sample-b1": [{{"sample_token": "sample-b1",
+            "translation": [93.66745596122337, -1462.8248718212421, 1681.5221252502379],
+            "size": [1.9, 4.5, 1.65], "rotation": {rot}, "velocity": [0.0, 0.0],
+            "detection_name": "car", "detection_score": 0.5, "attribute_name": ""}}]}}}}"#
+        ),
+    )
+    .unwrap();
+    std::fs::write(
+        &trk,
+        format!(
+            r#"{{"meta": {meta}, "results": {{"sample-b1": [{{"sample_token": "sample-b1",
+            "translation": [411.05632224727196, 93.66745596122337, -1462.8248718212421],
+            "size": [1.9, 4.5, 1.65], "rotation": {rot}, "velocity": [0.0, 0.0],
+            "tracking_id": "abc", "tracking_name": "car", "tracking_score": 0.7}},
+            {{"sample_token": "sample-b1", "translation": [1.0, 2.0, 3.0],
+            "size": [0.7, 0.7, 1.8], "rotation": {rot}, "velocity": [0.0, 0.0],
+            "tracking_id": "xyz", "tracking_name": "pedestrian", "tracking_score": 0.4}}],
+            "sample-b3": [{{"sample_token": "sample-b3", "translation": [5.0, 6.0, 1.0],
+            "size": [1.9, 4.5, 1.65], "rotation": {rot}, "velocity": [0.0, 0.0],
+            "tracking_id": "abc", "tracking_name": "car", "tracking_score": 0.9}}]}}}}"#
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("out");
+    probmot_ok(&[
+        "import",
+        "nuscenes",
+        "--detections",
+        s(&det),
+        "--tracks",
+        s(&trk),
+        "--meta",
+        s(&fixtures()),
+        "-o",
+        s(&out),
+    ]);
+    let file = out.join("scene-0002.mcap");
+    let d = &detections(&file, "/detections")[0].detections[0];
+    let c = d.center.unwrap();
+    assert_eq!([c.x, c.y, c.z], xs);
+    let t = tracks(&file, "/tracks");
+    assert_eq!(t.len(), 3, "one message per sample");
+    let c = t[0].tracks[0].center.unwrap();
+    assert_eq!([c.x, c.y, c.z], ts);
+    // Ids 1, 2, ... per scene in order of appearance; class, score and the original id kept.
+    let ids: Vec<Vec<(u64, &str, f64)>> = t
+        .iter()
+        .map(|m| {
+            m.tracks
+                .iter()
+                .map(|b| (b.id, b.label.as_str(), b.score))
+                .collect()
+        })
+        .collect();
+    assert_eq!(
+        ids,
+        vec![
+            vec![(1, "car", 0.7), (2, "pedestrian", 0.4)],
+            vec![],
+            vec![(1, "car", 0.9)]
+        ]
+    );
+    assert_eq!(t[2].tracks[0].attributes["nuscenes_tracking_id"], "abc");
+    // Ground truth is there too, and a (here empty) bicycle-rack channel per sample.
+    assert_eq!(tracks(&file, "/bicycle_racks").len(), 3);
+    assert!(!tracks(&file, "/ground_truth").is_empty());
+    // Only --tracks: no /detections channel.
+    let only = dir.path().join("only");
+    probmot_ok(&[
+        "import",
+        "nuscenes",
+        "--tracks",
+        s(&trk),
+        "--meta",
+        s(&fixtures()),
+        "-o",
+        s(&only),
+    ]);
+    let m = messages(&only.join("scene-0002.mcap"));
+    assert!(m.iter().all(|m| m.topic != "/detections"));
+    // A submission box of an unknown class is a clear error.
+    std::fs::write(
+        &trk,
+        std::fs::read_to_string(&trk)
+            .unwrap()
+            .replace("\"pedestrian\"", "\"dog\""),
+    )
+    .unwrap();
+    let r = probmot(&[
+        "import",
+        "nuscenes",
+        "--tracks",
+        s(&trk),
+        "--meta",
+        s(&fixtures()),
+        "-o",
+        s(&only),
+    ]);
+    assert!(!r.status.success());
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("results[sample-b1][1]") && err.contains("'dog'"),
+        "{err}"
+    );
 }

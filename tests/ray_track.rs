@@ -24,17 +24,15 @@ use serde_json::Value;
 static RAY: Mutex<()> = Mutex::new(());
 
 /// Options passed through to `probmot track` (not the defaults, so that dropping them shows).
-const TRACK_ARGS: [&str; 2] = ["--preset", "ab3dmot"];
+const TRACK_ARGS: [&str; 2] = ["--preset", "ab3dmot-2019"];
 
 fn available(test: &str) -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import ray, pyarrow.fs"])
-        .output()
-        .is_ok_and(|o| o.status.success());
+    let ok = common::python_has("ray, pyarrow.fs");
     if !ok {
-        eprintln!(
-            "SKIPPED {test}: `python3 -c \"import ray, pyarrow.fs\"` failed; install with \
-             `python3 -m pip install -r scripts/requirements.txt` (ray==2.60.0)"
+        common::skip(
+            test,
+            "`python3 -c \"import ray, pyarrow.fs\"` failed; install with \
+             `python3 -m pip install -r scripts/requirements.txt` (ray==2.60.0)",
         );
     }
     ok

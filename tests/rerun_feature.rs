@@ -118,7 +118,7 @@ mod with_feature {
         let leftovers: Vec<_> = std::fs::read_dir(dir)
             .unwrap()
             .map(|e| e.unwrap().file_name())
-            .filter(|n| n.to_string_lossy().starts_with(".probmot-"))
+            .filter(|n| n.to_string_lossy().contains(".probmot-"))
             .collect();
         assert!(leftovers.is_empty(), "{leftovers:?}");
     }

@@ -68,7 +68,7 @@ fn to_rerun_writes_a_recording_the_sdk_reads_back() {
     let leftovers: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name())
-        .filter(|n| n.to_string_lossy().starts_with(".probmot-"))
+        .filter(|n| n.to_string_lossy().contains(".probmot-"))
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }

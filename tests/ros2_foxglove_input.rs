@@ -29,6 +29,8 @@ const PROBMOT_LOG: &str = "sample_logs/city.mcap";
 const ROS2_V2_FIXTURE: &str = "tests/fixtures/ros2/turning-car-vision_msgs2.mcap";
 const PROBMOT_V2_LOG: &str = "sample_logs/turning-car.mcap";
 
+/// Tracks into probmot.Tracks3D (every field, to compare in full; a ROS 2 input's default is
+/// ROS 2 tracks, compared with these in tests/ros2_bag_output.rs).
 fn track(input: &Path, output: &Path) {
     probmot_ok(&[
         "track",
@@ -36,6 +38,8 @@ fn track(input: &Path, output: &Path) {
         "-o",
         output.to_str().unwrap(),
         "--quiet",
+        "--tracks-format",
+        "probmot",
     ]);
 }
 
@@ -777,20 +781,16 @@ fn foxglove_metadata_convention() {
 
 // ---- Regenerating the fixtures (needs the Python packages of scripts/requirements.txt) ----
 
-fn python_has(modules: &str) -> bool {
-    Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
 #[test]
 fn fixtures_regenerate_byte_identical() {
     let needed = "mcap, mcap_protobuf, mcap_ros2, foxglove_schemas_protobuf";
-    if !python_has(needed) {
-        eprintln!(
-            "SKIPPED fixtures_regenerate_byte_identical: python3 cannot import {needed}; \
-             install with `python3 -m pip install -r scripts/requirements.txt`"
+    if !common::python_has(needed) {
+        common::skip(
+            "fixtures_regenerate_byte_identical",
+            &format!(
+                "python3 cannot import {needed}; \
+                 install with `python3 -m pip install -r scripts/requirements.txt`"
+            ),
         );
         return;
     }

@@ -15,13 +15,6 @@ use probmot::msgs::Tracks3D;
 use prost::Message as _;
 use serde_json::Value;
 
-fn python_has(modules: &str) -> bool {
-    Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
 fn tracked_with_scene(dir: &Path) -> std::path::PathBuf {
     let out = dir.join("city.tracked.mcap");
     probmot_ok(&[
@@ -161,10 +154,10 @@ fn a_scene_topic_that_exists_is_refused() {
 #[test]
 fn official_foxglove_python_schemas_decode_the_scene_updates() {
     if !python_has("mcap, foxglove_schemas_protobuf") {
-        eprintln!(
-            "SKIPPED scene_update python check: `python3 -c \"import mcap, \
-             foxglove_schemas_protobuf\"` failed; install with \
-             `python3 -m pip install -r scripts/requirements.txt`"
+        skip(
+            "official_foxglove_python_schemas_decode_the_scene_updates",
+            "`python3 -c \"import mcap, foxglove_schemas_protobuf\"` failed; install with \
+             `python3 -m pip install -r scripts/requirements.txt`",
         );
         return;
     }

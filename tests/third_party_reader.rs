@@ -4,8 +4,11 @@
 //! writes.
 //!
 //! Needs `python3 -m pip install -r scripts/requirements.txt`; without those packages the test
-//! says so on stderr and passes.
+//! prints SKIPPED on stderr and passes (fails under CI=true).
 
+mod common;
+
+use common::{python_has, skip};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -27,13 +30,6 @@ fn probmot(args: &[&str]) {
         "probmot {args:?} failed: {}",
         String::from_utf8_lossy(&out.stderr)
     );
-}
-
-fn python_has(modules: &str) -> bool {
-    Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success())
 }
 
 fn check_tracks(file: &Path, extra: &[&str]) -> Output {
@@ -210,9 +206,10 @@ fn doctor(files: &[PathBuf]) {
 #[test]
 fn python_mcap_reader_agrees_and_doctor_passes() {
     if !python_has("mcap, mcap_protobuf") {
-        eprintln!(
-            "SKIPPED third_party_reader: `python3 -c \"import mcap, mcap_protobuf\"` failed; \
-             install with `python3 -m pip install -r scripts/requirements.txt`"
+        skip(
+            "python_mcap_reader_agrees_and_doctor_passes",
+            "`python3 -c \"import mcap, mcap_protobuf\"` failed; \
+             install with `python3 -m pip install -r scripts/requirements.txt`",
         );
         return;
     }
@@ -318,9 +315,10 @@ fn python_mcap_reader_agrees_and_doctor_passes() {
     if python_has("pymcap_cli") {
         doctor(&written);
     } else {
-        eprintln!(
-            "SKIPPED pymcap-cli doctor: python module pymcap_cli not found; \
-             install with `python3 -m pip install -r scripts/requirements.txt`"
+        skip(
+            "python_mcap_reader_agrees_and_doctor_passes (pymcap-cli doctor)",
+            "python module pymcap_cli not found; \
+             install with `python3 -m pip install -r scripts/requirements.txt`",
         );
     }
 }

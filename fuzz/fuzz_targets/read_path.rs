@@ -7,10 +7,10 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-use indicatif::ProgressBar;
 use libfuzzer_sys::fuzz_target;
 use probmot::mcapio::reader::read_records;
 use probmot::pipeline::info::file_info;
+use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_file, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::tracker::TrackerConfig;
 
@@ -49,6 +49,7 @@ fn options() -> TrackOptions {
     TrackOptions {
         detection_topics: Vec::new(),
         tracks_topic: "/tracks".into(),
+        tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").expect("default preset"),
         no_track: false,
         strict: false,
@@ -73,8 +74,7 @@ fuzz_target!(|data: &[u8]| {
     });
     std::hint::black_box(records);
 
-    let progress = ProgressBar::hidden();
-    match track_file(&p.input, &p.output, &options(), &progress) {
+    match track_file(&p.input, &p.output, &options(), &no_progress) {
         Ok(summary) => {
             std::hint::black_box(serde_json::to_string(&summary).expect("summary serializes"));
             assert!(p.output.is_file(), "track_file succeeded without an output");

@@ -221,7 +221,7 @@ pub fn read_transforms(data: &[u8]) {
         .expect("EgoMotion without --strict accepts every collector");
     for frame in &frames {
         for &stamp in &stamps {
-            let mut msg = Detections3D {
+            let msg = Detections3D {
                 stamp: Some(stamp),
                 frame_id: frame.clone(),
                 detections: vec![Detection3D {
@@ -236,11 +236,12 @@ pub fn read_transforms(data: &[u8]) {
                     ..Default::default()
                 }],
             };
-            ego.to_fixed(&mut msg, stamp, || format!("{frame} at {stamp}"))
+            let mut msg = probmot::msgs::detection_frame::DetectionFrame::from_message(msg, stamp);
+            ego.to_fixed(&mut msg, || format!("{frame} at {stamp}"))
                 .expect("to_fixed without --strict never fails");
             // Taken every time, so that the next message at this stamp is remembered afresh.
             let remembered = ego.take_ego(stamp).is_some();
-            if !msg.detections.is_empty() && ego.is_active() {
+            if !msg.is_empty() && ego.is_active() {
                 assert!(remembered, "a transformed message remembers its ego frame");
             }
         }

@@ -5,24 +5,54 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
+use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
-use probmot::tracker::config::{ab3dmot_covariances, PRESETS};
-use probmot::tracker::{DistanceKind, MatcherKind, TrackerConfig};
+use probmot::tracker::config::ab3dmot_covariances;
+use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Print a built-in preset as JSON, or load, validate and print a config file.
 ///
 /// Examples:
-///   probmot config --preset nuscenes-chiu2019 > my.json
-///   probmot config --check my.json
+///   probmot config --preset nuscenes-chiu2019 > my.json   # a preset to edit
+///   probmot config --config my.json                      # validate the edited file, print it
+///   probmot config --preset ab3dmot-kitti                # AB3DMOT's own KITTI settings
 ///   probmot config --list
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct ConfigArgs {
     #[command(flatten)]
     tracker: TrackerArgs,
-    /// List the built-in presets.
+    /// List the built-in presets with a line on each.
     #[arg(long)]
     list: bool,
+}
+
+/// A built-in preset on the command line; the choices and their help come from the registry
+/// [`Preset`], so every help text lists all presets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PresetArg(pub Preset);
+
+impl ValueEnum for PresetArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        const ALL: [PresetArg; Preset::ALL.len()] = {
+            let mut out = [PresetArg(Preset::ALL[0]); Preset::ALL.len()];
+            let mut i = 0;
+            while i < out.len() {
+                out[i] = PresetArg(Preset::ALL[i]);
+                i += 1;
+            }
+            out
+        };
+        &ALL
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(
+            PossibleValue::new(self.0.name())
+                .help(self.0.description())
+                .aliases(self.0.aliases()),
+        )
+    }
 }
 
 /// Distance choices on the command line.
@@ -36,6 +66,8 @@ pub enum DistanceArg {
     Giou3d,
     /// BEV centre distance, metres.
     Center,
+    /// 3D centre distance, metres (AB3DMOT's dist_3d).
+    Dist3d,
 }
 
 /// Matcher choices on the command line.
@@ -68,9 +100,9 @@ pub struct TrackerArgs {
         help_heading = "Tracker"
     )]
     pub config: Option<PathBuf>,
-    /// Built-in preset: nuscenes-chiu2019 (default) or ab3dmot.
-    #[arg(long, value_name = "NAME", help_heading = "Tracker")]
-    pub preset: Option<String>,
+    /// Built-in preset (default nuscenes-chiu2019). Example: --preset ab3dmot-kitti
+    #[arg(long, value_enum, value_name = "NAME", help_heading = "Tracker")]
+    pub preset: Option<PresetArg>,
     /// Override the distance of every class.
     #[arg(long, value_enum, help_heading = "Ablations")]
     pub distance: Option<DistanceArg>,
@@ -110,7 +142,10 @@ impl TrackerArgs {
                 TrackerConfig::from_json(&text)
                     .with_context(|| format!("config {}", path.display()))?
             }
-            None => TrackerConfig::preset(self.preset.as_deref().unwrap_or("nuscenes-chiu2019"))?,
+            None => self
+                .preset
+                .map_or(Preset::NuscenesChiu2019, |p| p.0)
+                .config()?,
         };
         if let Some(d) = self.dt_nominal {
             cfg.dt_nominal = d;
@@ -120,6 +155,7 @@ impl TrackerArgs {
             DistanceArg::Iou3d => DistanceKind::Iou3d,
             DistanceArg::Giou3d => DistanceKind::Giou3d,
             DistanceArg::Center => DistanceKind::Center,
+            DistanceArg::Dist3d => DistanceKind::Dist3d,
         });
         let matcher = self.matcher.map(|m| match m {
             MatcherArg::Greedy => MatcherKind::Greedy,
@@ -164,20 +200,20 @@ impl TrackerArgs {
 }
 
 /// The usual gate of a distance: 11 for Mahalanobis (the paper), 0.1 IoU and -0.5 GIoU
-/// (AB3DMOT), 2 m for centre distance (the nuScenes matching radius).
+/// (AB3DMOT), 2 m for centre distances (the nuScenes matching radius; AB3DMOT's cyclist gate).
 pub fn default_threshold(d: DistanceKind) -> f64 {
     match d {
         DistanceKind::Mahalanobis => 11.0,
         DistanceKind::Iou3d => 0.1,
         DistanceKind::Giou3d => -0.5,
-        DistanceKind::Center => 2.0,
+        DistanceKind::Center | DistanceKind::Dist3d => 2.0,
     }
 }
 
 pub fn run(a: ConfigArgs) -> Result<ExitCode> {
     if a.list {
-        for p in PRESETS {
-            println!("{p}");
+        for p in Preset::ALL {
+            println!("{:<18} {}", p.name(), p.description());
         }
         return Ok(ExitCode::SUCCESS);
     }

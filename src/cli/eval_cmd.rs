@@ -1,16 +1,21 @@
 //! `probmot eval`.
 
 use std::collections::BTreeMap;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts};
+use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
+use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
+use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
 use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_with, Scene};
+use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use rayon::prelude::*;
 
 /// Evaluation protocols.
@@ -40,6 +45,7 @@ pub enum Protocol {
 ///   probmot eval --protocol kitti --truth 0000.tracked.mcap
 ///   probmot eval --protocol kitti --iou 0.5 --classes car --truth 0000.tracked.mcap
 ///   probmot eval --truth gt/ --tracks tracked/ --json        # many logs, paired by file name
+///   probmot eval --devkit --truth val/                        # the official nuScenes number
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct EvalArgs {
@@ -91,6 +97,28 @@ pub struct EvalArgs {
     /// nuscenes` writes it), read from the truth file.
     #[arg(long, default_value = "/ego_pose", value_name = "TOPIC")]
     ego_topic: String,
+    /// nuScenes only: remove ground-truth boxes with fewer than N lidar + radar points (the
+    /// nuscenes_num_lidar_pts / nuscenes_num_radar_pts attributes `probmot import nuscenes`
+    /// keeps); the devkit removes boxes with 0 points, i.e. N = 1. Tracks carry no counts and are
+    /// kept, as in the devkit. Example: --min-points 1
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    min_points: Option<u64>,
+    /// nuScenes only: remove bicycle and motorcycle boxes (ground truth and tracks) whose centre
+    /// lies inside a bicycle rack of the same frame, as the devkit does. The racks are the
+    /// --racks-topic channel of the truth file (`probmot import nuscenes` writes it).
+    /// Example: --bike-racks
+    #[arg(long)]
+    bike_racks: bool,
+    /// Bicycle-rack channel for --bike-racks (probmot.Tracks3D), read from the truth file.
+    #[arg(long, default_value = BIKE_RACKS_TOPIC, value_name = "TOPIC")]
+    racks_topic: String,
+    /// nuScenes only: every filter of the devkit's filter_eval_boxes, in its order: the class
+    /// ranges (--max-range nuscenes, unless --max-range is given), ground truth without lidar or
+    /// radar points (--min-points 1, unless given) and bicycles/motorcycles in bicycle racks
+    /// (--bike-racks). With logs written by `probmot import nuscenes --tracks` this reproduces the
+    /// official tracking numbers. Example: probmot eval --devkit --truth val/
+    #[arg(long)]
+    devkit: bool,
     /// Print every number as JSON.
     #[arg(long)]
     json: bool,
@@ -191,34 +219,59 @@ fn log_pairs(truth: &[PathBuf], tracks: &[PathBuf]) -> Result<Vec<(PathBuf, Path
     Ok(pairs)
 }
 
+/// Applies the filters that are on to one log, in the devkit's order (range, points, racks),
+/// with the ego poses and racks of its truth file.
+fn filter_log(a: &EvalArgs, truth: &Path, scene: &mut Scene) -> Result<FilterCounts> {
+    let mut counts = FilterCounts::default();
+    if let Some(filter) = &a.max_range {
+        let ego = read_ego_positions(truth, &a.ego_topic)?;
+        counts.range =
+            Some(apply_range_filter(scene, filter, &ego).with_context(|| {
+                format!("--max-range with the ego poses of {}", truth.display())
+            })?);
+    }
+    if let Some(min) = a.min_points {
+        counts.points = Some(apply_min_points(scene, min).with_context(|| {
+            format!(
+                "--min-points: {} (topic {})",
+                truth.display(),
+                a.truth_topic
+            )
+        })?);
+    }
+    if a.bike_racks {
+        let racks = read_racks(truth, &a.racks_topic).with_context(|| {
+            format!(
+                "--bike-racks needs the bicycle racks of each scene on {} (`probmot import \
+                 nuscenes` writes them from sample_annotation.json)",
+                a.racks_topic
+            )
+        })?;
+        counts.bike_racks = Some(apply_bike_racks(scene, &racks));
+    }
+    Ok(counts)
+}
+
 /// Loads every log (in parallel); `kitti` allows ground-truth boxes without id (DontCare).
-/// With `--max-range`, applies the range filter with the ego poses of each truth file and
-/// returns how many boxes it removed.
+/// Applies the filters that are on ([`filter_log`]) and returns how many boxes each removed.
 fn load_logs(
     a: &EvalArgs,
     pairs: &[(PathBuf, PathBuf)],
     kitti: bool,
-) -> Result<(Vec<Scene>, RangeRemoved)> {
-    let loaded: Vec<(Scene, RangeRemoved)> = pairs
+) -> Result<(Vec<Scene>, FilterCounts)> {
+    let loaded: Vec<(Scene, FilterCounts)> = pairs
         .par_iter()
         .map(|(truth, tracks)| {
             let mut scene = load_scene_with(truth, &a.truth_topic, tracks, &a.tracks_topic, kitti)?;
-            let mut removed = RangeRemoved::default();
-            if let Some(filter) = &a.max_range {
-                let ego = read_ego_positions(truth, &a.ego_topic)?;
-                removed = apply_range_filter(&mut scene, filter, &ego).with_context(|| {
-                    format!("--max-range with the ego poses of {}", truth.display())
-                })?;
-            }
-            Ok((scene, removed))
+            let counts = filter_log(a, truth, &mut scene)?;
+            Ok((scene, counts))
         })
         .collect::<Result<_>>()?;
-    let mut total = RangeRemoved::default();
+    let mut total = FilterCounts::default();
     let scenes = loaded
         .into_iter()
-        .map(|(s, r)| {
-            total.truth += r.truth;
-            total.tracks += r.tracks;
+        .map(|(s, c)| {
+            total.add(&c);
             s
         })
         .collect();
@@ -284,7 +337,13 @@ fn paths(pairs: &[(PathBuf, PathBuf)]) -> serde_json::Value {
         .collect::<Vec<_>>())
 }
 
-pub fn run(a: EvalArgs) -> Result<ExitCode> {
+pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
+    let nuscenes_filters = a.max_range.is_some() || a.min_points.is_some() || a.bike_racks;
+    if a.devkit {
+        a.max_range.get_or_insert_with(RangeFilter::nuscenes);
+        a.min_points.get_or_insert(1);
+        a.bike_racks = true;
+    }
     if a.max_drop.is_some() && a.baseline.is_empty() {
         bail!("--max-drop needs --baseline");
     }
@@ -296,8 +355,11 @@ pub fn run(a: EvalArgs) -> Result<ExitCode> {
             run_nuscenes(a)
         }
         Protocol::Kitti => {
-            if a.max_range.is_some() {
-                bail!("--max-range is a nuScenes option (the KITTI protocol has no range filter)");
+            if a.devkit || nuscenes_filters {
+                bail!(
+                    "--devkit, --max-range, --min-points and --bike-racks are nuScenes options \
+                     (the KITTI protocol has no range, points or bicycle-rack filter)"
+                );
             }
             run_kitti(a)
         }
@@ -311,7 +373,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
-    let result = evaluate(&scenes, &params);
+    let (result, (hota, hota_notes)) = rayon::join(
+        || evaluate(&scenes, &params),
+        || centre_hota(&scenes, &params.classes),
+    );
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",
@@ -356,9 +421,15 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             "logs": paths(&pairs), "result": result, "per_log": per_log,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
-            "range_filter": a.max_range.as_ref().map(|f| serde_json::json!({
+            "hota": {"similarity": "bev_centre_distance", "zero_distance_m": ZERO_DISTANCE,
+                     "classes": hota, "notes": hota_notes},
+            "range_filter": a.max_range.as_ref().map(|f| {
+                let r = removed.range.unwrap_or_default();
+                serde_json::json!({
                 "ranges": f.per_class, "other": f.other, "ego_topic": a.ego_topic,
-                "removed_truth_boxes": removed.truth, "removed_track_boxes": removed.tracks})),
+                "removed_truth_boxes": r.truth, "removed_track_boxes": r.tracks})
+            }),
+            "filters": filters_json(&a, &removed),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -370,6 +441,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             a.truth_topic
         );
         print!("{}", table(&COLUMNS, &rows(&result)));
+        println!(
+            "\nHOTA (TrackEval's definition; similarity max(0, 1 - BEV centre distance / 2 m)):"
+        );
+        print!("{}", table(&HOTA_COLUMNS, &hota_rows(&hota, "")));
         if let Some(base) = &baseline {
             println!("\nbaseline {}:", describe(&base_pairs, true));
             print!("{}", table(&COLUMNS, &rows(base)));
@@ -380,13 +455,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             }
             print!("{}", table(&COLUMNS, &delta));
         }
-        if a.max_range.is_some() {
-            println!(
-                "note: range filter (--max-range) removed {} ground-truth and {} track boxes",
-                removed.truth, removed.tracks
-            );
+        for line in filter_notes(&removed, a.min_points) {
+            println!("note: {line}");
         }
-        for n in &result.notes {
+        for n in result.notes.iter().chain(&hota_notes) {
             println!("note: {n}");
         }
         let _ = fmt_value;
@@ -398,6 +470,44 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         return Ok(ExitCode::from(3));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The filters that ran, in the devkit's order, with what each removed (JSON).
+fn filters_json(a: &EvalArgs, c: &FilterCounts) -> serde_json::Value {
+    let counts = |r: &RangeRemoved| serde_json::json!({"removed_truth_boxes": r.truth, "removed_track_boxes": r.tracks});
+    serde_json::json!({
+        "devkit": a.devkit,
+        "range": c.range.as_ref().map(counts),
+        "min_points": c.points.as_ref().map(|r| serde_json::json!({
+            "min": a.min_points, "removed_truth_boxes": r.truth, "removed_track_boxes": r.tracks})),
+        "bike_racks": c.bike_racks.as_ref().map(|r| serde_json::json!({
+            "topic": a.racks_topic, "removed_truth_boxes": r.truth,
+            "removed_track_boxes": r.tracks})),
+    })
+}
+
+/// One line per filter that ran, in the devkit's order.
+fn filter_notes(c: &FilterCounts, min_points: Option<u64>) -> Vec<String> {
+    let mut out = Vec::new();
+    if let Some(r) = c.range {
+        out.push(format!(
+            "range filter removed {} ground-truth and {} track boxes",
+            r.truth, r.tracks
+        ));
+    }
+    if let (Some(r), Some(n)) = (c.points, min_points) {
+        out.push(format!(
+            "points filter (fewer than {n} lidar + radar points) removed {} ground-truth boxes",
+            r.truth
+        ));
+    }
+    if let Some(r) = c.bike_racks {
+        out.push(format!(
+            "bicycle-rack filter removed {} ground-truth and {} track boxes",
+            r.truth, r.tracks
+        ));
+    }
+    out
 }
 
 /// Table columns of the KITTI report; lower-case names are counts (printed without decimals).
@@ -449,6 +559,9 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, _) = load_logs(&a, &pairs, true)?;
     let result = kitti::evaluate(&scenes, &params);
+    let (hota_2d, mut hota_notes) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Image);
+    let (hota_3d, _) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Box3d);
+    hota_notes.dedup();
     if result.classes.is_empty() {
         bail!(
             "{}: topic {} has no track box of the evaluated classes ({}); nothing to evaluate",
@@ -481,6 +594,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "logs": paths(&pairs), "result": result,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
+            "hota": {"image_2d": hota_2d, "iou_3d": hota_3d, "notes": hota_notes},
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
@@ -496,6 +610,12 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "{}",
             table(&KITTI_COLUMNS, &kitti_rows(&result, &params.classes))
         );
+        println!(
+            "\nHOTA (TrackEval's Kitti2DBox: 2D image-box IoU; 3d: the same boxes by 3D IoU):"
+        );
+        let mut h = hota_rows(&hota_2d, "");
+        h.extend(hota_rows(&hota_3d, " 3d"));
+        print!("{}", table(&HOTA_COLUMNS, &h));
         if let Some(base) = &baseline {
             println!("\nbaseline {}:", describe(&base_pairs, true));
             print!(
@@ -514,7 +634,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             }
             print!("{}", table(&KITTI_COLUMNS, &delta));
         }
-        for n in &result.notes {
+        for n in result.notes.iter().chain(&hota_notes) {
             println!("note: {n}");
         }
     }

@@ -9,7 +9,9 @@ use clap::Args;
 use probmot::fit::load::load_log;
 use probmot::fit::{fit, fitted_config, ClassFit, FitOptions, FitReport, YawMode};
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
-use probmot::tracker::TrackerConfig;
+use probmot::tracker::{Preset, TrackerConfig};
+
+use super::config_cmd::PresetArg;
 use rayon::prelude::*;
 
 /// Fit per-class noise (Q, R, P0) from logs with ground truth and detections, and write a
@@ -32,7 +34,7 @@ use rayon::prelude::*;
 ///
 /// Examples:
 ///   probmot fit train/*.mcap -o noise.json
-///   probmot fit drive.mcap -o noise.json --fold-yaw --base-preset ab3dmot --json
+///   probmot fit drive.mcap -o noise.json --fold-yaw --base-preset ab3dmot-2019 --json
 ///   probmot track drive.mcap -o out.mcap --config noise.json
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -53,9 +55,9 @@ pub struct FitArgs {
     /// config's).
     #[arg(long, value_name = "S")]
     dt_nominal: Option<f64>,
-    /// Base preset: nuscenes-chiu2019 (default) or ab3dmot.
-    #[arg(long, value_name = "NAME", conflicts_with = "base_config")]
-    base_preset: Option<String>,
+    /// Base preset (default nuscenes-chiu2019).
+    #[arg(long, value_enum, value_name = "NAME", conflicts_with = "base_config")]
+    base_preset: Option<PresetArg>,
     /// Base config file (JSON, as printed by `probmot config`).
     #[arg(long, value_name = "FILE")]
     base_config: Option<PathBuf>,
@@ -78,7 +80,10 @@ fn base_config(a: &FitArgs) -> Result<TrackerConfig> {
             TrackerConfig::from_json(&text)
                 .with_context(|| format!("base config {}", path.display()))?
         }
-        None => TrackerConfig::preset(a.base_preset.as_deref().unwrap_or("nuscenes-chiu2019"))?,
+        None => a
+            .base_preset
+            .map_or(Preset::NuscenesChiu2019, |p| p.0)
+            .config()?,
     })
 }
 

@@ -5,13 +5,20 @@ use std::process::ExitCode;
 
 use anyhow::{Context, Result};
 use clap::{Args, Subcommand};
-use probmot::pipeline::kitti_io::{export_kitti, import_kitti, resolve_detection_files};
-use probmot::pipeline::nuscenes_io::{
+use probmot::formats::nuscenes::{
     export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
+};
+use probmot::pipeline::kitti_io::{
+    export_kitti, import_kitti, resolve_detection_files, TracksInput,
 };
 
 /// Convert a dataset's files to an MCAP recording.
+///
+/// Examples:
+///   probmot import kitti --labels label_02/0000.txt --detections pointrcnn/ -o 0000.mcap
+///   probmot import nuscenes --detections results.json --meta v1.0-trainval/ -o scenes/
 #[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
 pub struct ImportArgs {
     #[command(subcommand)]
     format: ImportFormat,
@@ -31,8 +38,16 @@ enum ImportFormat {
 /// truncation, occlusion and the original track id are kept as attributes, so export loses
 /// nothing.
 ///
-/// Example:
+/// With --tracks, another tracker's KITTI tracking result file (e.g. AB3DMOT's) becomes a
+/// probmot.Tracks3D channel (--tracks-topic, default /tracks) of the same log, so that
+/// `probmot eval` scores it on the same truth, or compares it with probmot's tracks
+/// (--baseline). Its ids are kept (export kitti writes them back unchanged).
+///
+/// Examples:
 ///   probmot import kitti --labels label_02/0000.txt --detections pointrcnn/ -o 0000.mcap
+///   probmot import kitti --labels label_02/0000.txt --tracks ab3dmot/0000.txt -o ab_0000.mcap
+///   probmot eval --protocol kitti --truth ab_0000.mcap
+///   probmot eval --protocol kitti --truth 0000.tracked.mcap --baseline ab_0000.mcap
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 struct ImportKitti {
@@ -41,8 +56,20 @@ struct ImportKitti {
     labels: Option<PathBuf>,
     /// Detection files (`frame, type, x1, y1, x2, y2, score, h, w, l, x, y, z, rotation_y,
     /// alpha`), or directories holding `SSSS.txt` directly or one level down (e.g. pointrcnn/).
-    #[arg(long, num_args = 1.., required = true, value_name = "DIR_OR_FILE")]
+    #[arg(long, num_args = 1.., required_unless_present = "tracks", value_name = "DIR_OR_FILE")]
     detections: Vec<PathBuf>,
+    /// Another tracker's result file for this sequence (`frame id type 0 0 alpha x1 y1 x2 y2 h w
+    /// l x y z rotation_y score`), written as a tracks channel.
+    #[arg(long, value_name = "RESULTS.txt")]
+    tracks: Option<PathBuf>,
+    /// Topic of the tracks channel written from --tracks.
+    #[arg(
+        long,
+        default_value = "/tracks",
+        value_name = "TOPIC",
+        requires = "tracks"
+    )]
+    tracks_topic: String,
     /// Sequence name (default: the label file's name, e.g. 0000).
     #[arg(long)]
     sequence: Option<String>,
@@ -52,7 +79,12 @@ struct ImportKitti {
 }
 
 /// Write a tracks (or ground-truth) channel in a dataset's result format.
+///
+/// Examples:
+///   probmot export kitti 0000.tracked.mcap -o results/0000.txt
+///   probmot export nuscenes scenes_tracked/*.mcap -o tracking_results.json
 #[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
 pub struct ExportArgs {
     #[command(subcommand)]
     format: ExportFormat,
@@ -86,7 +118,8 @@ struct ExportKitti {
     output: PathBuf,
 }
 
-/// A nuScenes detection results file -> one MCAP per scene, with /detections, /ground_truth and
+/// A nuScenes detection results file and/or tracking submission -> one MCAP per scene, with
+/// /detections and/or /tracks, /ground_truth, /bicycle_racks and
 /// /ego_pose at the dataset's samples (about 2 Hz).
 ///
 /// Scenes written: those with at least one sample token in the results (or the --scene names),
@@ -110,14 +143,27 @@ struct ExportKitti {
 /// uses. Metadata records: probmot.nuscenes (scene token and name) and
 /// probmot.nuscenes.samples (frame stamp in ns -> sample token), which `export nuscenes` reads.
 ///
-/// Example:
+/// With --tracks, a tracking submission (the format `probmot export nuscenes` writes) becomes
+/// the /tracks channel of each scene (probmot.Tracks3D; label = tracking_name, score =
+/// tracking_score, id = 1, 2, ... per scene in order of appearance, the original tracking_id
+/// kept as the attribute nuscenes_tracking_id), ready for `probmot eval`. With ground truth, the
+/// scene's bicycle racks (category static_object.bicycle_rack) go to /bicycle_racks
+/// (probmot.Tracks3D, label bicycle_rack, the full quaternion as the attribute
+/// nuscenes_rotation) for `probmot eval --bike-racks` / `--devkit`.
+///
+/// Examples:
 ///   probmot import nuscenes --detections results_val.json --meta v1.0-trainval/ -o val/
+///   probmot import nuscenes --tracks tracking_val.json --meta v1.0-trainval/ -o val/
+///   probmot eval --devkit --truth val/
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 struct ImportNuscenes {
-    /// Detection results JSON (nuScenes detection submission format).
+    /// Detection results JSON (nuScenes detection submission format), written to /detections.
+    #[arg(long, value_name = "FILE", required_unless_present = "tracks")]
+    detections: Option<PathBuf>,
+    /// Tracking submission JSON (nuScenes tracking result format), written to /tracks.
     #[arg(long, value_name = "FILE")]
-    detections: PathBuf,
+    tracks: Option<PathBuf>,
     /// Directory holding the dataset's tables (sample.json, scene.json, ...).
     #[arg(long, value_name = "DIR")]
     meta: PathBuf,
@@ -189,20 +235,39 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                     anyhow::bail!("give --sequence when no --labels file is given")
                 }
             };
-            let files = resolve_detection_files(&k.detections, &sequence)?;
-            let s = import_kitti(k.labels.as_deref(), &files, &sequence, &k.output)?;
+            let files = if k.detections.is_empty() {
+                Vec::new()
+            } else {
+                resolve_detection_files(&k.detections, &sequence)?
+            };
+            let tracks = k.tracks.clone().map(|file| TracksInput {
+                file,
+                topic: k.tracks_topic.clone(),
+            });
+            let s = import_kitti(
+                k.labels.as_deref(),
+                &files,
+                tracks.as_ref(),
+                &sequence,
+                &k.output,
+            )?;
             println!(
-                "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows",
+                "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows{}",
                 k.output.display(),
                 s.frames,
                 s.detections,
                 s.detection_files.len(),
-                s.truth_rows
+                s.truth_rows,
+                match &tracks {
+                    Some(t) => format!(", {} track rows on {}", s.track_rows, t.topic),
+                    None => String::new(),
+                }
             );
         }
         ImportFormat::Nuscenes(n) => {
             let s = import_nuscenes(&ImportOptions {
                 detections: n.detections.clone(),
+                tracks: n.tracks.clone(),
                 meta: n.meta.clone(),
                 out_dir: n.output.clone(),
                 scenes: n.scene.clone(),
@@ -212,16 +277,25 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
             }
             for sc in &s.scenes {
                 println!(
-                    "{}: {} frames, {} detections, {} ground-truth boxes, {} ego poses",
-                    sc.output, sc.frames, sc.detections, sc.truth_boxes, sc.ego_poses
+                    "{}: {} frames, {} detections, {} track boxes, {} ground-truth boxes, {} \
+                     bicycle racks, {} ego poses",
+                    sc.output,
+                    sc.frames,
+                    sc.detections,
+                    sc.tracks,
+                    sc.truth_boxes,
+                    sc.bike_racks,
+                    sc.ego_poses
                 );
             }
             println!(
-                "{}: {} scenes, {} frames, {} detections, {}, {}",
+                "{}: {} scenes, {} frames, {} detections, {} track boxes, {} bicycle racks, {}, {}",
                 n.output.display(),
                 s.scenes.len(),
                 s.frames,
                 s.detections,
+                s.tracks,
+                s.bike_racks,
                 if s.ground_truth {
                     format!(
                         "{} ground-truth boxes ({} outside the tracking classes skipped)",
@@ -245,7 +319,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic == "/tracks")?;
+            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic != "/ground_truth")?;
             println!(
                 "{}: {} rows in {} frames",
                 k.output.display(),

@@ -6,12 +6,21 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
-use probmot::pipeline::info::file_info;
+use probmot::pipeline::info::{duration, file_info, iso8601};
 use probmot::transforms::buffer::EdgeSummary;
 
-/// Show the channels of an MCAP file: schema, encodings, message counts, time range, and for
-/// detection and track channels the boxes per class.
+/// Show what an MCAP file holds: channels, schemas, message counts, times, boxes per class.
+///
+/// Per channel: schema, encodings, message count, time range, whether probmot can use it (as
+/// detections, tracks or transforms), and for detection and track channels the boxes per class;
+/// then the transform tree. Times: the file's start and end as ISO 8601 UTC (and seconds since the epoch), its
+/// duration, and each channel's range relative to the start.
+///
+/// Examples:
+///   probmot info sample_logs/city.mcap
+///   probmot info sample_logs/city.mcap --json | head
 #[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
 pub struct InfoArgs {
     /// MCAP file.
     file: PathBuf,
@@ -20,8 +29,19 @@ pub struct InfoArgs {
     json: bool,
 }
 
-fn secs(ns: u64) -> String {
-    format!("{}.{:09}", ns / 1_000_000_000, ns % 1_000_000_000)
+/// A time as ISO 8601 UTC and, in parentheses, seconds since the epoch (as `mcap info`).
+fn time(ns: u64) -> String {
+    format!(
+        "{} ({}.{:09})",
+        iso8601(ns),
+        ns / 1_000_000_000,
+        ns % 1_000_000_000
+    )
+}
+
+/// A time relative to the file's start, for the per-channel ranges: `+1.500s`.
+fn rel(ns: u64, start: u64) -> String {
+    format!("+{}", duration(ns.saturating_sub(start)))
 }
 
 pub fn run(a: InfoArgs) -> Result<ExitCode> {
@@ -32,11 +52,19 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
     }
     println!("file:        {}", info.path);
     println!("library:     {}", info.library);
-    println!("profile:     {}", info.profile);
+    if !info.profile.is_empty() {
+        println!("profile:     {}", info.profile);
+    }
     println!(
         "messages:    {}   attachments: {}   metadata: {}",
         info.messages, info.attachments, info.metadata
     );
+    let start = info.log_time_range.map_or(0, |(a, _)| a);
+    if let Some((a, b)) = info.log_time_range {
+        println!("duration:    {}", duration(b - a));
+        println!("start:       {}", time(a));
+        println!("end:         {}", time(b));
+    }
     println!("channels:");
     let w = info
         .channels
@@ -48,7 +76,7 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
     for c in &info.channels {
         let range = c
             .log_time_range
-            .map(|(a, b)| format!("{} .. {}", secs(a), secs(b)))
+            .map(|(a, b)| format!("{} .. {}", rel(a, start), rel(b, start)))
             .unwrap_or_else(|| "-".into());
         let schema = if c.schema.is_empty() {
             "(no schema)"
@@ -106,12 +134,12 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
             det.join(", ")
         );
     }
-    print_transform_tree(&info.transform_tree);
+    print_transform_tree(&info.transform_tree, start);
     Ok(ExitCode::SUCCESS)
 }
 
 /// Prints the frame tree, each child indented under its parent, roots first.
-fn print_transform_tree(edges: &[EdgeSummary]) {
+fn print_transform_tree(edges: &[EdgeSummary], start: u64) {
     if edges.is_empty() {
         return;
     }
@@ -126,22 +154,32 @@ fn print_transform_tree(edges: &[EdgeSummary]) {
         .collect();
     roots.sort_unstable();
     roots.dedup();
-    fn walk<'a>(e: &'a EdgeSummary, depth: usize, children: &dyn Fn(&str) -> Vec<&'a EdgeSummary>) {
+    fn walk<'a>(
+        e: &'a EdgeSummary,
+        depth: usize,
+        start: u64,
+        children: &dyn Fn(&str) -> Vec<&'a EdgeSummary>,
+    ) {
         let what = if e.is_static {
             "static".to_string()
         } else {
             let (a, b) = e.stamp_range.unwrap_or_default();
-            format!("{} transforms, {} .. {}", e.transforms, secs(a), secs(b))
+            format!(
+                "{} transforms, stamps {} .. {}",
+                e.transforms,
+                rel(a, start),
+                rel(b, start)
+            )
         };
         println!("  {}{}  ({what})", "  ".repeat(depth), e.child);
         for c in children(&e.child) {
-            walk(c, depth + 1, children);
+            walk(c, depth + 1, start, children);
         }
     }
     for r in roots {
         println!("  {r}");
         for e in children(r) {
-            walk(e, 1, &children);
+            walk(e, 1, start, &children);
         }
     }
 }

@@ -22,8 +22,13 @@ use clap::{Parser, Subcommand};
 /// Reads 3D detections from an MCAP file, tracks them with the method of Chiu et al. (2019)
 /// (Kalman filter, Mahalanobis distance, greedy matching, noise from data) and writes the
 /// recording back with a tracks channel added.
+///
+/// Examples:
+///   probmot track sample_logs/city.mcap -o city.tracked.mcap
+///   probmot eval --truth city.tracked.mcap
+///   probmot track --help
 #[derive(Debug, Parser)]
-#[command(name = "probmot", version, about, long_about)]
+#[command(name = "probmot", version, about, long_about, verbatim_doc_comment)]
 pub struct Cli {
     #[command(subcommand)]
     command: Command,

@@ -12,10 +12,16 @@ use probmot::viz::{read_layers, Layer, Selection};
 
 use super::layer_topics::LayerTopics;
 
-/// Draw a bird's-eye-view PNG of a recording: one panel per layer (detections, tracks, ground
-/// truth) side by side, every box of the time window in place, a colour per id (detections
-/// grey), axes in metres with equal scale on x and y.
+/// Draw a bird's-eye-view PNG of a recording, one panel per layer, a colour per track id.
+///
+/// The panels (detections, tracks, ground truth) stand side by side, every box of the time
+/// window in place, detections grey, axes in metres with equal scale on x and y.
+///
+/// Examples:
+///   probmot plot city.tracked.mcap -o city.png --class car
+///   probmot plot city.tracked.mcap -o first5s.png --from 0 --to 5 --layers tracks,ground_truth
 #[derive(Debug, Args)]
+#[command(verbatim_doc_comment)]
 pub struct PlotArgs {
     /// MCAP file, e.g. the output of `probmot track`.
     file: PathBuf,

@@ -7,9 +7,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::{bail, Context, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
-use probmot::mcapio::writer::OutputCompression;
+use probmot::mcapio::writer::{check_output_path, OutputCompression};
 use probmot::pipeline::ego::EgoOptions;
+use probmot::pipeline::progress::{no_progress, Progress};
+use probmot::pipeline::rosbag_dir;
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
+use probmot::pipeline::tracks_format::TracksFormat;
 use rayon::prelude::*;
 
 use super::config_cmd::TrackerArgs;
@@ -19,10 +22,12 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// Track the detections of MCAP recordings and write each back with a tracks channel added.
 ///
 /// Every input record (schemas, channels, messages with their times and sequence numbers,
-/// attachments, metadata) is copied unchanged; the tracks are written as `probmot.Tracks3D`
-/// messages, one per frame, with log_time = the frame's stamp. Frames are the distinct
-/// detection stamps, replayed in stamp order. The output is written to a temporary file and
-/// renamed at the end; the input is never modified.
+/// attachments, metadata) is copied unchanged; the tracks are written one message per frame,
+/// with log_time = the frame's stamp, as `probmot.Tracks3D` or, for ROS 2 inputs,
+/// `vision_msgs/msg/Detection3DArray` (see --tracks-format). Frames are the distinct
+/// detection stamps, replayed in stamp order. The output is written to a partial file beside it
+/// (.NAME.probmot-partial) and renamed at the end; the input is never modified. --out-dir is
+/// created when missing. Ctrl-C, SIGTERM or SIGHUP remove the partial files (exit 130/143/129).
 ///
 /// Detection inputs, chosen by each channel's schema and encodings (no flag needed):
 ///   probmot.Detections3D               protobuf or json
@@ -37,20 +42,24 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
-///   probmot track drive.mcap -o out.mcap --preset ab3dmot
+///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks: see --tracks-format)
+///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out)
+///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
 ///   probmot track drive.mcap -o out.mcap --fixed-frame map --tracks-frame ego --scene-topic /tracks/scene
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct TrackArgs {
-    /// Input MCAP file(s).
+    /// Input MCAP file(s), or one rosbag2 bag directory (metadata.yaml + one .mcap file; the
+    /// output -o is then a new bag directory with an updated metadata.yaml).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
-    /// Output file (one input).
+    /// Output file (one input); a new bag directory when the input is a bag directory.
     #[arg(short, long, conflicts_with = "out_dir")]
     output: Option<PathBuf>,
-    /// Output directory (any number of inputs; each output keeps its input's file name).
+    /// Output directory, created when missing (any number of inputs; each output keeps its
+    /// input's file name).
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
     /// Threads to use (default: number of cores). With --out-dir, files run in parallel on N
@@ -65,6 +74,15 @@ pub struct TrackArgs {
     /// Topic of the tracks channel to write.
     #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
     tracks_topic: String,
+    /// Message type of the tracks channel: `probmot` (probmot.Tracks3D, protobuf: velocities,
+    /// variances, ages) or `ros2` (vision_msgs/msg/Detection3DArray, CDR: track id in
+    /// Detection3D.id, label and score in the hypothesis, box in bbox; readable by ROS 2 tools).
+    /// Default: ros2 when the input is a ROS 2 bag (MCAP profile `ros2`) or its detections are
+    /// ROS 2 messages, else probmot. With ros2, --scene-topic and --tracks-frame ego are refused.
+    /// See docs/ros2.md.
+    /// Example: probmot track bag.mcap -o out.mcap --tracks-format probmot
+    #[arg(long, value_enum, value_name = "FORMAT")]
+    tracks_format: Option<TracksFormatArg>,
     #[command(flatten)]
     tracker: TrackerArgs,
     /// Copy the log without tracking (measures the cost of plain I/O).
@@ -109,6 +127,15 @@ pub struct TrackArgs {
     json: bool,
 }
 
+/// `--tracks-format`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum TracksFormatArg {
+    /// probmot.Tracks3D (protobuf).
+    Probmot,
+    /// vision_msgs/msg/Detection3DArray (ROS 2, CDR).
+    Ros2,
+}
+
 /// Frames the tracks are written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum TracksFrame {
@@ -151,7 +178,51 @@ fn print_summary(s: &TrackSummary) {
     );
 }
 
+/// Checks every output path before any work, creating `--out-dir` when it does not exist; returns
+/// the `--out-dir` outputs (empty with `-o`).
+fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
+    match (&a.output, &a.out_dir) {
+        (Some(out), None) => {
+            if a.inputs.len() != 1 {
+                bail!("-o takes one input; use --out-dir DIR for several inputs");
+            }
+            // A bag directory's output is a new bag directory, checked (and created) by
+            // rosbag_dir::prepare_output before any work.
+            if !a.inputs[0].is_dir() {
+                check_output_path(Some(&a.inputs[0]), out)?;
+            }
+            Ok(Vec::new())
+        }
+        (None, Some(dir)) => {
+            if let Some(i) = a.inputs.iter().find(|i| i.is_dir()) {
+                bail!(
+                    "{}: a directory (a rosbag2 bag?); track a bag directory with -o \
+                     OUT_BAG_DIR, one at a time",
+                    i.display()
+                );
+            }
+            if dir.exists() && !dir.is_dir() {
+                bail!("--out-dir {} exists and is not a directory", dir.display());
+            }
+            std::fs::create_dir_all(dir)
+                .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+            let mut outputs = Vec::new();
+            for i in &a.inputs {
+                let o = output_in(dir, i)?;
+                if outputs.contains(&o) {
+                    bail!("two inputs would both be written to {}", o.display());
+                }
+                check_output_path(Some(i), &o)?;
+                outputs.push(o);
+            }
+            Ok(outputs)
+        }
+        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
+    }
+}
+
 pub fn run(a: TrackArgs) -> Result<ExitCode> {
+    let outputs = check_outputs(&a)?;
     if let Some(rrd) = &a.rerun {
         if !cfg!(feature = "rerun") {
             bail!("--rerun: {NEEDS_FEATURE}");
@@ -176,6 +247,10 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
     let opts = TrackOptions {
         detection_topics: a.detections_topics.clone(),
         tracks_topic: a.tracks_topic.clone(),
+        tracks_format: a.tracks_format.map(|f| match f {
+            TracksFormatArg::Probmot => TracksFormat::Probmot,
+            TracksFormatArg::Ros2 => TracksFormat::Ros2,
+        }),
         config,
         no_track: a.no_track,
         strict: a.strict,
@@ -194,15 +269,27 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {
         (Some(out), None) => {
-            if a.inputs.len() != 1 {
-                bail!("-o takes one input; use --out-dir DIR for several inputs");
-            }
             let bar = if progress {
                 ProgressBar::new(0).with_style(bar_style())
             } else {
                 ProgressBar::hidden()
             };
-            let s = track_file(&a.inputs[0], out, &opts, &bar)?;
+            // A bag directory in: a bag directory out, with its metadata.yaml.
+            let bag = rosbag_dir::bag_mcap(&a.inputs[0])?;
+            let (input, out) = match &bag {
+                Some(mcap) => (mcap.clone(), rosbag_dir::prepare_output(out, mcap)?),
+                None => (a.inputs[0].clone(), out.clone()),
+            };
+            let s = track_file(&input, &out, &opts, &|e| show(&bar, e));
+            if let (Err(_), Some(dir)) = (&s, out.parent().filter(|_| bag.is_some())) {
+                // Leave no empty bag directory behind (fails harmlessly when not empty).
+                let _ = std::fs::remove_dir(dir);
+            }
+            let s = s?;
+            if let (Some(_), Some(dir)) = (&bag, out.parent()) {
+                rosbag_dir::write_metadata(dir, &out)?;
+            }
+            let out = &out;
             bar.finish_and_clear();
             for w in &s.warnings {
                 eprintln!("warning: {w}");
@@ -217,8 +304,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             }
             Ok(ExitCode::SUCCESS)
         }
-        (None, Some(dir)) => run_many(&a, dir, &opts, jobs, progress),
-        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
+        _ => run_many(&a, &outputs, &opts, jobs, progress),
     }
 }
 
@@ -260,22 +346,11 @@ fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
 
 fn run_many(
     a: &TrackArgs,
-    dir: &Path,
+    outputs: &[PathBuf],
     opts: &TrackOptions,
     jobs: usize,
     progress: bool,
 ) -> Result<ExitCode> {
-    if !dir.is_dir() {
-        bail!("output directory {} does not exist", dir.display());
-    }
-    let mut outputs = Vec::new();
-    for i in &a.inputs {
-        let o = output_in(dir, i)?;
-        if outputs.contains(&o) {
-            bail!("two inputs would both be written to {}", o.display());
-        }
-        outputs.push(o);
-    }
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(jobs.max(1))
         .build()
@@ -293,9 +368,9 @@ fn run_many(
     let results: Vec<Result<TrackSummary>> = pool.install(|| {
         a.inputs
             .par_iter()
-            .zip(&outputs)
+            .zip(outputs)
             .map(|(input, output)| {
-                let r = track_file(input, output, opts, &ProgressBar::hidden());
+                let r = track_file(input, output, opts, &no_progress);
                 if r.is_err() {
                     failed.fetch_add(1, Ordering::Relaxed);
                 }
@@ -343,4 +418,14 @@ fn run_many(
     } else {
         ExitCode::SUCCESS
     })
+}
+
+/// Shows a progress event of the library on the bar.
+fn show(bar: &ProgressBar, e: Progress<'_>) {
+    match e {
+        Progress::Length(n) => bar.set_length(n),
+        Progress::Position(n) => bar.set_position(n),
+        Progress::Message(m) => bar.set_message(m.to_string()),
+        Progress::Done => bar.set_position(bar.length().unwrap_or(0)),
+    }
 }

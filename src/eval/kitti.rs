@@ -1406,6 +1406,32 @@ mod tests {
     }
 
     #[test]
+    fn ids_repeated_in_another_log_are_other_objects() {
+        // Two logs whose ids both start at 0: GT 0 and 1 in each, track 1 on GT 0 in the first
+        // log (score 0.9) and on GT 1 in the second (score 0.1). Four trajectories, two mostly
+        // tracked and two mostly lost; each track's mean score is its own log's.
+        let frames = |tracked: i64, score: f64| -> Vec<(Vec<EvalBox>, Vec<EvalBox>)> {
+            (0..4)
+                .map(|_| {
+                    let x = if tracked == 0 { 10.0 } else { 20.0 };
+                    (
+                        vec![gt(0, "Car", 10.0, 0, 0), gt(1, "Car", 20.0, 0, 0)],
+                        vec![trk(1, "Car", x, score, IMG)],
+                    )
+                })
+                .collect()
+        };
+        let r = evaluate(
+            &[scene(frames(0, 0.9)), scene(frames(1, 0.1))],
+            &params(&["car"]),
+        );
+        let m = &r.classes["car"];
+        assert_eq!((m.tp, m.fn_, m.ids, m.frag), (8, 8, 0, 0));
+        assert!(close(m.mt, 0.5) && close(m.ml, 0.5) && close(m.pt, 0.0));
+        assert!(close(m.best_threshold, 0.1), "{}", m.best_threshold);
+    }
+
+    #[test]
     fn whole_trajectories_are_filtered_by_their_mean_score() {
         // GT 0 in four frames, matched by track 1 with scores averaging 0.5 (one box below);
         // GT 1 in the first two frames, matched by track 3 (mean 0.125); track 2 is a false

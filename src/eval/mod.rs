@@ -1,6 +1,8 @@
 //! Evaluation: the nuScenes tracking metrics (as the official devkit computes them) and the
 //! KITTI-style 3D MOT metrics, on probmot's `Tracks3D` channels.
 
+pub mod filters;
+pub mod hota;
 pub mod kitti;
 pub mod mot_accumulator;
 pub mod numpy_compat;

@@ -493,13 +493,15 @@ fn evaluate_class(
     notes: &mut Vec<String>,
 ) -> Metrics {
     let scenes: Vec<ClassScene> = scenes.iter().map(|s| class_view(s, class)).collect();
+    // Ids restart in every log (KITTI label files, `simulate`, per-drive counters): a ground-truth
+    // object is the pair (log, id). The devkit's instance tokens are unique across scenes.
     let mut gt_boxes = 0u64;
-    let mut gt_ids: HashSet<u64> = HashSet::new();
-    for s in &scenes {
+    let mut gt_ids: HashSet<(usize, u64)> = HashSet::new();
+    for (si, s) in scenes.iter().enumerate() {
         for f in &s.gt {
             for b in f {
                 gt_boxes += 1;
-                gt_ids.insert(b.0);
+                gt_ids.insert((si, b.0));
             }
         }
     }
@@ -638,5 +640,43 @@ pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
         classes,
         overall,
         notes,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::scene::EvalBox;
+
+    fn gt(id: u64, x: f64) -> EvalBox {
+        EvalBox {
+            id,
+            label: "bicycle".into(),
+            center: [x, 0.0, 0.0],
+            size: [1.7, 0.6, 1.2],
+            yaw: 0.0,
+            score: 1.0,
+            attributes: Default::default(),
+            image_box: None,
+        }
+    }
+
+    #[test]
+    fn mostly_lost_without_a_reached_threshold_counts_objects_per_log() {
+        // Two logs with bicycles 1 and 2 each, never tracked: four objects, not two.
+        let log = |name: &str| Scene {
+            name: name.into(),
+            frames: (0..3)
+                .map(|i| (i * 500_000_000, vec![gt(1, 0.0), gt(2, 10.0)], vec![]))
+                .collect(),
+        };
+        let p = NuscenesParams {
+            classes: vec!["bicycle".into()],
+            ..Default::default()
+        };
+        let r = evaluate(&[log("a.mcap"), log("b.mcap")], &p);
+        let m = &r.classes["bicycle"];
+        assert_eq!((m.ml, m.gt, m.fn_, m.amota), (4.0, 12.0, 12.0, 0.0));
+        assert_eq!(r.overall.ml, 4.0);
     }
 }

@@ -5,8 +5,8 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use crate::mcapio::topic::for_each_message;
-use crate::msgs::{self, Track3D, Tracks3D};
+use crate::mcapio::recording::{self, Boxes, TopicKind, TopicRequest};
+use crate::msgs::Track3D;
 
 /// One box as the evaluation sees it.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,26 +56,29 @@ pub struct Scene {
     pub frames: Vec<(u64, Vec<EvalBox>, Vec<EvalBox>)>,
 }
 
-/// Reads the `Tracks3D` messages of one topic: `(stamp, boxes)` per message (the stamp is the
-/// message's `stamp`, or its `log_time` when that is 0).
+/// Reads the tracks messages of one topic (`probmot.Tracks3D`, or ROS 2
+/// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
+/// message (the stamp is the message's, or its `log_time` when that is 0).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
-    let mut out = Vec::new();
-    for_each_message(
-        path,
-        topic,
-        msgs::TRACKS_SCHEMA,
-        |header, m: Tracks3D| {
-            let stamp = if m.stamp != 0 {
-                m.stamp
-            } else {
-                header.log_time
+    let req = TopicRequest {
+        topic: topic.to_string(),
+        kind: TopicKind::Tracks,
+        role: "tracks or ground truth".to_string(),
+    };
+    let read = recording::frames(path, std::slice::from_ref(&req))?;
+    let Some(frames) = read.frames.into_iter().next().flatten() else {
+        bail!("{}: no channel with topic {topic}", path.display());
+    };
+    Ok(frames
+        .into_iter()
+        .map(|f| {
+            let boxes = match f.boxes {
+                Boxes::Tracks(t) => t.iter().map(EvalBox::from_track).collect(),
+                Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
             };
-            out.push((stamp, m.tracks.iter().map(EvalBox::from_track).collect()));
-            Ok(())
-        },
-        |_| Ok(()),
-    )?;
-    Ok(out)
+            (f.stamp, boxes)
+        })
+        .collect())
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes

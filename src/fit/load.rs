@@ -7,31 +7,69 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 
 use super::data::{assemble_frames, FitBox, FitLog};
-use crate::eval::scene::read_tracks_topic;
-use crate::mcapio::topic::for_each_message;
-use crate::msgs::{self, Detection3D, Detections3D};
+use crate::mcapio::recording::{self, Boxes, Frame, TopicKind, TopicRequest};
+use crate::msgs::{Detection3D, Track3D};
 
-/// Reads the `Detections3D` messages of one topic: `(stamp, boxes)` per message, the stamp
-/// being the message's `stamp` or else its MCAP `log_time` (as `probmot track` does). Boxes
-/// without a centre or size are left out. Errors name the file and topic.
+/// Reads the frames of one topic of `path` ([`recording::frames`]): `(stamp, message's boxes)`
+/// per message, the stamp being the message's own else its MCAP `log_time` (as `probmot track`
+/// does). A missing topic, another schema or an undecodable message is an error naming them.
+fn read_topic(path: &Path, topic: &str, kind: TopicKind, role: &str) -> Result<Vec<Frame>> {
+    let req = TopicRequest {
+        topic: topic.to_string(),
+        kind,
+        role: role.to_string(),
+    };
+    let read = recording::frames(path, std::slice::from_ref(&req))?;
+    read.frames
+        .into_iter()
+        .next()
+        .flatten()
+        .with_context(|| format!("{}: no channel with topic {topic}", path.display()))
+}
+
+/// Reads the detection messages of one topic (any input `track` reads): `(stamp, boxes)` per
+/// message. Boxes without a centre or size are left out. Errors name the file and topic.
 pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<FitBox>)>> {
-    let mut out = Vec::new();
-    for_each_message(
-        path,
-        topic,
-        msgs::DETECTIONS_SCHEMA,
-        |header, m: Detections3D| {
-            let stamp = m.stamp.unwrap_or(header.log_time);
-            out.push((
-                stamp,
-                m.detections.iter().filter_map(detection_box).collect(),
-            ));
-            Ok(())
-        },
-        |_| Ok(()),
-    )
-    .with_context(|| format!("reading detections from {}", path.display()))?;
-    Ok(out)
+    let frames = read_topic(path, topic, TopicKind::Detections, "detections")
+        .with_context(|| format!("reading detections from {}", path.display()))?;
+    Ok(frames
+        .into_iter()
+        .map(|f| {
+            let boxes = match &f.boxes {
+                Boxes::Detections(d) => d.iter().filter_map(detection_box).collect(),
+                Boxes::Tracks(_) => unreachable!("a detections request yields detections"),
+            };
+            (f.stamp, boxes)
+        })
+        .collect())
+}
+
+/// Reads the `Tracks3D` messages of one topic: `(stamp, boxes)` per message.
+fn read_truth_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<FitBox>)>> {
+    let frames = read_topic(path, topic, TopicKind::Tracks, "ground truth")?;
+    Ok(frames
+        .into_iter()
+        .map(|f| {
+            let boxes = match f.boxes {
+                Boxes::Tracks(t) => t.into_iter().map(truth_box).collect(),
+                Boxes::Detections(_) => unreachable!("a tracks request yields tracks"),
+            };
+            (f.stamp, boxes)
+        })
+        .collect())
+}
+
+/// A ground-truth track as a fit box (missing centre or size read as zeros, as eval does).
+fn truth_box(t: Track3D) -> FitBox {
+    let c = t.center.unwrap_or_default();
+    let s = t.size.unwrap_or_default();
+    FitBox {
+        id: t.id,
+        label: t.label,
+        center: [c.x, c.y, c.z],
+        size: [s.length, s.width, s.height],
+        yaw: t.yaw,
+    }
 }
 
 fn detection_box(d: &Detection3D) -> Option<FitBox> {
@@ -50,7 +88,7 @@ fn detection_box(d: &Detection3D) -> Option<FitBox> {
 /// is an error.
 pub fn load_log(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<FitLog> {
     let file = path.display().to_string();
-    let truth = read_tracks_topic(path, truth_topic)?;
+    let truth = read_truth_topic(path, truth_topic)?;
     if truth.is_empty() {
         bail!("{file}: topic {truth_topic} (ground truth) has no messages");
     }

@@ -39,8 +39,14 @@ pub fn accumulate_process_noise(log: &FitLog, stats: &mut ProcessStats) {
         })
         .collect();
     for k in 1..index.len().saturating_sub(1) {
-        for (key, b) in &index[k] {
-            let (Some(a), Some(c)) = (index[k - 1].get(key), index[k + 1].get(key)) else {
+        // In the frame's box order (not the map's), so that the sums are deterministic; a key
+        // given twice counts once, with the box the map kept.
+        for b in log.frames[k].truth.iter().filter(|b| b.is_finite()) {
+            let key = (b.label.as_str(), b.id);
+            if !std::ptr::eq(index[k][&key], b) {
+                continue;
+            }
+            let (Some(a), Some(c)) = (index[k - 1].get(&key), index[k + 1].get(&key)) else {
                 continue;
             };
             let d = second_difference(a, b, c);

@@ -3,6 +3,8 @@
 
 pub mod background;
 pub mod reader;
+pub mod recording;
+pub mod sink;
 pub mod topic;
 pub mod writer;
 

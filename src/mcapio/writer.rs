@@ -1,13 +1,16 @@
-//! Atomic MCAP output: written to a temporary file in the destination directory, renamed over
-//! the destination only when complete. A crash or an error leaves no output file behind.
+//! Atomic output: written to a partial file beside the destination (`.NAME.probmot-partial`),
+//! renamed over the destination only when complete. An error removes the partial file, an
+//! interrupt too ([`abandon_partials`], called by the binary's signal handler); one left by a
+//! hard kill (SIGKILL, power loss) is named so that a user can tell what it is, and the next run
+//! writing the same output removes it.
 
 use std::fs::File;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 
 use anyhow::{bail, Context, Result};
 use mcap::{WriteOptions, Writer};
-use tempfile::NamedTempFile;
 
 /// Compression of the output's chunks.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -68,12 +71,110 @@ impl Default for OutputOptions {
     }
 }
 
-/// An MCAP writer on a temporary file that becomes `dest` on [`AtomicOutput::commit`].
+/// An MCAP writer on a partial file that becomes `dest` on [`AtomicOutput::commit`].
 pub struct AtomicOutput {
     /// The MCAP writer.
     pub writer: Writer<BufWriter<File>>,
-    temp_path: tempfile::TempPath,
+    partial: Partial,
+}
+
+/// Suffix of partial output files.
+pub const PARTIAL_SUFFIX: &str = ".probmot-partial";
+
+/// Partial files being written now, with their destinations: what an interrupt removes.
+static PARTIALS: Mutex<Vec<(PathBuf, PathBuf)>> = Mutex::new(Vec::new());
+
+fn partials() -> MutexGuard<'static, Vec<(PathBuf, PathBuf)>> {
+    PARTIALS.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The partial file of output `dest`: `.NAME.probmot-partial` in the same directory (the same
+/// file system, so the final rename is atomic).
+pub fn partial_path(dest: &Path) -> PathBuf {
+    let name = dest
+        .file_name()
+        .unwrap_or(dest.as_os_str())
+        .to_string_lossy();
+    parent_dir(dest).join(format!(".{name}{PARTIAL_SUFFIX}"))
+}
+
+/// Removes the partial file of every output being written and returns their destinations. The
+/// registry stays locked, so that no output starts or is committed afterwards: call it only on the
+/// way out of the process (the signal handler).
+pub fn abandon_partials() -> Vec<PathBuf> {
+    let guard = partials();
+    let dests = guard
+        .iter()
+        .map(|(partial, dest)| {
+            let _ = std::fs::remove_file(partial);
+            dest.clone()
+        })
+        .collect();
+    std::mem::forget(guard);
+    dests
+}
+
+/// A partial output file, removed on drop unless [`Partial::persist`]ed.
+struct Partial {
+    path: PathBuf,
     dest: PathBuf,
+    done: bool,
+}
+
+impl Partial {
+    /// Creates the partial file of `dest` (mode 0644, an ordinary file once renamed), replacing a
+    /// stale one of a killed run, and registers it for removal on an interrupt.
+    fn create(dest: &Path) -> Result<(File, Partial)> {
+        let path = partial_path(dest);
+        let mut registry = partials();
+        match std::fs::remove_file(&path) {
+            Ok(()) => eprintln!(
+                "note: removed {}, left by an interrupted run writing {}",
+                path.display(),
+                dest.display()
+            ),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => {
+                return Err(e).with_context(|| {
+                    format!("cannot remove the stale partial file {}", path.display())
+                })
+            }
+        }
+        let mut open = std::fs::OpenOptions::new();
+        open.write(true).create_new(true);
+        #[cfg(unix)]
+        std::os::unix::fs::OpenOptionsExt::mode(&mut open, 0o644);
+        let file = open
+            .open(&path)
+            .with_context(|| format!("cannot create the partial file {}", path.display()))?;
+        registry.push((path.clone(), dest.to_path_buf()));
+        let partial = Partial {
+            path,
+            dest: dest.to_path_buf(),
+            done: false,
+        };
+        Ok((file, partial))
+    }
+
+    /// Renames the partial file over the destination.
+    fn persist(mut self) -> Result<()> {
+        let mut registry = partials();
+        std::fs::rename(&self.path, &self.dest)
+            .with_context(|| format!("renaming the output to {}", self.dest.display()))?;
+        registry.retain(|(p, _)| p != &self.path);
+        self.done = true;
+        Ok(())
+    }
+}
+
+impl Drop for Partial {
+    fn drop(&mut self) {
+        if !self.done {
+            let mut registry = partials();
+            let _ = std::fs::remove_file(&self.path);
+            registry.retain(|(p, _)| p != &self.path);
+        }
+    }
 }
 
 /// Library string written into the header of every file probmot writes.
@@ -81,8 +182,15 @@ pub fn library_string() -> String {
     format!("probmot {}", env!("CARGO_PKG_VERSION"))
 }
 
-/// Checks an output path before any work: its directory exists and it is not the input.
+/// Checks an output path before any work: it is not a directory, its directory exists and it is
+/// not the input.
 pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {
+    if dest.is_dir() {
+        bail!(
+            "output {} is a directory; give the path of a file to write",
+            dest.display()
+        );
+    }
     let dir = parent_dir(dest);
     if !dir.is_dir() {
         bail!(
@@ -113,44 +221,25 @@ fn parent_dir(p: &Path) -> PathBuf {
     }
 }
 
-/// Writes `bytes` to `dest` atomically: a temporary file in the same directory, synced, then
+/// Writes `bytes` to `dest` atomically: a partial file in the same directory, synced, then
 /// renamed over `dest`. Permissions are those of an ordinary file (0644).
 pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
-    let dir = parent_dir(dest);
-    let mut tmp = NamedTempFile::with_prefix_in(".probmot-", &dir)
-        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        tmp.as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644))?;
-    }
-    tmp.write_all(bytes)
-        .and_then(|_| tmp.as_file().sync_all())
+    let (mut file, partial) = Partial::create(dest)?;
+    file.write_all(bytes)
+        .and_then(|_| file.sync_all())
         .with_context(|| format!("writing {}", dest.display()))?;
-    tmp.persist(dest)
-        .with_context(|| format!("renaming the output to {}", dest.display()))?;
-    Ok(())
+    drop(file);
+    partial.persist()
 }
 
 impl AtomicOutput {
-    /// Creates the temporary file beside `dest` and an MCAP writer on it: compressed chunks (zstd
+    /// Creates the partial file beside `dest` and an MCAP writer on it: compressed chunks (zstd
     /// level 1 by default, on the thread that writes: `BackgroundOutput` gives the output a thread
     /// of its own where it pays), message and chunk indexes, and a summary section,
     /// so viewers can seek.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
-        let dir = parent_dir(dest);
-        let tmp = NamedTempFile::with_prefix_in(".probmot-", &dir)
-            .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
-        let (file, temp_path) = tmp.into_parts();
-        // Temporary files are created private (0600); the output is an ordinary file.
-        #[cfg(unix)]
-        {
-            use std::os::unix::fs::PermissionsExt;
-            file.set_permissions(std::fs::Permissions::from_mode(0o644))
-                .with_context(|| format!("setting permissions of {}", dest.display()))?;
-        }
+        let (file, partial) = Partial::create(dest)?;
         let writer = WriteOptions::new()
             .profile(opts.profile.clone())
             .library(library_string())
@@ -160,28 +249,23 @@ impl AtomicOutput {
             .chunk_size(Some(opts.chunk_size))
             .create(BufWriter::with_capacity(1 << 16, file))
             .with_context(|| format!("cannot start MCAP output {}", dest.display()))?;
-        Ok(AtomicOutput {
-            writer,
-            temp_path,
-            dest: dest.to_path_buf(),
-        })
+        Ok(AtomicOutput { writer, partial })
     }
 
     /// Finishes the MCAP (summary, footer), flushes, syncs and renames over the destination.
     pub fn commit(mut self) -> Result<()> {
+        let dest = self.partial.dest.clone();
         self.writer
             .finish()
-            .with_context(|| format!("finishing {}", self.dest.display()))?;
+            .with_context(|| format!("finishing {}", dest.display()))?;
         let buf = self.writer.into_inner();
         let file = buf
             .into_inner()
             .map_err(|e| e.into_error())
-            .with_context(|| format!("flushing {}", self.dest.display()))?;
+            .with_context(|| format!("flushing {}", dest.display()))?;
         file.sync_all()
-            .with_context(|| format!("syncing {}", self.dest.display()))?;
-        self.temp_path
-            .persist(&self.dest)
-            .with_context(|| format!("renaming the output to {}", self.dest.display()))?;
-        Ok(())
+            .with_context(|| format!("syncing {}", dest.display()))?;
+        drop(file);
+        self.partial.persist()
     }
 }

@@ -1,6 +1,7 @@
 //! Which channels probmot reads detections from, and how: the input kind is chosen from the
 //! channel's schema name, schema encoding and message encoding, with no flag, and every kind
-//! decodes to probmot's own [`Detections3D`] (stamp, frame_id, boxes).
+//! decodes to probmot's own [`Detections3D`] (stamp, frame_id, boxes) and from there to a
+//! checked [`DetectionFrame`].
 //!
 //! | schema name | schema encoding | message encoding |
 //! |---|---|---|
@@ -8,6 +9,7 @@
 //! | `vision_msgs/msg/Detection3DArray` | `ros2msg` | `cdr` |
 //! | `foxglove.SceneUpdate` | `protobuf` | `protobuf` |
 
+use super::detection_frame::DetectionFrame;
 use super::{
     decode as decode_probmot, foxglove_scene, ros2_vision, DecodeError, Detections3D,
     DetectionsEnvelope, Encoding, DETECTIONS_SCHEMA,
@@ -161,6 +163,12 @@ impl DetectionSource {
             DetectionSource::Ros2Vision(layout) => ros2_vision::decode(bytes, layout),
             DetectionSource::FoxgloveScene => foxglove_scene::decode(bytes),
         }
+    }
+
+    /// Decodes one message into a checked [`DetectionFrame`]; `log_time` is its stamp when the
+    /// message carries none.
+    pub fn decode_frame(&self, bytes: &[u8], log_time: u64) -> Result<DetectionFrame, DecodeError> {
+        Ok(DetectionFrame::from_message(self.decode(bytes)?, log_time))
     }
 
     /// The stamp and the number of boxes of one message, for the first pass of `track`:

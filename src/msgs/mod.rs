@@ -9,11 +9,16 @@ mod generated {
 pub use generated::*;
 
 pub mod cdr_cursor;
+pub mod colors;
+pub mod detection_frame;
 pub mod detection_source;
 pub mod foxglove_scene;
 pub mod ros2_common;
 pub mod ros2_tf;
+pub mod ros2_tracks;
 pub mod ros2_vision;
+pub mod scene_update;
+pub mod track_encode;
 
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
 /// the data of each MCAP schema record (schema encoding `protobuf`).
@@ -28,6 +33,15 @@ pub const TRACKS_SCHEMA: &str = "probmot.Tracks3D";
 /// Schema name of an ego pose channel (`/ego_pose`, JSON messages `{stamp, translation,
 /// rotation}` in the global frame), as `probmot import nuscenes` writes it.
 pub const EGO_POSE_SCHEMA: &str = "probmot.EgoPose";
+
+/// A [`Size3`] from `[l, w, h]` (the order of [`crate::tracker::Box3::size`]).
+pub fn size3(s: [f64; 3]) -> Size3 {
+    Size3 {
+        length: s[0],
+        width: s[1],
+        height: s[2],
+    }
+}
 
 /// How a message is encoded, from the MCAP channel's `message_encoding`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -1,38 +1,15 @@
-//! Turning decoded detection messages into tracker input: validation, label lookup and the
-//! counted skips.
+//! Turning checked detection frames into tracker input: label lookup and the counted (or, with
+//! `--strict`, refused) skips. The geometry checks are done once, when a message is decoded
+//! ([`crate::msgs::detection_frame`]).
 
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Result};
 
-use crate::msgs::Detection3D;
-use crate::tracker::{Box3, Detection, Tracker};
+use crate::msgs::detection_frame::{DetectionBox, Rejected};
+use crate::tracker::{Detection, Tracker};
 
-/// Why a detection box was skipped.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SkipReason {
-    /// A centre, size, yaw or score field is NaN or infinite.
-    NonFinite,
-    /// A size is zero or negative.
-    NonPositiveSize,
-    /// The label is not in the config and the config has no default entry.
-    UnknownLabel,
-    /// The centre or size field is missing.
-    MissingField,
-}
-
-impl SkipReason {
-    /// Short description.
-    pub fn describe(self) -> &'static str {
-        match self {
-            SkipReason::NonFinite => "non-finite field",
-            SkipReason::NonPositiveSize => "non-positive size",
-            SkipReason::UnknownLabel => "label not in the config (no default entry)",
-            SkipReason::MissingField => "missing centre or size",
-        }
-    }
-}
+pub use crate::msgs::detection_frame::SkipReason;
 
 /// Warnings that do not skip a box.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -62,53 +39,58 @@ pub struct Origin<'a> {
     pub log_time: u64,
 }
 
-/// Checks one detection and converts it. `Ok(None)`: skipped (counted); `Err`: refused with
-/// `--strict`.
+/// Counts a skipped box, or with `strict` refuses it with an error naming it.
+fn skip(
+    index: u32,
+    label: &str,
+    reason: SkipReason,
+    counters: &mut InputCounters,
+    strict: bool,
+    origin: &Origin<'_>,
+) -> Result<()> {
+    if strict {
+        bail!(
+            "{}: topic {} message at log_time {}: detection {index} ({}): {} (--strict)",
+            origin.file,
+            origin.topic,
+            origin.log_time,
+            if label.is_empty() { "no label" } else { label },
+            reason.describe()
+        );
+    }
+    *counters.skipped.entry(reason).or_default() += 1;
+    Ok(())
+}
+
+/// Counts (or with `strict` refuses) a box that failed the decode-time check.
+pub fn reject(
+    r: &Rejected,
+    counters: &mut InputCounters,
+    strict: bool,
+    origin: &Origin<'_>,
+) -> Result<()> {
+    skip(r.index, &r.label, r.reason, counters, strict, origin)
+}
+
+/// Looks up the class of a checked box and converts it. `Ok(None)`: its label is unknown
+/// (counted); `Err`: refused with `--strict`.
 pub fn convert(
-    d: &Detection3D,
-    index: usize,
+    d: &DetectionBox,
     tracker: &mut Tracker,
     counters: &mut InputCounters,
     strict: bool,
     origin: &Origin<'_>,
 ) -> Result<Option<Detection>> {
-    let skip = |reason: SkipReason, counters: &mut InputCounters| -> Result<Option<Detection>> {
-        if strict {
-            bail!(
-                "{}: topic {} message at log_time {}: detection {index} ({}): {} (--strict)",
-                origin.file,
-                origin.topic,
-                origin.log_time,
-                if d.label.is_empty() {
-                    "no label"
-                } else {
-                    &d.label
-                },
-                reason.describe()
-            );
-        }
-        *counters.skipped.entry(reason).or_default() += 1;
-        Ok(None)
-    };
-    let (Some(c), Some(s)) = (&d.center, &d.size) else {
-        return skip(SkipReason::MissingField, counters);
-    };
-    let bbox = Box3 {
-        center: [c.x, c.y, c.z],
-        yaw: d.yaw,
-        size: [s.length, s.width, s.height],
-    };
-    let finite = bbox.center.iter().chain(&bbox.size).all(|v| v.is_finite())
-        && bbox.yaw.is_finite()
-        && d.score.is_finite();
-    if !finite {
-        return skip(SkipReason::NonFinite, counters);
-    }
-    if bbox.size.iter().any(|v| *v <= 0.0) {
-        return skip(SkipReason::NonPositiveSize, counters);
-    }
     let Some(class) = tracker.class_id(&d.label) else {
-        return skip(SkipReason::UnknownLabel, counters);
+        skip(
+            d.index,
+            &d.label,
+            SkipReason::UnknownLabel,
+            counters,
+            strict,
+            origin,
+        )?;
+        return Ok(None);
     };
     if !(0.0..=1.0).contains(&d.score) {
         counters.score_outside_unit += 1;
@@ -120,7 +102,7 @@ pub fn convert(
         }
     }
     Ok(Some(Detection {
-        bbox,
+        bbox: d.bbox,
         class,
         score: d.score,
     }))

@@ -16,7 +16,7 @@ use std::collections::BTreeMap;
 use anyhow::{bail, Result};
 use nalgebra::Isometry3;
 
-use crate::msgs::Detections3D;
+use crate::msgs::detection_frame::DetectionFrame;
 use crate::transforms::boxes::transform_detections;
 use crate::transforms::buffer::DEFAULT_TOLERANCE_NS;
 use crate::transforms::TransformCollector;
@@ -112,14 +112,14 @@ impl EgoMotion {
         self.fixed.clone()
     }
 
-    /// Moves `msg` (stamp `stamp`) into the fixed frame. On a missing transform its boxes are
-    /// dropped and counted, or with `strict` an error naming `where_` is returned.
+    /// Moves `msg` into the fixed frame at its stamp. On a missing transform its boxes (valid
+    /// or not) are dropped and counted, or with `strict` an error naming `where_` is returned.
     pub fn to_fixed(
         &mut self,
-        msg: &mut Detections3D,
-        stamp: u64,
+        msg: &mut DetectionFrame,
         where_: impl Fn() -> String,
     ) -> Result<()> {
+        let stamp = msg.stamp;
         if msg.frame_id.is_empty() {
             return Ok(());
         }
@@ -155,8 +155,8 @@ impl EgoMotion {
                     self.first_failure = Some(text);
                 }
                 self.summary.messages_without_transform += 1;
-                self.summary.boxes_without_transform += msg.detections.len() as u64;
-                msg.detections.clear();
+                self.summary.boxes_without_transform += msg.len() as u64;
+                msg.clear();
                 msg.frame_id.clear();
                 msg.frame_id.push_str(&fixed);
                 Ok(())

@@ -62,6 +62,8 @@ pub struct FileSummary {
     pub metadata: u64,
     /// All messages.
     pub messages: u64,
+    /// Earliest and latest message log_time of the file, ns.
+    pub log_time_range: Option<(u64, u64)>,
     /// The transform tree read from the transform channels (see [`crate::transforms`]).
     pub transform_tree: Vec<EdgeSummary>,
 }
@@ -182,7 +184,76 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
         }
     }
     out.channels = channels.into_values().collect();
+    out.log_time_range = out
+        .channels
+        .iter()
+        .filter_map(|c| c.log_time_range)
+        .reduce(|(a0, a1), (b0, b1)| (a0.min(b0), a1.max(b1)));
     transforms.finish();
     out.transform_tree = transforms.buffer.summary();
     Ok(out)
+}
+
+/// A time in ns since the Unix epoch as ISO 8601 UTC with nanoseconds, as `mcap info` prints
+/// it: `2023-11-14T22:13:20.000000000Z`.
+pub fn iso8601(ns: u64) -> String {
+    let secs = ns / 1_000_000_000;
+    let (days, rem) = (secs / 86_400, secs % 86_400);
+    let (y, m, d) = civil_from_days(days);
+    format!(
+        "{y:04}-{m:02}-{d:02}T{:02}:{:02}:{:02}.{:09}Z",
+        rem / 3600,
+        rem / 60 % 60,
+        rem % 60,
+        ns % 1_000_000_000
+    )
+}
+
+/// Year, month, day of a count of days since 1970-01-01 in the proleptic Gregorian calendar
+/// (the era arithmetic of H. Hinnant, "chrono-Compatible Low-Level Date Algorithms").
+fn civil_from_days(days: u64) -> (u64, u64, u64) {
+    let z = days + 719_468; // days since 0000-03-01
+    let era = z / 146_097;
+    let doe = z % 146_097; // day of the 400-year era
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100); // day of the year starting 1 March
+    let mp = (5 * doy + 2) / 153; // month, March = 0
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = yoe + era * 400 + u64::from(m <= 2);
+    (y, m, d)
+}
+
+/// A duration in ns as seconds with millisecond precision (`19.500s`), as `mcap info` prints it.
+pub fn duration(ns: u64) -> String {
+    format!(
+        "{}.{:03}s",
+        ns / 1_000_000_000,
+        ns % 1_000_000_000 / 1_000_000
+    )
+}
+
+#[cfg(test)]
+mod time_tests {
+    use super::*;
+
+    /// Expected values from Python's `datetime.fromtimestamp(s, timezone.utc)`.
+    #[test]
+    fn iso8601_matches_python_datetime() {
+        for (s, want) in [
+            (0, "1970-01-01T00:00:00"),
+            (951_782_400, "2000-02-29T00:00:00"),
+            (1_672_531_200, "2023-01-01T00:00:00"),
+            (1_700_000_000, "2023-11-14T22:13:20"),
+            (4_102_444_799, "2099-12-31T23:59:59"),
+        ] {
+            assert_eq!(iso8601(s * 1_000_000_000 + 5), format!("{want}.000000005Z"));
+        }
+    }
+
+    #[test]
+    fn duration_in_seconds_with_milliseconds() {
+        assert_eq!(duration(19_500_000_000), "19.500s");
+        assert_eq!(duration(999_999), "0.000s");
+    }
 }

@@ -43,6 +43,8 @@ pub struct ImportSummary {
     pub detections: u64,
     /// Ground-truth rows written (DontCare included).
     pub truth_rows: u64,
+    /// Rows of another tracker's results written as tracks.
+    pub track_rows: u64,
     /// Detection files read.
     pub detection_files: Vec<String>,
 }
@@ -109,11 +111,56 @@ fn image_box(b: [f64; 4]) -> ImageBox {
     }
 }
 
+/// Another tracker's KITTI tracking result file to import as a tracks channel.
+#[derive(Debug, Clone)]
+pub struct TracksInput {
+    /// Result file (`frame id type 0 0 alpha x1 y1 x2 y2 h w l x y z rotation_y score`).
+    pub file: PathBuf,
+    /// Topic of the tracks channel to write, e.g. `/tracks`.
+    pub topic: String,
+}
+
+/// Rows of a KITTI text file by frame, parsed with `parse` (errors name the file and line).
+fn rows_by_frame(
+    path: &Path,
+    parse: fn(&str) -> Result<KittiRow>,
+    into: &mut BTreeMap<u32, Vec<KittiRow>>,
+) -> Result<()> {
+    for (n, line) in read_lines(path)? {
+        let row = parse(&line).with_context(|| format!("{}:{n}", path.display()))?;
+        into.entry(row.frame).or_default().push(row);
+    }
+    Ok(())
+}
+
+/// Reads a tracking result file: rows by frame, each with a score and a track id >= 0.
+fn read_result_tracks(path: &Path) -> Result<BTreeMap<u32, Vec<KittiRow>>> {
+    let mut rows = BTreeMap::new();
+    rows_by_frame(path, parse_label_line, &mut rows)?;
+    for r in rows.values().flatten() {
+        if r.score.is_none() || r.track_id < 0 {
+            bail!(
+                "{}: frame {} ({}): a tracking result row needs a track id >= 0 and a score \
+                 (18 fields), got id {} and {} fields",
+                path.display(),
+                r.frame,
+                r.kind,
+                r.track_id,
+                if r.score.is_some() { 18 } else { 17 }
+            );
+        }
+    }
+    Ok(rows)
+}
+
 /// Writes one sequence as MCAP: `/detections` and `/ground_truth` at 10 Hz, one message per
-/// frame on each (empty where nothing was seen), plus a `probmot.kitti` metadata record.
+/// frame on each (empty where nothing was seen), plus a `probmot.kitti` metadata record. With
+/// `tracks`, another tracker's results are written as a `probmot.Tracks3D` channel too (one
+/// message per frame), which `probmot eval --tracks/--baseline` reads like probmot's own tracks.
 pub fn import_kitti(
     labels: Option<&Path>,
     detection_files: &[PathBuf],
+    tracks: Option<&TracksInput>,
     sequence: &str,
     output: &Path,
 ) -> Result<ImportSummary> {
@@ -121,26 +168,24 @@ pub fn import_kitti(
     let mut dets: BTreeMap<u32, Vec<KittiRow>> = BTreeMap::new();
     let mut summary = ImportSummary::default();
     for f in detection_files {
-        for (n, line) in read_lines(f)? {
-            let row =
-                parse_detection_line(&line).with_context(|| format!("{}:{n}", f.display()))?;
-            dets.entry(row.frame).or_default().push(row);
-        }
+        rows_by_frame(f, parse_detection_line, &mut dets)?;
         summary.detection_files.push(f.display().to_string());
     }
     let mut truth: BTreeMap<u32, Vec<KittiRow>> = BTreeMap::new();
     if let Some(l) = labels {
-        for (n, line) in read_lines(l)? {
-            let row = parse_label_line(&line).with_context(|| format!("{}:{n}", l.display()))?;
-            truth.entry(row.frame).or_default().push(row);
-        }
+        rows_by_frame(l, parse_label_line, &mut truth)?;
     }
+    let results = match tracks {
+        Some(t) => read_result_tracks(&t.file)?,
+        None => BTreeMap::new(),
+    };
     let last = dets
         .keys()
         .chain(truth.keys())
+        .chain(results.keys())
         .max()
         .copied()
-        .context("no rows in the label or detection files")?;
+        .context("no rows in the label, detection or tracks files")?;
 
     let mut out = AtomicOutput::create(output, &OutputOptions::default())?;
     let w = &mut out.writer;
@@ -152,6 +197,10 @@ pub fn import_kitti(
         Some(w.add_channel(s_trk, "/ground_truth", "protobuf", &none)?)
     } else {
         None
+    };
+    let c_trk = match tracks {
+        Some(t) => Some(w.add_channel(s_trk, &t.topic, "protobuf", &none)?),
+        None => None,
     };
     w.write_metadata(&mcap::records::Metadata {
         name: KITTI_METADATA.into(),
@@ -208,6 +257,17 @@ pub fn import_kitti(
             msgs::encode_into(&gt, &mut buf);
             w.write_to_known_channel(&header(c_gt), &buf)?;
         }
+        if let Some(c_trk) = c_trk {
+            let rows = results.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
+            let msg = Tracks3D {
+                stamp,
+                frame_id: "kitti_camera_z_up".into(),
+                tracks: rows.iter().map(result_track).collect(),
+            };
+            summary.track_rows += rows.len() as u64;
+            msgs::encode_into(&msg, &mut buf);
+            w.write_to_known_channel(&header(c_trk), &buf)?;
+        }
     }
     out.commit()?;
     summary.frames = last + 1;
@@ -234,6 +294,29 @@ fn truth_track(r: &KittiRow) -> Track3D {
             (attr::TYPE, r.kind.clone()),
             (attr::TRUNCATED, format!("{}", r.truncated)),
             (attr::OCCLUDED, format!("{}", r.occluded)),
+            (attr::ALPHA, format!("{}", r.alpha)),
+            (attr::TRACK_ID, format!("{}", r.track_id)),
+        ]),
+        ..Default::default()
+    }
+}
+
+/// A row of another tracker's result file as a track: id = the file's id + 1 (ids must be
+/// non-zero; `export kitti` writes the original from the `kitti_track_id` attribute), the score,
+/// type, alpha and 2D box kept.
+fn result_track(r: &KittiRow) -> Track3D {
+    let b = camera_to_box(r.hwl, r.xyz, r.rotation_y);
+    Track3D {
+        id: r.track_id as u64 + 1,
+        label: r.kind.to_lowercase(),
+        center: Some(v3(b.center)),
+        size: Some(size3(b.size)),
+        yaw: b.yaw,
+        velocity: Some(v3([0.0; 3])),
+        score: r.score.unwrap_or(0.0),
+        image_box: Some(image_box(r.bbox)),
+        attributes: attrs(&[
+            (attr::TYPE, r.kind.clone()),
             (attr::ALPHA, format!("{}", r.alpha)),
             (attr::TRACK_ID, format!("{}", r.track_id)),
         ]),
@@ -312,10 +395,11 @@ pub fn export_kitti(
                 .get(attr::TYPE)
                 .cloned()
                 .unwrap_or_else(|| capitalize(&b.label));
+            // Imported results (and ground truth) keep their original id in an attribute.
             let track_id = if truth {
                 parse(attr::TRACK_ID, b.id as f64 - 1.0) as i64
             } else {
-                b.id as i64
+                parse(attr::TRACK_ID, b.id as f64) as i64
             };
             let row = KittiRow {
                 frame,

@@ -17,97 +17,26 @@ use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use indicatif::ProgressBar;
-use mcap::records::{MessageHeader, Record};
+use mcap::records::Record;
 
-use super::detections::{convert, InputCounters, Origin};
-use super::ego::{EgoMotion, EgoOptions, EgoSummary};
+use super::detections::InputCounters;
+use super::ego::EgoMotion;
 use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
-use super::track_outputs::ExtraOutputs;
+use super::progress::Progress;
+use super::track_outputs::{ExtraOutputs, ExtraRequest};
+use super::track_session::{check_count, note_stamp, undecodable, FrameState, TrackSession};
+use super::tracks_format::TracksFormat;
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
-use crate::mcapio::writer::{check_output_path, OutputCompression, OutputOptions};
+use crate::mcapio::writer::{check_output_path, OutputOptions};
+use crate::msgs;
+use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::{self, DetectionSource};
-use crate::msgs::{self, v3, Detections3D, ImageBox, Track3D, Tracks3D};
-use crate::sim::write::size3;
-use crate::tracker::{Detection, TrackReport, Tracker, TrackerConfig};
+pub use crate::msgs::track_encode::{fill_track3d, to_track3d};
+use crate::tracker::Tracker;
 use crate::transforms::TransformCollector;
 
-/// Settings of one `track` run.
-#[derive(Debug, Clone)]
-pub struct TrackOptions {
-    /// Detection topics; empty: every channel of a supported detection schema
-    /// ([`detection_source::is_detection_schema`]).
-    pub detection_topics: Vec<String>,
-    /// Topic of the tracks channel written.
-    pub tracks_topic: String,
-    /// Tracker configuration.
-    pub config: TrackerConfig,
-    /// Copy only, no tracking (for measuring the cost of I/O).
-    pub no_track: bool,
-    /// Turn every skipped box into an error.
-    pub strict: bool,
-    /// Largest number of boxes accepted in one detection message; more is an error (a frame
-    /// that large is a corrupted or misrouted message, and would stall the tracker).
-    pub max_detections_per_message: usize,
-    /// Ego motion: the fixed frame and the `--tracks-frame ego` output (see [`super::ego`]).
-    pub ego: EgoOptions,
-    /// Topic of the `foxglove.SceneUpdate` output channel, if any.
-    pub scene_topic: Option<String>,
-    /// Chunk compression of the output.
-    pub compression: OutputCompression,
-    /// Write and compress the output on a thread of its own ([`BackgroundOutput`]), so that it
-    /// overlaps with reading and tracking: faster for one file when a core is spare; when files
-    /// already run in parallel on every core, writing on the file's own thread costs less.
-    pub background_writer: bool,
-}
-
-/// Default of [`TrackOptions::max_detections_per_message`].
-pub const DEFAULT_MAX_DETECTIONS: usize = 100_000;
-
-/// What a run did; printed as the summary line or as JSON.
-#[derive(Debug, Clone, Default, serde::Serialize)]
-pub struct TrackSummary {
-    /// Input path.
-    pub input: String,
-    /// Output path.
-    pub output: String,
-    /// Detection topics used.
-    pub detection_topics: Vec<String>,
-    /// Frames (distinct detection stamps) tracked.
-    pub frames: u64,
-    /// Detection messages read.
-    pub detection_messages: u64,
-    /// Detections given to the tracker, per label, and the skipped ones by reason.
-    pub detections: InputCounters,
-    /// Tracks started.
-    pub tracks_born: u64,
-    /// Tracks that reached `min_hits`.
-    pub tracks_confirmed: u64,
-    /// Mean number of reported frames per confirmed track.
-    pub mean_track_length: Option<f64>,
-    /// Input messages copied.
-    pub messages_copied: u64,
-    /// Attachments copied.
-    pub attachments: u64,
-    /// Metadata records copied.
-    pub metadata: u64,
-    /// Tracks messages written.
-    pub tracks_messages: u64,
-    /// Per detection topic, messages whose stamp is earlier than the previous message's.
-    pub stamps_backwards: BTreeMap<String, u64>,
-    /// Detection messages that sharing a stamp with a message of another topic were merged.
-    pub merged_messages: u64,
-    /// Ego-motion compensation: fixed frame, transforms, messages moved or skipped.
-    pub ego: EgoSummary,
-    /// Warnings for the user.
-    pub warnings: Vec<String>,
-    /// Passes over the input: 1 (the summary section sufficed, or `--no-track`) or 2 (a first
-    /// pass learned the frames); see [`track_file`].
-    pub passes: u8,
-    /// Wall time in seconds.
-    pub wall_time_s: f64,
-}
+pub use super::track_options::{TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 
 /// Result of the first pass.
 #[derive(Default)]
@@ -130,61 +59,6 @@ struct Scan {
     /// Channel of each entry of `entries`.
     entry_channels: Vec<u16>,
     transforms: TransformCollector,
-}
-
-/// Stamp of a detection message: its own `stamp`, else the MCAP `log_time`.
-fn stamp_of(msg: &Detections3D, log_time: u64) -> u64 {
-    msg.stamp.unwrap_or(log_time)
-}
-
-/// The error of a detection message that does not decode.
-fn undecodable(file: &str, topic: &str, h: &MessageHeader, source: &DetectionSource) -> String {
-    format!(
-        "{}: cannot decode {}",
-        describe_message(file, topic, h),
-        source.describe()
-    )
-}
-
-/// Refuses a detection message with more boxes than `--max-detections`.
-fn check_count(
-    count: usize,
-    opts: &TrackOptions,
-    file: &str,
-    topic: &str,
-    h: &MessageHeader,
-) -> Result<()> {
-    if count > opts.max_detections_per_message {
-        bail!(
-            "{}: {count} detections in one message, more than the limit of {} (--max-detections)",
-            describe_message(file, topic, h),
-            opts.max_detections_per_message
-        );
-    }
-    Ok(())
-}
-
-/// Counts, per topic, a stamp earlier than the previous one on the same channel.
-fn note_stamp(
-    last: &mut HashMap<u16, u64>,
-    h: &MessageHeader,
-    stamp: u64,
-    topic: &str,
-    backwards: &mut BTreeMap<String, u64>,
-) {
-    if last
-        .insert(h.channel_id, stamp)
-        .is_some_and(|prev| stamp < prev)
-    {
-        *backwards.entry(topic.to_string()).or_default() += 1;
-    }
-}
-
-fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
-    format!(
-        "{file}: topic {topic}, message at log_time {} (sequence {})",
-        h.log_time, h.sequence
-    )
 }
 
 impl Scan {
@@ -281,7 +155,7 @@ impl Scan {
     }
 }
 
-fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Scan> {
+fn scan(input: &Path, opts: &TrackOptions, progress: &dyn Fn(Progress<'_>)) -> Result<Scan> {
     let file = input.display().to_string();
     let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
@@ -299,7 +173,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                         .stamp_and_count(&data)
                         .with_context(|| undecodable(&file, topic, &header, source))?;
                     check_count(count, opts, &file, topic, &header)?;
-                    let stamp = msg_stamp.unwrap_or(header.log_time);
+                    let stamp = stamp_or_log_time(msg_stamp, header.log_time);
                     note_stamp(
                         &mut last_stamp,
                         &header,
@@ -311,7 +185,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
                     s.entry_channels.push(header.channel_id);
                 }
                 if s.entries.len().is_multiple_of(256) {
-                    progress.set_position(stats.bytes_read);
+                    progress(Progress::Position(stats.bytes_read));
                 }
             }
             _ => {}
@@ -320,14 +194,6 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &ProgressBar) -> Result<Sca
     })?;
     s.finish(opts, &file)?;
     Ok(s)
-}
-
-/// One decoded detection message waiting for its frame.
-struct Pending {
-    ordinal: u64,
-    log_time: u64,
-    topic_idx: usize,
-    msg: Detections3D,
 }
 
 /// Runs `track` on one file. The output appears only when everything succeeded.
@@ -342,7 +208,7 @@ pub fn track_file(
     input: &Path,
     output: &Path,
     opts: &TrackOptions,
-    progress: &ProgressBar,
+    progress: &dyn Fn(Progress<'_>),
 ) -> Result<TrackSummary> {
     let started = Instant::now();
     check_output_path(Some(input), output)?;
@@ -351,7 +217,7 @@ pub fn track_file(
         .with_context(|| format!("cannot read {}", input.display()))?
         .len();
     if opts.no_track {
-        progress.set_length(size);
+        progress(Progress::Length(size));
         return run_pass(
             input,
             output,
@@ -364,17 +230,17 @@ pub fn track_file(
         .map(|s| finish_summary(s, 1, started));
     }
     if let Some((plan, streaming)) = one_pass_plan(input, opts, &file) {
-        progress.set_length(size);
-        progress.set_message("tracking");
+        progress(Progress::Length(size));
+        progress(Progress::Message("tracking"));
         let r = run_pass(input, output, opts, progress, Some(plan), streaming, 0);
         match r {
             Err(e) if e.downcast_ref::<NeedsTwoPasses>().is_some() => {}
             r => return r.map(|s| finish_summary(s, 1, started)),
         }
     }
-    progress.set_length(2 * size);
-    progress.set_position(0);
-    progress.set_message("scanning");
+    progress(Progress::Length(2 * size));
+    progress(Progress::Position(0));
+    progress(Progress::Message("scanning"));
     let mut s = scan(input, opts, progress)?;
     s.entries.sort_unstable();
     // Frames in stamp order: (stamp, number of messages).
@@ -385,7 +251,7 @@ pub fn track_file(
             _ => frames.push((stamp, 1)),
         }
     }
-    progress.set_message("tracking");
+    progress(Progress::Message("tracking"));
     run_pass(
         input,
         output,
@@ -490,15 +356,51 @@ fn selection_warnings(s: &Scan, opts: &TrackOptions, file: &str, warnings: &mut 
     }
 }
 
+/// Creates the output (written on a thread of its own with [`TrackOptions::background_writer`])
+/// and adds the tracks channel and the extra channels when there are detections (`ids`).
+fn create_output(
+    output: &Path,
+    opts: &TrackOptions,
+    profile: String,
+    ids: Option<(u16, u16)>,
+    format: TracksFormat,
+    extra: &ExtraOutputs,
+) -> Result<BackgroundOutput> {
+    let out_opts = OutputOptions {
+        profile,
+        compression: opts.compression,
+        ..Default::default()
+    };
+    let mut out = if opts.background_writer {
+        BackgroundOutput::create(output, &out_opts)?
+    } else {
+        BackgroundOutput::create_inline(output, &out_opts)?
+    };
+    if let Some((schema_id, channel_id)) = ids {
+        let (name, schema_encoding, data, message_encoding) = format.schema();
+        out.add_schema_with_id(schema_id, name, schema_encoding, data)?;
+        out.add_channel_with_id(
+            channel_id,
+            schema_id,
+            &opts.tracks_topic,
+            message_encoding,
+            &format.channel_metadata(),
+        )?;
+        extra.add_channels(&mut out, schema_id)?;
+    }
+
+    Ok(out)
+}
+
 /// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
 /// the first pass or the summary; `None` with `--no-track`), `base` the progress already made.
 fn run_pass(
     input: &Path,
     output: &Path,
     opts: &TrackOptions,
-    progress: &ProgressBar,
+    progress: &dyn Fn(Progress<'_>),
     plan: Option<Scan>,
-    mut schedule: Schedule,
+    schedule: Schedule,
     base: u64,
 ) -> Result<TrackSummary> {
     let file = input.display().to_string();
@@ -545,400 +447,53 @@ fn run_pass(
         scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
     }
     summary.detection_topics = topics.clone();
-    let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
-    let extra = ExtraOutputs::new(opts, &file, scan_ids.as_ref(), ids)?;
-
-    let out_opts = OutputOptions {
-        profile,
-        compression: opts.compression,
-        ..Default::default()
-    };
-    let mut out = if opts.background_writer {
-        BackgroundOutput::create(output, &out_opts)?
-    } else {
-        BackgroundOutput::create_inline(output, &out_opts)?
-    };
-    if let Some((schema_id, channel_id)) = ids {
-        out.add_schema_with_id(
-            schema_id,
-            msgs::TRACKS_SCHEMA,
-            "protobuf",
-            msgs::DESCRIPTOR_SET,
+    let format = TracksFormat::resolve(
+        opts.tracks_format,
+        &profile,
+        det_channels.values().map(|d| &d.0),
+    );
+    if ids.is_some() {
+        format.check_extras(
+            &file,
+            opts.ego.tracks_in_ego_frame,
+            opts.scene_topic.is_some(),
         )?;
-        out.add_channel_with_id(
-            channel_id,
-            schema_id,
-            &opts.tracks_topic,
-            "protobuf",
-            &BTreeMap::new(),
-        )?;
-        extra.add_channels(&mut out, schema_id)?;
     }
+    let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
+    let request = ExtraRequest {
+        tracks_topic: &opts.tracks_topic,
+        tracks_in_ego_frame: opts.ego.tracks_in_ego_frame,
+        scene_topic: opts.scene_topic.as_deref(),
+    };
+    let extra = ExtraOutputs::new(&request, &file, scan_ids.as_ref(), ids)?;
 
-    let mut pass = Pass {
+    let out = create_output(output, opts, profile, ids, format, &extra)?;
+
+    let mut session = TrackSession {
         opts,
         file: &file,
         topics,
+        det_channels,
         ids,
+        format,
         out,
         extra,
         ego,
         tracker: Tracker::new(opts.config.clone())?,
         counters: InputCounters::default(),
+        schedule,
+        last_stamp: HashMap::new(),
         pending: BTreeMap::new(),
         next_frame: 0,
         frame_state: FrameState::default(),
         summary,
         progress,
+        base,
     };
-    let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    read_records(input, |rec, stats| {
-        match rec {
-            Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
-            Record::Schema { header, data } if header.id != 0 => {
-                schedule.on_schema(header.id)?;
-                pass.out
-                    .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
-                    .with_context(|| format!("{file}: copying schema {}", header.id))?;
-            }
-            Record::Channel(c) => {
-                schedule.on_channel(c.id, &c.topic, c.schema_id)?;
-                pass.out
-                    .add_channel_with_id(
-                        c.id,
-                        c.schema_id,
-                        &c.topic,
-                        &c.message_encoding,
-                        &c.metadata,
-                    )
-                    .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
-            }
-            Record::Message { header, data } => {
-                pass.out
-                    .write_to_known_channel(&header, &data)
-                    .with_context(|| {
-                        format!(
-                            "{file}: copying message at log_time {} on channel {}",
-                            header.log_time, header.channel_id
-                        )
-                    })?;
-                pass.summary.messages_copied += 1;
-                if let Some(&(source, topic_idx)) = det_channels.get(&header.channel_id) {
-                    let topic = &pass.topics[topic_idx];
-                    let mut msg: Detections3D = source
-                        .decode(&data)
-                        .with_context(|| undecodable(&file, topic, &header, &source))?;
-                    check_count(msg.detections.len(), opts, &file, topic, &header)?;
-                    let stamp = stamp_of(&msg, header.log_time);
-                    schedule.on_message(header.channel_id, stamp)?;
-                    // (With two passes, the first has counted them.)
-                    if schedule.is_streaming() {
-                        let backwards = &mut pass.summary.stamps_backwards;
-                        note_stamp(&mut last_stamp, &header, stamp, topic, backwards);
-                    }
-                    pass.ego
-                        .to_fixed(&mut msg, stamp, || describe_message(&file, topic, &header))?;
-                    pass.pending.entry(stamp).or_default().push(Pending {
-                        ordinal: pass.summary.detection_messages,
-                        log_time: header.log_time,
-                        topic_idx,
-                        msg,
-                    });
-                    pass.summary.detection_messages += 1;
-                    while let Some(stamp) = schedule.ready(&pass.pending, pass.next_frame) {
-                        pass.track_frame(stamp, schedule.frames())?;
-                        schedule.tracked(stamp);
-                    }
-                }
-                if pass.summary.messages_copied.is_multiple_of(256) {
-                    progress.set_position(base + stats.bytes_read);
-                }
-            }
-            Record::Attachment { header, data, .. } => {
-                pass.out
-                    .attach(&mcap::Attachment {
-                        log_time: header.log_time,
-                        create_time: header.create_time,
-                        name: header.name,
-                        media_type: header.media_type,
-                        data,
-                    })
-                    .with_context(|| format!("{file}: copying an attachment"))?;
-                pass.summary.attachments += 1;
-            }
-            Record::Metadata(m) => {
-                pass.out
-                    .write_metadata(&m)
-                    .with_context(|| format!("{file}: copying metadata {}", m.name))?;
-                pass.summary.metadata += 1;
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
-    match &schedule {
-        Schedule::Known(frames) if pass.next_frame != frames.len() => bail!(
-            "{file}: the file changed while it was read ({} of {} frames seen)",
-            pass.next_frame,
-            frames.len()
-        ),
-        Schedule::Known(_) => {}
-        // Every channel has delivered all it has: the frames left are complete.
-        Schedule::Streaming(_) => {
-            while let Some((&stamp, _)) = pass.pending.first_key_value() {
-                pass.track_frame(stamp, None)?;
-            }
-        }
-    }
-    pass.finish()
-}
-
-/// The state of the tracking pass.
-struct Pass<'a> {
-    opts: &'a TrackOptions,
-    file: &'a str,
-    /// Detection topics, indexed by [`Pending::topic_idx`].
-    topics: Vec<String>,
-    /// `(schema id, channel id)` of the tracks channel.
-    ids: Option<(u16, u16)>,
-    out: BackgroundOutput,
-    extra: ExtraOutputs,
-    ego: EgoMotion,
-    tracker: Tracker,
-    counters: InputCounters,
-    /// Decoded detection messages by stamp, waiting for their frame to be complete.
-    pending: BTreeMap<u64, Vec<Pending>>,
-    next_frame: usize,
-    frame_state: FrameState,
-    summary: TrackSummary,
-    progress: &'a ProgressBar,
-}
-
-impl Pass<'_> {
-    /// Tracks the complete frame at `stamp` and writes its outputs.
-    fn track_frame(&mut self, stamp: u64, frames: Option<usize>) -> Result<()> {
-        let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
-        msgs_of_frame.sort_by_key(|p| p.ordinal);
-        let (_, channel_id) = self.ids.expect("ids exist with detections");
-        self.frame_state.run(
-            stamp,
-            &mut msgs_of_frame,
-            &mut self.tracker,
-            &mut self.counters,
-            self.opts.strict,
-            self.file,
-            &self.topics,
-        )?;
-        msgs::encode_into(&self.frame_state.out, &mut self.frame_state.buf);
-        let sequence = self.next_frame as u32;
-        self.out.write_to_known_channel(
-            &MessageHeader {
-                channel_id,
-                sequence,
-                log_time: stamp,
-                publish_time: stamp,
-            },
-            &self.frame_state.buf,
-        )?;
-        self.extra.write_frame(
-            &mut self.out,
-            &self.frame_state.out,
-            self.ego.take_ego(stamp),
-            sequence,
-        )?;
-        self.frame_state.finish(self.tracker.deleted());
-        self.summary.tracks_messages += 1;
-        self.next_frame += 1;
-        if self.next_frame.is_multiple_of(64) {
-            self.progress.set_message(match frames {
-                Some(n) => format!("tracking: frame {}/{n}", self.next_frame),
-                None => format!("tracking: frame {}", self.next_frame),
-            });
-        }
-        Ok(())
-    }
-
-    /// Commits the output and fills in the summary.
-    fn finish(self) -> Result<TrackSummary> {
-        let Pass {
-            file,
-            out,
-            ego,
-            tracker,
-            counters,
-            mut summary,
-            progress,
-            ..
-        } = self;
-        out.commit()?;
-        progress.set_position(progress.length().unwrap_or(0));
-        let st = tracker.stats();
-        summary.frames = st.frames;
-        summary.tracks_born = st.born;
-        summary.tracks_confirmed = st.confirmed;
-        summary.mean_track_length = tracker.mean_confirmed_track_length();
-        summary.merged_messages = summary.detection_messages - summary.tracks_messages;
-        if counters.total_skipped() > 0 {
-            let parts: Vec<String> = counters
-                .skipped
-                .iter()
-                .map(|(r, n)| format!("{n} ({})", r.describe()))
-                .collect();
-            summary.warnings.push(format!(
-                "{file}: skipped {} detection boxes: {}",
-                counters.total_skipped(),
-                parts.join(", ")
-            ));
-        }
-        if counters.score_outside_unit > 0 {
-            summary.warnings.push(format!(
-                "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
-                counters.score_outside_unit
-            ));
-        }
-        for (topic, n) in &summary.stamps_backwards {
-            summary.warnings.push(format!(
-                "{file}: topic {topic}: {n} messages have a stamp earlier than the message \
-                 before them; frames were replayed in stamp order"
-            ));
-        }
-        summary.detections = counters;
-        summary.ego = ego.finish(file, &mut summary.warnings);
-        Ok(summary)
-    }
-}
-
-/// Image box and attributes of a track's last matched detection.
-#[derive(Default)]
-struct Extra {
-    image_box: Option<ImageBox>,
-    attributes: BTreeMap<String, String>,
-}
-
-/// Per-frame buffers reused across frames, and the attributes of each track's last matched
-/// detection. Nothing is allocated per detection in steady state: the output message's tracks
-/// are overwritten in place, and a track's attributes are moved (not copied) from its detection
-/// into the side table and swapped into the message only while it is encoded.
-#[derive(Default)]
-struct FrameState {
-    dets: Vec<Detection>,
-    /// `(message index within the frame, detection index within the message)` per detection.
-    src: Vec<(u32, u32)>,
-    last_extra: HashMap<u64, Extra>,
-    out: Tracks3D,
-    buf: Vec<u8>,
-}
-
-impl FrameState {
-    /// Tracks one frame and fills `self.out`. Call [`FrameState::finish`] after encoding it.
-    #[allow(clippy::too_many_arguments)]
-    fn run(
-        &mut self,
-        stamp: u64,
-        frame: &mut [Pending],
-        tracker: &mut Tracker,
-        counters: &mut InputCounters,
-        strict: bool,
-        file: &str,
-        topics: &[String],
-    ) -> Result<()> {
-        self.dets.clear();
-        self.src.clear();
-        for (mi, p) in frame.iter().enumerate() {
-            let origin = Origin {
-                file,
-                topic: &topics[p.topic_idx],
-                log_time: p.log_time,
-            };
-            for (di, d) in p.msg.detections.iter().enumerate() {
-                if let Some(det) = convert(d, di, tracker, counters, strict, &origin)? {
-                    self.dets.push(det);
-                    self.src.push((mi as u32, di as u32));
-                }
-            }
-        }
-        tracker
-            .step(stamp, &self.dets)
-            .with_context(|| format!("{file}: frame at stamp {stamp}"))?;
-        let reports = tracker.reports();
-        self.out.stamp = stamp;
-        self.out.frame_id.clear();
-        if let Some(p) = frame.first() {
-            self.out.frame_id.push_str(&p.msg.frame_id);
-        }
-        self.out.tracks.resize_with(reports.len(), Track3D::default);
-        for (t, r) in self.out.tracks.iter_mut().zip(reports) {
-            if let Some(i) = r.detection {
-                let (mi, di) = self.src[i as usize];
-                let d = &mut frame[mi as usize].msg.detections[di as usize];
-                if d.image_box.is_some() || !d.attributes.is_empty() {
-                    let e = self.last_extra.entry(r.id).or_default();
-                    e.image_box = d.image_box;
-                    std::mem::swap(&mut e.attributes, &mut d.attributes);
-                } else {
-                    self.last_extra.remove(&r.id);
-                }
-            }
-            fill_track3d(t, r, tracker.label(r.class));
-            match self.last_extra.get_mut(&r.id) {
-                Some(e) => {
-                    t.image_box = e.image_box;
-                    std::mem::swap(&mut t.attributes, &mut e.attributes);
-                }
-                None => {
-                    t.image_box = None;
-                    t.attributes.clear();
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Gives the attributes lent to the encoded message back to the side table and forgets the
-    /// tracks deleted in this frame.
-    fn finish(&mut self, deleted: &[u64]) {
-        for t in &mut self.out.tracks {
-            if let Some(e) = self.last_extra.get_mut(&t.id) {
-                std::mem::swap(&mut t.attributes, &mut e.attributes);
-            }
-        }
-        for id in deleted {
-            self.last_extra.remove(id);
-        }
-    }
-}
-
-/// Writes one reported track into an output message, reusing its allocations (the image box and
-/// attributes are left to the caller).
-pub fn fill_track3d(t: &mut Track3D, r: &TrackReport, label: &str) {
-    t.id = r.id;
-    t.label.clear();
-    t.label.push_str(label);
-    t.center = Some(v3(r.bbox.center));
-    t.size = Some(size3(r.bbox.size));
-    t.yaw = r.bbox.yaw;
-    t.velocity = Some(v3(r.velocity));
-    t.yaw_rate = r.yaw_rate;
-    t.score = r.score;
-    t.position_variance = Some(v3(r.position_variance));
-    t.yaw_variance = r.yaw_variance;
-    t.age = r.age;
-    t.hits = r.hits;
-    t.frames_since_update = r.frames_since_update;
-}
-
-/// The output message of one reported track.
-pub fn to_track3d(
-    r: &TrackReport,
-    label: &str,
-    image_box: Option<ImageBox>,
-    attributes: BTreeMap<String, String>,
-) -> Track3D {
-    let mut t = Track3D {
-        image_box,
-        attributes,
-        ..Default::default()
-    };
-    fill_track3d(&mut t, r, label);
-    t
+    read_records(input, |rec, stats| session.on_record(rec, stats.bytes_read))?;
+    session.end_of_input()?;
+    let (out, summary) = session.finish();
+    out.commit()?;
+    progress(Progress::Done);
+    Ok(summary)
 }

@@ -8,13 +8,12 @@ use anyhow::{bail, Context, Result};
 use mcap::records::MessageHeader;
 use nalgebra::Isometry3;
 
-use super::track::TrackOptions;
-use crate::mcapio::background::BackgroundOutput;
+use crate::mcapio::sink::RecordSink;
+use crate::msgs::scene_update::{
+    scene_update_descriptor, SceneEncoder, OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA,
+};
 use crate::msgs::{self, Tracks3D};
 use crate::transforms::boxes::transform_tracks_into;
-use crate::viz::scene_update::{
-    scene_update, scene_update_descriptor, OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA,
-};
 
 /// Suffix of the tracks topic for the tracks in the ego frame.
 pub const EGO_TOPIC_SUFFIX: &str = "/ego";
@@ -28,9 +27,17 @@ pub struct ExtraOutputs {
     ego_msg: Tracks3D,
     buf: Vec<u8>,
     ego_sequence: u32,
-    /// Track ids with an entity in the scene (sorted), and the ids to delete this frame.
-    shown: Vec<u64>,
-    gone: Vec<u64>,
+    scene_encoder: SceneEncoder,
+}
+
+/// Which extra channels a run asked for (from [`super::track::TrackOptions`]).
+pub struct ExtraRequest<'a> {
+    /// Topic of the tracks channel (the ego-frame topic is this plus [`EGO_TOPIC_SUFFIX`]).
+    pub tracks_topic: &'a str,
+    /// `--tracks-frame ego`.
+    pub tracks_in_ego_frame: bool,
+    /// `--scene-topic`.
+    pub scene_topic: Option<&'a str>,
 }
 
 type ScanIds = (HashSet<u16>, HashSet<u16>, HashSet<String>);
@@ -44,7 +51,7 @@ impl ExtraOutputs {
     /// the first free ones after `tracks_ids` (the tracks channel's schema and channel ids).
     /// Nothing is planned without a tracks channel.
     pub fn new(
-        opts: &TrackOptions,
+        opts: &ExtraRequest<'_>,
         file: &str,
         scan: Option<&ScanIds>,
         tracks_ids: Option<(u16, u16)>,
@@ -55,8 +62,7 @@ impl ExtraOutputs {
             ego_msg: Tracks3D::default(),
             buf: Vec::new(),
             ego_sequence: 0,
-            shown: Vec::new(),
-            gone: Vec::new(),
+            scene_encoder: SceneEncoder::default(),
         };
         let (Some((schemas, channels, topics)), Some((tracks_schema, tracks_channel))) =
             (scan, tracks_ids)
@@ -72,14 +78,14 @@ impl ExtraOutputs {
             }
             Ok(())
         };
-        if opts.ego.tracks_in_ego_frame {
+        if opts.tracks_in_ego_frame {
             let topic = format!("{}{EGO_TOPIC_SUFFIX}", opts.tracks_topic);
             check_topic(&topic, "--tracks-topic")?;
             let id = free(channels, &taken_channels).context("no free channel id in the output")?;
             taken_channels.push(id);
             x.ego = Some((topic, id));
         }
-        if let Some(topic) = &opts.scene_topic {
+        if let Some(topic) = opts.scene_topic {
             check_topic(topic, "--scene-topic")?;
             if x.ego.as_ref().is_some_and(|(t, _)| t == topic) {
                 bail!("--scene-topic {topic} is the topic of the ego-frame tracks");
@@ -87,14 +93,14 @@ impl ExtraOutputs {
             let schema =
                 free(schemas, &[tracks_schema]).context("no free schema id in the output")?;
             let id = free(channels, &taken_channels).context("no free channel id in the output")?;
-            x.scene = Some((topic.clone(), schema, id));
+            x.scene = Some((topic.to_string(), schema, id));
         }
         Ok(x)
     }
 
     /// Adds the planned channels to the output (`tracks_schema`: the `probmot.Tracks3D` schema
     /// id already added).
-    pub fn add_channels(&self, w: &mut BackgroundOutput, tracks_schema: u16) -> Result<()> {
+    pub fn add_channels(&self, w: &mut impl RecordSink, tracks_schema: u16) -> Result<()> {
         if let Some((topic, id)) = &self.ego {
             w.add_channel_with_id(*id, tracks_schema, topic, "protobuf", &BTreeMap::new())?;
         }
@@ -117,7 +123,7 @@ impl ExtraOutputs {
     /// deletions for the tracks shown before and not reported now).
     pub fn write_frame(
         &mut self,
-        w: &mut BackgroundOutput,
+        w: &mut impl RecordSink,
         tracks: &Tracks3D,
         ego: Option<(String, Isometry3<f64>)>,
         sequence: u32,
@@ -137,18 +143,7 @@ impl ExtraOutputs {
             w.write_to_known_channel(&h, &self.buf)?;
         }
         if let Some((_, _, id)) = &self.scene {
-            // Delete the entities of the tracks no longer reported (dead, or not reported in
-            // this frame), so that the scene shows exactly the tracks of the tracks channel.
-            self.gone.clear();
-            for &old in &self.shown {
-                if !tracks.tracks.iter().any(|t| t.id == old) {
-                    self.gone.push(old);
-                }
-            }
-            self.shown.clear();
-            self.shown.extend(tracks.tracks.iter().map(|t| t.id));
-            self.shown.sort_unstable();
-            msgs::encode_into(&scene_update(tracks, &self.gone), &mut self.buf);
+            self.scene_encoder.encode_frame(tracks, &mut self.buf);
             w.write_to_known_channel(&header(*id), &self.buf)?;
         }
         Ok(())

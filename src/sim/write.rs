@@ -12,7 +12,7 @@ use super::ego::{self, ego_pose, EgoPose};
 use super::scenario::{objects, SimOptions};
 use super::sensor::detect;
 use crate::mcapio::writer::{AtomicOutput, OutputOptions};
-use crate::msgs::{self, v3, Detection3D, Detections3D, Size3, Track3D, Tracks3D};
+use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 use crate::transforms::sources::FOXGLOVE_FRAME_TRANSFORM;
 
 /// First frame's stamp: 2026-01-01T00:00:00Z in nanoseconds.
@@ -195,11 +195,5 @@ fn header(channel_id: u16, frame: usize, stamp: u64) -> mcap::records::MessageHe
     }
 }
 
-/// A [`Size3`] from `[l, w, h]`.
-pub fn size3(s: [f64; 3]) -> Size3 {
-    Size3 {
-        length: s[0],
-        width: s[1],
-        height: s[2],
-    }
-}
+/// Re-exported for the importers that still take it from here (it belongs to the messages).
+pub use crate::msgs::size3;

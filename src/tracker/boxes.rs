@@ -2,6 +2,8 @@
 
 use nalgebra::SVector;
 
+use super::config::BoxOrigin;
+
 /// Index of a class (label) inside a [`crate::tracker::Tracker`]; see
 /// [`crate::tracker::Tracker::class_id`].
 pub type ClassId = u32;
@@ -37,6 +39,34 @@ impl Box3 {
             center: [v[0], v[1], v[2]],
             yaw: v[3],
             size: [v[4], v[5], v[6]],
+        }
+    }
+
+    /// The box with its `center` moved to the given origin point: the bottom-face centre is
+    /// `h / 2` below the centre. Used to filter the position of that point.
+    #[inline]
+    pub fn to_origin(&self, origin: BoxOrigin) -> Box3 {
+        match origin {
+            BoxOrigin::Center => *self,
+            BoxOrigin::Bottom => {
+                let mut b = *self;
+                b.center[2] -= 0.5 * self.size[2];
+                b
+            }
+        }
+    }
+
+    /// The inverse of [`Box3::to_origin`]: a box whose `center` field holds the origin point,
+    /// back to its centre.
+    #[inline]
+    pub fn from_origin(&self, origin: BoxOrigin) -> Box3 {
+        match origin {
+            BoxOrigin::Center => *self,
+            BoxOrigin::Bottom => {
+                let mut b = *self;
+                b.center[2] += 0.5 * self.size[2];
+                b
+            }
         }
     }
 

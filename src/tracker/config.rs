@@ -5,6 +5,7 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 pub use super::levers::{Levers, ScoreMode};
+pub use super::presets::Preset;
 
 /// How a detection is compared with a track's predicted box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -19,6 +20,8 @@ pub enum DistanceKind {
     Giou3d,
     /// Bird's-eye-view centre distance in metres. A cost.
     Center,
+    /// 3D distance between the box centres in metres (AB3DMOT's `dist_3d`). A cost.
+    Dist3d,
 }
 
 impl DistanceKind {
@@ -34,6 +37,7 @@ impl DistanceKind {
             DistanceKind::Iou3d => "iou3d",
             DistanceKind::Giou3d => "giou3d",
             DistanceKind::Center => "center",
+            DistanceKind::Dist3d => "dist3d",
         }
     }
 }
@@ -47,6 +51,18 @@ pub enum MatcherKind {
     Greedy,
     /// Optimal assignment (minimum total cost), then pairs over the threshold are dropped.
     Hungarian,
+}
+
+/// The point of a box whose position the filter follows.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum BoxOrigin {
+    /// The box centre.
+    #[default]
+    Center,
+    /// The centre of the bottom face, as KITTI labels and AB3DMOT do. With a size that changes
+    /// this filters a different quantity than the centre: AB3DMOT's boxes need it to be exact.
+    Bottom,
 }
 
 /// Settings of one class.
@@ -74,6 +90,15 @@ pub struct ClassConfig {
     /// Detections scoring below this are ignored. `None`: keep all.
     #[serde(default)]
     pub score_floor: Option<f64>,
+    // AB3DMOT's KITTI configuration (issue #17); each defaults to the earlier behaviour.
+    /// Point of the box the filter's position follows.
+    #[serde(default)]
+    pub origin: BoxOrigin,
+    /// With the Hungarian matcher: solve the assignment over every pair and drop pairs over the
+    /// gate afterwards (AB3DMOT). `false`: pairs over the gate are never candidates, so the
+    /// solver maximises the number of gated pairs first.
+    #[serde(default)]
+    pub gate_after_assignment: bool,
     /// Number of samples the noise was fitted from, when fitted (informational).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<u64>,
@@ -112,9 +137,6 @@ pub const NUSCENES_CLASSES: [&str; 7] = [
     "trailer",
     "truck",
 ];
-
-/// Names of the built-in presets.
-pub const PRESETS: [&str; 3] = ["nuscenes-chiu2019", "ab3dmot", "kitti-pointrcnn"];
 
 /// AB3DMOT's default covariances: `(P0, Q, R)` diagonals.
 pub fn ab3dmot_covariances() -> ([f64; 11], [f64; 11], [f64; 7]) {
@@ -246,12 +268,15 @@ fn chiu_class(p0: [f64; 11], q4: [f64; 4]) -> ClassConfig {
         max_age: 2,
         angular_velocity: true,
         score_floor: None,
+        origin: BoxOrigin::Center,
+        gate_after_assignment: false,
         samples: None,
         levers: Levers::default(),
     }
 }
 
-/// The AB3DMOT baseline settings of one class.
+/// The settings of one class of AB3DMOT's 2019 default (3D IoU 0.1, Hungarian, its default
+/// covariances, no angular velocity): the `ab3dmot-2019` preset.
 pub fn ab3dmot_class() -> ClassConfig {
     let (p0, q, r) = ab3dmot_covariances();
     ClassConfig {
@@ -265,48 +290,29 @@ pub fn ab3dmot_class() -> ClassConfig {
         max_age: 2,
         angular_velocity: false,
         score_floor: None,
+        origin: BoxOrigin::Center,
+        gate_after_assignment: false,
         samples: None,
         levers: Levers::default(),
     }
 }
 
+/// The per-class settings of the `nuscenes-chiu2019` preset (the paper's covariance set 2).
+pub(crate) fn chiu2019_classes() -> BTreeMap<String, ClassConfig> {
+    CHIU2019
+        .iter()
+        .map(|(label, p0, q4)| (label.to_string(), chiu_class(*p0, *q4)))
+        .collect()
+}
+
 impl TrackerConfig {
-    /// A built-in preset by name (see [`PRESETS`]).
+    /// A built-in preset by name (see [`Preset`]).
     pub fn preset(name: &str) -> Result<TrackerConfig, ConfigError> {
-        match name {
-            "nuscenes-chiu2019" => {
-                let classes: BTreeMap<String, ClassConfig> = CHIU2019
-                    .iter()
-                    .map(|(label, p0, q4)| (label.to_string(), chiu_class(*p0, *q4)))
-                    .collect();
-                // Labels outside the seven use the car statistics (the most common class).
-                let default = classes.get("car").cloned();
-                Ok(TrackerConfig {
-                    name: name.into(),
-                    dt_nominal: 0.5,
-                    classes,
-                    default,
-                })
-            }
-            // Made by `probmot tune --budget 100` (noise fitted, per-class settings and levers
-            // tuned) on the ten KITTI tracking train sequences in ../shared/data/kitti-tracking-train
-            // only (PointRCNN detections); see docs/tune.md. In-sample on those sequences: use the
-            // cross-validated numbers of docs/tune.md to judge it.
-            "kitti-pointrcnn" => {
-                let mut cfg =
-                    TrackerConfig::from_json(include_str!("presets/kitti-pointrcnn.json"))?;
-                cfg.name = name.into();
-                Ok(cfg)
-            }
-            "ab3dmot" => Ok(TrackerConfig {
-                name: name.into(),
-                dt_nominal: 0.5,
-                classes: BTreeMap::new(),
-                default: Some(ab3dmot_class()),
-            }),
-            other => Err(ConfigError(format!(
-                "unknown preset '{other}'; known presets: {}",
-                PRESETS.join(", ")
+        match Preset::from_name(name) {
+            Some(p) => p.config(),
+            None => Err(ConfigError(format!(
+                "unknown preset '{name}'; known presets: {}",
+                Preset::ALL.map(Preset::name).join(", ")
             ))),
         }
     }
@@ -433,8 +439,8 @@ mod tests {
 
     #[test]
     fn presets_validate_and_round_trip() {
-        for name in PRESETS {
-            let cfg = TrackerConfig::preset(name).unwrap();
+        for p in Preset::ALL {
+            let cfg = TrackerConfig::preset(p.name()).unwrap();
             cfg.validate().unwrap();
             let back = TrackerConfig::from_json(&cfg.to_json()).unwrap();
             assert_eq!(back, cfg);
@@ -463,7 +469,7 @@ mod tests {
             err.0.contains("class 'bus'") && err.0.contains("r[0]"),
             "{err}"
         );
-        let mut cfg = TrackerConfig::preset("ab3dmot").unwrap();
+        let mut cfg = TrackerConfig::preset("ab3dmot-2019").unwrap();
         cfg.default.as_mut().unwrap().threshold = f64::NAN;
         assert!(cfg.validate().is_err());
     }
@@ -471,7 +477,8 @@ mod tests {
     #[test]
     fn unknown_fields_and_kinds_are_errors() {
         let mut v: serde_json::Value =
-            serde_json::from_str(&TrackerConfig::preset("ab3dmot").unwrap().to_json()).unwrap();
+            serde_json::from_str(&TrackerConfig::preset("ab3dmot-2019").unwrap().to_json())
+                .unwrap();
         v["default"]["distance"] = "manhattan".into();
         let e = TrackerConfig::from_json(&v.to_string()).unwrap_err();
         assert!(e.0.contains("manhattan"), "{e}");

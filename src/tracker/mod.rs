@@ -13,12 +13,15 @@ pub mod kalman;
 pub mod levers;
 pub mod matching;
 pub mod nms;
+pub mod presets;
 pub mod track;
 #[allow(clippy::module_inception)]
 pub mod tracker;
 pub mod two_stage;
 
 pub use boxes::{Box3, ClassId, Detection};
-pub use config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
+pub use config::{
+    BoxOrigin, ClassConfig, ConfigError, DistanceKind, MatcherKind, Preset, TrackerConfig,
+};
 pub use track::TrackReport;
 pub use tracker::{StepError, Tracker, TrackerStats};

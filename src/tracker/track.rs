@@ -2,6 +2,7 @@
 
 use super::boxes::{Box3, ClassId};
 use super::confidence::Confidence;
+use super::config::BoxOrigin;
 use super::kalman::{Innovation, KalmanState};
 
 /// A live track inside the tracker.
@@ -62,13 +63,19 @@ pub struct TrackReport {
 
 impl Track {
     /// The report of this track, with velocities converted from per-nominal-frame to per-second.
-    pub fn report(&self, dt_nominal: f64, detection: Option<u32>) -> TrackReport {
+    /// `origin` is the point of the box the filter's position follows.
+    pub fn report(
+        &self,
+        dt_nominal: f64,
+        origin: BoxOrigin,
+        detection: Option<u32>,
+    ) -> TrackReport {
         let x = &self.kf.x;
         let p = &self.kf.p;
         TrackReport {
             id: self.id,
             class: self.class,
-            bbox: Box3::from_slice(x.as_slice()),
+            bbox: Box3::from_slice(x.as_slice()).from_origin(origin),
             velocity: [x[7] / dt_nominal, x[8] / dt_nominal, x[9] / dt_nominal],
             yaw_rate: x[10] / dt_nominal,
             score: self.score,

@@ -328,7 +328,7 @@ fn step_class(
     for &(d, t) in &s.matches {
         let det = &all_dets[c.dets[d as usize] as usize];
         let trk = &mut c.tracks[t as usize];
-        trk.kf.update(&det.bbox, &c.noise);
+        trk.kf.update(&det.bbox.to_origin(c.cfg.origin), &c.noise);
         trk.hits += 1;
         trk.time_since_update = 0;
         trk.score = det.score;
@@ -346,7 +346,7 @@ fn step_class(
         c.tracks.push(Track {
             id: *next_id,
             class: det.class,
-            kf: KalmanState::new(&det.bbox, &c.noise),
+            kf: KalmanState::new(&det.bbox.to_origin(c.cfg.origin), &c.noise),
             hits: 1,
             age: 0,
             time_since_update: 0,
@@ -375,7 +375,7 @@ fn step_class(
         }
         if t.time_since_update < max_age && (t.hits >= min_hits || frame_count <= min_hits as u64) {
             t.reported_frames += 1;
-            let mut r = t.report(dt_nominal, *m);
+            let mut r = t.report(dt_nominal, c.cfg.origin, *m);
             r.score = t.conf.reported(t.score, levers);
             reports.push(r);
         }
@@ -434,7 +434,9 @@ fn associate(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch, lo: us
 
 /// Fills `s.pairs` with the candidate pairs of detections `lo..hi` of a class and the tracks not
 /// yet matched: each pair that passes the cheap pre-gate, with its full cost. Pairs cut by the
-/// pre-gate could never be matched.
+/// pre-gate could never be matched. With `gate_after_assignment` and the Hungarian matcher every
+/// such pair is a candidate: the assignment is solved over all of them and the gate applied
+/// afterwards.
 fn candidate_pairs(
     c: &mut ClassState,
     all_dets: &[Detection],
@@ -445,6 +447,15 @@ fn candidate_pairs(
     s.pairs.clear();
     let cfg = &c.cfg;
     let thr = cfg.threshold;
+    let origin = cfg.origin;
+    let all = cfg.gate_after_assignment && cfg.matcher == MatcherKind::Hungarian;
+    let mut push = |cost: f64, d: usize, t: usize| {
+        s.pairs.push(Pair {
+            cost,
+            det: d as u32,
+            trk: t as u32,
+        })
+    };
     match cfg.distance {
         DistanceKind::Mahalanobis => {
             for t in &mut c.tracks {
@@ -452,46 +463,55 @@ fn candidate_pairs(
             }
             let g2 = thr * thr;
             for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
-                let b = &all_dets[di as usize].bbox;
+                let b = all_dets[di as usize].bbox.to_origin(origin);
                 for (ti, t) in c.tracks.iter().enumerate() {
                     if s.trk_matched[ti] {
                         continue;
                     }
                     let inn = t.innovation.as_ref().expect("computed above");
                     // Pre-gate: the x and y terms alone already exceed the gate.
-                    if mahalanobis_sq_xy(inn, b) > g2 {
+                    if !all && mahalanobis_sq_xy(inn, &b) > g2 {
                         continue;
                     }
-                    s.pairs.push(Pair {
-                        cost: mahalanobis_sq(inn, b).sqrt(),
-                        det: d as u32,
-                        trk: ti as u32,
-                    });
+                    push(mahalanobis_sq(inn, &b).sqrt(), d, ti);
                 }
             }
         }
-        DistanceKind::Center => {
+        DistanceKind::Center | DistanceKind::Dist3d => {
+            let in_3d = cfg.distance == DistanceKind::Dist3d;
+            s.pred.clear();
+            s.pred.extend(
+                c.tracks
+                    .iter()
+                    .map(|t| Box3::from_slice(t.kf.x.as_slice()).from_origin(origin)),
+            );
             for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
                 let b = &all_dets[di as usize].bbox;
-                for (ti, t) in c.tracks.iter().enumerate() {
+                for (ti, p) in s.pred.iter().enumerate() {
                     if s.trk_matched[ti] {
                         continue;
                     }
-                    let dist = (b.center[0] - t.kf.x[0]).hypot(b.center[1] - t.kf.x[1]);
-                    if dist <= thr {
-                        s.pairs.push(Pair {
-                            cost: dist,
-                            det: d as u32,
-                            trk: ti as u32,
-                        });
+                    let dx = b.center[0] - p.center[0];
+                    let dy = b.center[1] - p.center[1];
+                    let dz = if in_3d {
+                        b.center[2] - p.center[2]
+                    } else {
+                        0.0
+                    };
+                    let dist = (dx * dx + dy * dy + dz * dz).sqrt();
+                    if all || dist <= thr {
+                        push(dist, d, ti);
                     }
                 }
             }
         }
         DistanceKind::Iou3d | DistanceKind::Giou3d => {
             s.pred.clear();
-            s.pred
-                .extend(c.tracks.iter().map(|t| Box3::from_slice(t.kf.x.as_slice())));
+            s.pred.extend(
+                c.tracks
+                    .iter()
+                    .map(|t| Box3::from_slice(t.kf.x.as_slice()).from_origin(origin)),
+            );
             let giou = cfg.distance == DistanceKind::Giou3d;
             for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
                 let b = &all_dets[di as usize].bbox;
@@ -505,12 +525,8 @@ fn candidate_pairs(
                         // iou3d itself skips pairs whose footprints cannot touch.
                         iou3d(b, p)
                     };
-                    if sim >= thr {
-                        s.pairs.push(Pair {
-                            cost: -sim,
-                            det: d as u32,
-                            trk: ti as u32,
-                        });
+                    if all || sim >= thr {
+                        push(-sim, d, ti);
                     }
                 }
             }

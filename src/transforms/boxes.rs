@@ -9,7 +9,8 @@
 
 use nalgebra::{Isometry3, Point3, UnitQuaternion, Vector3};
 
-use crate::msgs::{self, Detections3D, Track3D, Tracks3D};
+use crate::msgs::detection_frame::DetectionFrame;
+use crate::msgs::{self, Track3D, Tracks3D};
 use crate::tracker::angle::wrap;
 
 /// Yaw after rotating a heading of `yaw` by `iso`.
@@ -36,20 +37,21 @@ fn rotate(iso: &Isometry3<f64>, v: &msgs::Vector3) -> msgs::Vector3 {
     msgs::v3([r.x, r.y, r.z])
 }
 
-/// Moves every box of a detection message by `iso` (source to target frame) and sets its
+/// Moves every valid box of a detection frame by `iso` (source to target frame) and sets its
 /// `frame_id` to `target`.
-pub fn transform_detections(msg: &mut Detections3D, iso: &Isometry3<f64>, target: &str) {
-    for d in &mut msg.detections {
-        if let Some(c) = &mut d.center {
-            *c = point(iso, c);
-        }
-        d.yaw = transform_yaw(iso, d.yaw);
+pub fn transform_detections(frame: &mut DetectionFrame, iso: &Isometry3<f64>, target: &str) {
+    for d in &mut frame.boxes {
+        let c = d.bbox.center;
+        let p = iso * Point3::new(c[0], c[1], c[2]);
+        d.bbox.center = [p.x, p.y, p.z];
+        d.bbox.yaw = transform_yaw(iso, d.bbox.yaw);
         if let Some(v) = &mut d.velocity {
-            *v = rotate(iso, v);
+            let r = iso.rotation * Vector3::new(v[0], v[1], v[2]);
+            *v = [r.x, r.y, r.z];
         }
     }
-    msg.frame_id.clear();
-    msg.frame_id.push_str(target);
+    frame.frame_id.clear();
+    frame.frame_id.push_str(target);
 }
 
 /// Moves one track by `iso`: centre, yaw and velocity (the variances, yaw rate and size are
@@ -84,7 +86,7 @@ pub fn transform_tracks_into(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msgs::Detection3D;
+    use crate::msgs::{Detection3D, Detections3D};
 
     #[test]
     fn boxes_move_with_the_full_rotation_and_yaw_adds_the_rotation_yaw() {
@@ -92,30 +94,36 @@ mod tests {
             Vector3::new(10.0, 5.0, 1.0),
             Vector3::new(0.0, 0.0, std::f64::consts::FRAC_PI_2),
         );
-        let mut m = Detections3D {
+        let m = Detections3D {
             stamp: Some(1),
             frame_id: "base_link".into(),
             detections: vec![Detection3D {
                 center: Some(msgs::v3([2.0, 0.0, 0.5])),
+                size: Some(msgs::Size3 {
+                    length: 4.0,
+                    width: 2.0,
+                    height: 1.5,
+                }),
                 yaw: 3.0,
                 velocity: Some(msgs::v3([1.0, 0.0, 0.0])),
                 ..Default::default()
             }],
         };
+        let mut m = DetectionFrame::from_message(m, 0);
         transform_detections(&mut m, &iso, "map");
-        let d = &m.detections[0];
-        let c = d.center.unwrap();
+        let d = &m.boxes[0];
+        let c = d.bbox.center;
         assert!(
-            (c.x - 10.0).abs() < 1e-12 && (c.y - 7.0).abs() < 1e-12 && (c.z - 1.5).abs() < 1e-12
+            (c[0] - 10.0).abs() < 1e-12 && (c[1] - 7.0).abs() < 1e-12 && (c[2] - 1.5).abs() < 1e-12
         );
-        assert!((d.yaw - wrap(3.0 + std::f64::consts::FRAC_PI_2)).abs() < 1e-12);
+        assert!((d.bbox.yaw - wrap(3.0 + std::f64::consts::FRAC_PI_2)).abs() < 1e-12);
         let v = d.velocity.unwrap();
-        assert!(v.x.abs() < 1e-12 && (v.y - 1.0).abs() < 1e-12);
+        assert!(v[0].abs() < 1e-12 && (v[1] - 1.0).abs() < 1e-12);
         assert_eq!(m.frame_id, "map");
         // And back.
         let mut t = Track3D {
-            center: Some(c),
-            yaw: d.yaw,
+            center: Some(msgs::v3(c)),
+            yaw: d.bbox.yaw,
             ..Default::default()
         };
         transform_track(&mut t, &iso.inverse());

@@ -7,18 +7,15 @@ pub mod plot;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;
-pub mod scene_update;
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeSet;
 use std::fmt;
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
-use mcap::records::Record;
+use anyhow::Result;
 
-use crate::mcapio::reader::read_records;
-use crate::msgs::detection_source::DetectionSource;
-use crate::msgs::{self, Detection3D, Detections3D, Encoding, Track3D, Tracks3D};
+use crate::mcapio::recording::{self, Boxes, TopicKind, TopicRequest};
+use crate::msgs::{self, Detection3D, Track3D};
 
 /// One box seen from above (z and height are kept but not drawn).
 #[derive(Debug, Clone, PartialEq)]
@@ -206,111 +203,42 @@ impl FileLayers {
     }
 }
 
-/// How the messages of one layer channel are decoded.
-enum LayerDecoder {
-    /// A detection input of any supported schema.
-    Detections(DetectionSource),
-    /// `probmot.Tracks3D`.
-    Tracks(Encoding),
-}
-
-/// Reads the given `(layer, topic)` channels of `path` in one pass. Topics the file lacks are
-/// left out of the result (see [`FileLayers::topics`]); a topic with the wrong schema or an
-/// undecodable message is an error naming the file, topic and log time.
+/// Reads the given `(layer, topic)` channels of `path` in one pass (through
+/// [`crate::mcapio::recording::frames`]). Topics the file lacks are left out of the result (see
+/// [`FileLayers::topics`]); a topic with the wrong schema or an undecodable message is an error
+/// naming the file, topic and log time.
 pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers> {
-    let file = path.display().to_string();
-    let mut schemas: BTreeMap<u16, (String, String, Vec<u8>)> = BTreeMap::new();
-    // channel id -> (index into `wanted`, how to decode it)
-    let mut channels: BTreeMap<u16, (usize, LayerDecoder)> = BTreeMap::new();
-    let mut topics = BTreeSet::new();
-    // Per wanted channel: (frames, log time of each frame's message).
-    let mut frames: Vec<Option<(Vec<Frame>, Vec<u64>)>> = vec![None; wanted.len()];
-    read_records(path, |rec, _| {
-        match rec {
-            Record::Schema { header, data } => {
-                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
-            }
-            Record::Channel(c) => {
-                topics.insert(c.topic.clone());
-                let Some(i) = wanted.iter().position(|(_, t)| *t == c.topic) else {
-                    return Ok(());
-                };
-                let (layer, topic) = &wanted[i];
-                let (schema, schema_enc, schema_data) =
-                    schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let decoder = if *layer == Layer::Detections {
-                    // Any detection input `track` reads (probmot, ROS 2, Foxglove).
-                    match DetectionSource::for_channel(
-                        &schema,
-                        &schema_enc,
-                        &schema_data,
-                        &c.message_encoding,
-                    ) {
-                        Ok(source) => LayerDecoder::Detections(source),
-                        Err(why) => bail!("{file}: topic {topic} ({layer} layer): {why}"),
-                    }
-                } else {
-                    if schema != layer.schema() {
-                        bail!(
-                            "{file}: topic {topic} has schema '{schema}', expected {} for the \
-                             {layer} layer",
-                            layer.schema()
-                        );
-                    }
-                    let Some(enc) = Encoding::from_message_encoding(&c.message_encoding) else {
-                        bail!(
-                            "{file}: topic {topic} has message encoding '{}'; expected protobuf or \
-                             json",
-                            c.message_encoding
-                        );
-                    };
-                    LayerDecoder::Tracks(enc)
-                };
-                channels.insert(c.id, (i, decoder));
-                frames[i].get_or_insert_with(Default::default);
-            }
-            Record::Message { header, data } => {
-                let Some((i, decoder)) = channels.get(&header.channel_id) else {
-                    return Ok(());
-                };
-                let topic = &wanted[*i].1;
-                let ctx = || {
-                    format!(
-                        "{file}: topic {topic}, message at log_time {}: cannot decode",
-                        header.log_time
-                    )
-                };
-                let frame = match decoder {
-                    LayerDecoder::Detections(source) => {
-                        let m: Detections3D = source.decode(&data).with_context(ctx)?;
-                        (
-                            m.stamp.unwrap_or(header.log_time),
-                            m.detections.iter().map(BevBox::from_detection).collect(),
-                        )
-                    }
-                    LayerDecoder::Tracks(enc) => {
-                        let m: Tracks3D = msgs::decode(&data, *enc).with_context(ctx)?;
-                        let stamp = if m.stamp != 0 {
-                            m.stamp
-                        } else {
-                            header.log_time
-                        };
-                        (stamp, m.tracks.iter().map(BevBox::from_track).collect())
-                    }
-                };
-                let (layer_frames, log_times) = frames[*i].get_or_insert_with(Default::default);
-                layer_frames.push(frame);
-                log_times.push(header.log_time);
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
+    let requests: Vec<TopicRequest> = wanted
+        .iter()
+        .map(|(layer, topic)| TopicRequest {
+            topic: topic.clone(),
+            // Detections: any input `track` reads (probmot, ROS 2, Foxglove).
+            kind: if *layer == Layer::Detections {
+                TopicKind::Detections
+            } else {
+                TopicKind::Tracks
+            },
+            role: format!("{layer} layer"),
+        })
+        .collect();
+    let read = recording::frames(path, &requests)?;
     let layers = wanted
         .iter()
-        .zip(frames)
+        .zip(read.frames)
         .filter_map(|((layer, topic), f)| {
-            f.map(|(frames, log_times)| LayerFrames {
+            let f = f?;
+            let log_times = f.iter().map(|fr| fr.log_time).collect();
+            let frames = f
+                .into_iter()
+                .map(|fr| {
+                    let boxes = match &fr.boxes {
+                        Boxes::Detections(d) => d.iter().map(BevBox::from_detection).collect(),
+                        Boxes::Tracks(t) => t.iter().map(BevBox::from_track).collect(),
+                    };
+                    (fr.stamp, boxes)
+                })
+                .collect();
+            Some(LayerFrames {
                 layer: *layer,
                 topic: topic.clone(),
                 frames,
@@ -318,7 +246,10 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
             })
         })
         .collect();
-    Ok(FileLayers { layers, topics })
+    Ok(FileLayers {
+        layers,
+        topics: read.topics,
+    })
 }
 
 /// Which boxes to keep: classes and a time window relative to a reference stamp.

@@ -31,7 +31,23 @@ pub fn probmot_ok(args: &[&str]) -> Output {
 
 /// Whether `python3` can import `modules` (comma-separated), for checks that need Python tools.
 pub fn python_has(modules: &str) -> bool {
-    Command::new("python3")
+    can_import("python3", modules)
+}
+
+/// The Python of the nuScenes devkit checks: `$PROBMOT_DEVKIT_PYTHON` when set (the devkit's
+/// numpy<2 conflicts with scripts/requirements.txt, so it lives in a virtual environment of its
+/// own, which `.ci/run` makes), else `python3`.
+pub fn devkit_python() -> String {
+    std::env::var("PROBMOT_DEVKIT_PYTHON").unwrap_or_else(|_| "python3".into())
+}
+
+/// Whether the devkit's Python ([`devkit_python`]) can import `modules`.
+pub fn devkit_has(modules: &str) -> bool {
+    can_import(&devkit_python(), modules)
+}
+
+fn can_import(python: &str, modules: &str) -> bool {
+    Command::new(python)
         .args(["-c", &format!("import {modules}")])
         .output()
         .is_ok_and(|o| o.status.success())
@@ -40,11 +56,17 @@ pub fn python_has(modules: &str) -> bool {
 /// Reports that the check `test` cannot run here, and why. Under `CI=true` this panics: CI must
 /// prove that a fresh machine runs every check, so a check that could not run is a failure there.
 /// Elsewhere it prints `SKIPPED test: reason` on stderr and the caller returns.
+///
+/// The line goes straight to the process's stderr (`write_all` on `std::io::stderr()`), not
+/// through `eprintln!`: libtest captures the `eprint!` output of passing tests, which would turn a
+/// skipped check into a silent `ok` in the `cargo test` output.
 pub fn skip(test: &str, reason: &str) {
+    use std::io::Write as _;
     if std::env::var("CI").is_ok_and(|v| v == "true") {
         panic!("{test} could not run under CI=true: {reason}");
     }
-    eprintln!("SKIPPED {test}: {reason}");
+    let line = format!("SKIPPED {test}: {reason}\n");
+    let _ = std::io::stderr().lock().write_all(line.as_bytes());
 }
 
 /// Path of a file in the repository.

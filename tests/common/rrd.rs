@@ -12,22 +12,15 @@ use serde_json::Value;
 
 use crate::common::{detections, probmot_ok, repo, tracks};
 
-/// Whether `python3` can import `modules` (comma-separated).
-pub fn python_has(modules: &str) -> bool {
-    Command::new("python3")
-        .args(["-c", &format!("import {modules}")])
-        .output()
-        .is_ok_and(|o| o.status.success())
-}
-
 /// Whether the tests can run; prints why not.
 pub fn available(test: &str) -> bool {
-    if python_has("rerun, mcap, mcap_protobuf") {
+    if crate::common::python_has("rerun, mcap, mcap_protobuf") {
         return true;
     }
-    eprintln!(
-        "SKIPPED {test}: `python3 -c \"import rerun, mcap, mcap_protobuf\"` failed; install with \
-         `python3 -m pip install -r scripts/requirements.txt` (rerun-sdk==0.36.3)"
+    crate::common::skip(
+        test,
+        "`python3 -c \"import rerun, mcap, mcap_protobuf\"` failed; install with \
+         `python3 -m pip install -r scripts/requirements.txt` (rerun-sdk==0.36.3)",
     );
     false
 }

@@ -2,7 +2,7 @@
 //! tracked log opens in the Foxglove 3D panel as it is.
 //!
 //! One entity per reported track, with the entity id `track/<id>`: a cube (the box, coloured by
-//! the track id's stable colour, [`crate::viz::plot::id_color`]), a text above it (`<id>
+//! the track id's stable colour, [`super::colors::id_color`]), a text above it (`<id>
 //! <label>`), and an arrow from the centre along the velocity (length = 1 s of travel) when
 //! the track moves faster than [`MIN_ARROW_SPEED`]. Entities have no lifetime (they stay until
 //! replaced or deleted); the update of a frame deletes the entities of the tracks that are no
@@ -19,9 +19,9 @@ use foxglove::schemas::{
     SceneEntity, SceneEntityDeletion, SceneUpdate, TextPrimitive, Timestamp, Vector3,
 };
 
-pub use crate::msgs::detection_source::OUTPUT_METADATA_KEY;
-use crate::msgs::Tracks3D;
-use crate::viz::plot::id_color;
+use super::colors::id_color;
+pub use super::detection_source::OUTPUT_METADATA_KEY;
+use super::Tracks3D;
 
 /// Schema name of the output channel.
 pub const SCENE_UPDATE_SCHEMA: &str = "foxglove.SceneUpdate";
@@ -169,6 +169,33 @@ pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
     SceneUpdate {
         deletions,
         entities,
+    }
+}
+
+/// The SceneUpdate encoder of a tracks sequence: remembers the track ids shown, so that each
+/// frame's update deletes the entities of the tracks no longer reported (dead, or not reported
+/// in this frame) and the scene shows exactly the tracks of the tracks channel.
+#[derive(Debug, Default)]
+pub struct SceneEncoder {
+    /// Track ids with an entity in the scene (sorted).
+    shown: Vec<u64>,
+    /// Ids to delete this frame (reused buffer).
+    gone: Vec<u64>,
+}
+
+impl SceneEncoder {
+    /// Encodes the update of the next frame of tracks into `buf` (protobuf).
+    pub fn encode_frame(&mut self, tracks: &Tracks3D, buf: &mut Vec<u8>) {
+        self.gone.clear();
+        for &old in &self.shown {
+            if !tracks.tracks.iter().any(|t| t.id == old) {
+                self.gone.push(old);
+            }
+        }
+        self.shown.clear();
+        self.shown.extend(tracks.tracks.iter().map(|t| t.id));
+        self.shown.sort_unstable();
+        super::encode_into(&scene_update(tracks, &self.gone), buf);
     }
 }
 

@@ -1,0 +1,89 @@
+//! SIGINT, SIGTERM and SIGHUP (Ctrl-C, `kill`, a closed terminal): the partial files of the
+//! outputs being written are removed, one line says which outputs were left unwritten, and the
+//! process exits with the conventional status 128 + signal number (130, 143, 129).
+//!
+//! The signals are received on a thread of their own (`signal-hook`'s iterator): the clean-up
+//! runs as ordinary code there, not in a signal handler, and it knows which signal arrived (which
+//! `ctrlc` does not tell), so the exit status can follow the convention shells use.
+
+use std::path::PathBuf;
+
+use probmot::mcapio::writer::abandon_partials;
+
+use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+
+/// Starts the thread that handles the three signals. Without it (a failure to register, which
+/// should not happen) the signals keep their default action and a warning says so.
+pub fn install() {
+    {
+        // A signal the parent set to be ignored stays ignored: `nohup` (SIGHUP) and background
+        // jobs of a non-interactive shell (SIGINT) rely on it.
+        let wanted: Vec<i32> = [SIGINT, SIGTERM, SIGHUP]
+            .into_iter()
+            .filter(|&sig| !ignored(sig))
+            .collect();
+        let mut signals = match signal_hook::iterator::Signals::new(wanted) {
+            Ok(s) => s,
+            Err(e) => {
+                eprintln!("warning: cannot handle interrupts ({e}); an interrupted run may leave a .probmot-partial file");
+                return;
+            }
+        };
+        std::thread::Builder::new()
+            .name("probmot-signals".into())
+            .spawn(move || {
+                if let Some(sig) = signals.forever().next() {
+                    let unwritten = abandon_partials();
+                    eprintln!("{}", message(sig, &unwritten));
+                    std::process::exit(128 + sig);
+                }
+            })
+            .expect("start the signal thread");
+    }
+}
+
+/// Whether `sig` is set to be ignored (inherited from the parent process).
+fn ignored(sig: i32) -> bool {
+    // SAFETY: sigaction with a null new action only reads the current one into `old`, a
+    // zero-initialised plain C struct.
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
+    }
+}
+
+/// The one line printed on an interrupt.
+fn message(sig: i32, unwritten: &[PathBuf]) -> String {
+    let name = match sig {
+        SIGINT => "SIGINT",
+        SIGTERM => "SIGTERM",
+        SIGHUP => "SIGHUP",
+        _ => "a signal",
+    };
+    if unwritten.is_empty() {
+        return format!("probmot: interrupted by {name}; no output was being written");
+    }
+    let list: Vec<String> = unwritten.iter().map(|p| p.display().to_string()).collect();
+    format!(
+        "probmot: interrupted by {name}; not written (partial file removed): {}",
+        list.join(", ")
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_message_names_the_signal_and_every_unwritten_output() {
+        let m = message(
+            SIGTERM,
+            &[PathBuf::from("a.mcap"), PathBuf::from("out/b.mcap")],
+        );
+        assert_eq!(
+            m,
+            "probmot: interrupted by SIGTERM; not written (partial file removed): a.mcap, out/b.mcap"
+        );
+        assert!(message(SIGHUP, &[]).contains("SIGHUP; no output was being written"));
+    }
+}

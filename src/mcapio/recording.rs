@@ -1,0 +1,338 @@
+//! One reader of the box channels of a recording, for every consumer that reads frames (fit,
+//! plot, viz): schemas and channels are resolved once into typed decoders, and each message
+//! becomes a [`Frame`] `{stamp, log_time, boxes}` with the stamp rule applied here.
+//!
+//! The stamp rule: a message's own stamp, else its MCAP `log_time`. A detection message's
+//! stamp is optional ([`crate::msgs::detection_frame::stamp_or_log_time`]); a
+//! `probmot.Tracks3D` stamp of 0 counts as absent ([`tracks_stamp`]).
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use mcap::records::Record;
+
+use super::reader::read_records;
+use crate::msgs::detection_frame::stamp_or_log_time;
+use crate::msgs::detection_source::DetectionSource;
+use crate::msgs::ros2_tracks;
+use crate::msgs::ros2_vision::{self, VisionLayout};
+use crate::msgs::{self, Detection3D, Encoding, Track3D, Tracks3D, TRACKS_SCHEMA};
+
+/// What a requested topic holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TopicKind {
+    /// Detections of any supported input schema ([`DetectionSource`]).
+    Detections,
+    /// `probmot.Tracks3D` (tracks or ground truth) in protobuf or JSON, or ROS 2
+    /// `vision_msgs/msg/Detection3DArray` tracks (track id in `Detection3D.id`, as `track
+    /// --tracks-format ros2` writes them).
+    Tracks,
+}
+
+/// One requested topic: its name, its kind, and how errors call it (e.g. `tracks layer`).
+#[derive(Debug, Clone)]
+pub struct TopicRequest {
+    /// Topic name.
+    pub topic: String,
+    /// What it holds.
+    pub kind: TopicKind,
+    /// Its role, for error messages (`topic /tracks (tracks layer): ...`).
+    pub role: String,
+}
+
+/// The boxes of one message, as decoded (each consumer keeps what it needs).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Boxes {
+    /// The boxes of a detection message.
+    Detections(Vec<Detection3D>),
+    /// The tracks of a `probmot.Tracks3D` message.
+    Tracks(Vec<Track3D>),
+}
+
+/// One message of a box channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// The message's stamp, else its log_time.
+    pub stamp: u64,
+    /// The MCAP log_time of the message.
+    pub log_time: u64,
+    /// Its boxes.
+    pub boxes: Boxes,
+}
+
+/// The frames of the requested topics of one recording.
+#[derive(Debug, Clone, Default)]
+pub struct RecordingFrames {
+    /// Per request (same order): its frames in file order, `None` when the file has no channel
+    /// of that topic.
+    pub frames: Vec<Option<Vec<Frame>>>,
+    /// Every topic of the file.
+    pub topics: BTreeSet<String>,
+}
+
+/// The stamp of a `probmot.Tracks3D` message: its `stamp`, or the log_time when that is 0.
+pub fn tracks_stamp(stamp: u64, log_time: u64) -> u64 {
+    if stamp != 0 {
+        stamp
+    } else {
+        log_time
+    }
+}
+
+/// How the messages of one requested channel are decoded.
+enum Decoder {
+    Detections(DetectionSource),
+    Tracks(Encoding),
+    Ros2Tracks(VisionLayout),
+}
+
+/// A schema record: name, encoding, data.
+#[derive(Default, Clone)]
+struct SchemaInfo {
+    name: String,
+    encoding: String,
+    data: Vec<u8>,
+}
+
+impl fmt::Display for TopicRequest {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "topic {} ({})", self.topic, self.role)
+    }
+}
+
+/// The decoder of a channel for a request, or an error naming the file, topic and role.
+fn decoder_for(
+    file: &str,
+    req: &TopicRequest,
+    schema: &SchemaInfo,
+    message_encoding: &str,
+) -> Result<Decoder> {
+    match req.kind {
+        TopicKind::Detections => DetectionSource::for_channel(
+            &schema.name,
+            &schema.encoding,
+            &schema.data,
+            message_encoding,
+        )
+        .map(Decoder::Detections)
+        .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}")),
+        TopicKind::Tracks => {
+            if ros2_vision::SCHEMA_NAMES.contains(&schema.name.as_str()) {
+                return match DetectionSource::for_channel(
+                    &schema.name,
+                    &schema.encoding,
+                    &schema.data,
+                    message_encoding,
+                ) {
+                    Ok(DetectionSource::Ros2Vision(layout)) => Ok(Decoder::Ros2Tracks(layout)),
+                    Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
+                    Err(why) => bail!("{file}: {req}: {why}"),
+                };
+            }
+            if schema.name != TRACKS_SCHEMA {
+                bail!(
+                    "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
+                     vision_msgs/msg/Detection3DArray tracks) for the {}",
+                    req.topic,
+                    schema.name,
+                    req.role
+                );
+            }
+            let Some(enc) = Encoding::from_message_encoding(message_encoding) else {
+                bail!(
+                    "{file}: topic {} has message encoding '{message_encoding}'; expected \
+                     protobuf or json",
+                    req.topic
+                );
+            };
+            Ok(Decoder::Tracks(enc))
+        }
+    }
+}
+
+/// Reads the requested topics of `path` in one pass. A topic the file lacks gives `None`; a
+/// channel of the wrong schema or an undecodable message is an error naming the file, topic and
+/// log time.
+pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
+    let file = path.display().to_string();
+    let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
+    let mut channels: BTreeMap<u16, (usize, Decoder)> = BTreeMap::new();
+    let mut out = RecordingFrames {
+        frames: vec![None; wanted.len()],
+        topics: BTreeSet::new(),
+    };
+    read_records(path, |rec, _| {
+        match rec {
+            Record::Schema { header, data } => {
+                let info = SchemaInfo {
+                    name: header.name,
+                    encoding: header.encoding,
+                    data: data.into_owned(),
+                };
+                schemas.insert(header.id, info);
+            }
+            Record::Channel(c) => {
+                out.topics.insert(c.topic.clone());
+                let Some(i) = wanted.iter().position(|r| r.topic == c.topic) else {
+                    return Ok(());
+                };
+                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                let decoder = decoder_for(&file, &wanted[i], &schema, &c.message_encoding)?;
+                channels.insert(c.id, (i, decoder));
+                out.frames[i].get_or_insert_with(Vec::new);
+            }
+            Record::Message { header, data } => {
+                let Some((i, decoder)) = channels.get(&header.channel_id) else {
+                    return Ok(());
+                };
+                let ctx = || {
+                    format!(
+                        "{file}: topic {}, message at log_time {}: cannot decode",
+                        wanted[*i].topic, header.log_time
+                    )
+                };
+                let frame = match decoder {
+                    Decoder::Detections(source) => {
+                        let m = source.decode(&data).with_context(ctx)?;
+                        Frame {
+                            stamp: stamp_or_log_time(m.stamp, header.log_time),
+                            log_time: header.log_time,
+                            boxes: Boxes::Detections(m.detections),
+                        }
+                    }
+                    Decoder::Ros2Tracks(layout) => {
+                        let m = ros2_tracks::decode_tracks(&data, *layout).with_context(ctx)?;
+                        Frame {
+                            stamp: tracks_stamp(m.stamp, header.log_time),
+                            log_time: header.log_time,
+                            boxes: Boxes::Tracks(m.tracks),
+                        }
+                    }
+                    Decoder::Tracks(enc) => {
+                        let m: Tracks3D = msgs::decode(&data, *enc).with_context(ctx)?;
+                        Frame {
+                            stamp: tracks_stamp(m.stamp, header.log_time),
+                            log_time: header.log_time,
+                            boxes: Boxes::Tracks(m.tracks),
+                        }
+                    }
+                };
+                out.frames[*i].get_or_insert_with(Vec::new).push(frame);
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mcapio::writer::{AtomicOutput, OutputOptions};
+    use crate::msgs::{Detections3D, DESCRIPTOR_SET, DETECTIONS_SCHEMA};
+
+    fn write_log(path: &Path) {
+        let mut out = AtomicOutput::create(path, &OutputOptions::default()).unwrap();
+        let w = &mut out.writer;
+        let det_schema = w
+            .add_schema(DETECTIONS_SCHEMA, "protobuf", DESCRIPTOR_SET)
+            .unwrap();
+        let tr_schema = w
+            .add_schema(TRACKS_SCHEMA, "protobuf", DESCRIPTOR_SET)
+            .unwrap();
+        let det = w
+            .add_channel(det_schema, "/detections", "protobuf", &BTreeMap::new())
+            .unwrap();
+        let tr = w
+            .add_channel(tr_schema, "/tracks", "protobuf", &BTreeMap::new())
+            .unwrap();
+        let header = |channel_id, log_time| mcap::records::MessageHeader {
+            channel_id,
+            sequence: 0,
+            log_time,
+            publish_time: log_time,
+        };
+        let d = |stamp| Detections3D {
+            stamp,
+            detections: vec![Detection3D {
+                label: "car".into(),
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        let t = |stamp| Tracks3D {
+            stamp,
+            tracks: vec![Track3D {
+                id: 4,
+                ..Default::default()
+            }],
+            ..Default::default()
+        };
+        w.write_to_known_channel(&header(det, 10), &enc(&d(Some(5))))
+            .unwrap();
+        w.write_to_known_channel(&header(det, 20), &enc(&d(None)))
+            .unwrap();
+        w.write_to_known_channel(&header(tr, 30), &enc(&t(7)))
+            .unwrap();
+        w.write_to_known_channel(&header(tr, 40), &enc(&t(0)))
+            .unwrap();
+        out.commit().unwrap();
+    }
+
+    fn enc<M: prost::Message>(m: &M) -> Vec<u8> {
+        let mut buf = Vec::new();
+        msgs::encode_into(m, &mut buf);
+        buf
+    }
+
+    fn req(topic: &str, kind: TopicKind) -> TopicRequest {
+        TopicRequest {
+            topic: topic.into(),
+            kind,
+            role: "test".into(),
+        }
+    }
+
+    #[test]
+    fn frames_apply_the_stamp_rule_per_kind() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let r = frames(
+            &path,
+            &[
+                req("/tracks", TopicKind::Tracks),
+                req("/missing", TopicKind::Tracks),
+                req("/detections", TopicKind::Detections),
+            ],
+        )
+        .unwrap();
+        assert!(r.frames[1].is_none());
+        let tracks = r.frames[0].as_ref().unwrap();
+        let st: Vec<(u64, u64)> = tracks.iter().map(|f| (f.stamp, f.log_time)).collect();
+        assert_eq!(
+            st,
+            [(7, 30), (40, 40)],
+            "a tracks stamp of 0 is the log_time"
+        );
+        let dets = r.frames[2].as_ref().unwrap();
+        let st: Vec<(u64, u64)> = dets.iter().map(|f| (f.stamp, f.log_time)).collect();
+        assert_eq!(st, [(5, 10), (20, 20)], "no detections stamp: the log_time");
+        assert!(matches!(&dets[0].boxes, Boxes::Detections(b) if b[0].label == "car"));
+        assert_eq!(r.topics.len(), 2);
+    }
+
+    #[test]
+    fn a_wrong_schema_names_file_topic_and_role() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let e = frames(&path, &[req("/detections", TopicKind::Tracks)]).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(text.contains("log.mcap: topic /detections has schema 'probmot.Detections3D'"));
+        assert!(text.contains("for the test"), "{text}");
+    }
+}

@@ -1,0 +1,222 @@
+//! The decoded detection input: one [`DetectionFrame`] per detection message, whatever its
+//! source (probmot protobuf/JSON, ROS 2 `vision_msgs`, Foxglove `SceneUpdate`), with the boxes
+//! checked once here. Boxes that fail the check are kept as [`Rejected`] entries (index, label,
+//! reason), so that the caller counts or refuses them in message order with the label lookup.
+
+use std::collections::BTreeMap;
+
+use super::{Detection3D, Detections3D, ImageBox};
+use crate::tracker::Box3;
+
+/// Why a detection box was skipped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SkipReason {
+    /// A centre, size, yaw or score field is NaN or infinite.
+    NonFinite,
+    /// A size is zero or negative.
+    NonPositiveSize,
+    /// The label is not in the config and the config has no default entry.
+    UnknownLabel,
+    /// The centre or size field is missing.
+    MissingField,
+}
+
+impl SkipReason {
+    /// Short description.
+    pub fn describe(self) -> &'static str {
+        match self {
+            SkipReason::NonFinite => "non-finite field",
+            SkipReason::NonPositiveSize => "non-positive size",
+            SkipReason::UnknownLabel => "label not in the config (no default entry)",
+            SkipReason::MissingField => "missing centre or size",
+        }
+    }
+}
+
+/// One valid detection box: finite geometry with positive sizes and a finite score.
+#[derive(Debug, Clone, PartialEq)]
+pub struct DetectionBox {
+    /// Position of the box in its message (for error messages).
+    pub index: u32,
+    /// Centre, yaw and size, in the frame's `frame_id`.
+    pub bbox: Box3,
+    /// Class label as given (looked up in the tracker config later).
+    pub label: String,
+    /// Detector score (may lie outside `[0, 1]`).
+    pub score: f64,
+    /// Velocity over ground, if the source gives one.
+    pub velocity: Option<[f64; 3]>,
+    /// Image box, if any.
+    pub image_box: Option<ImageBox>,
+    /// Free-form attributes, copied to the track the box updates.
+    pub attributes: BTreeMap<String, String>,
+}
+
+/// A box that failed the check: where it was, its label and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rejected {
+    /// Position of the box in its message.
+    pub index: u32,
+    /// Its label as given.
+    pub label: String,
+    /// Why it was rejected.
+    pub reason: SkipReason,
+}
+
+/// The boxes of one detection message.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct DetectionFrame {
+    /// The message's stamp, else the MCAP log_time (see [`stamp_or_log_time`]).
+    pub stamp: u64,
+    /// Frame of the boxes.
+    pub frame_id: String,
+    /// Valid boxes, in message order.
+    pub boxes: Vec<DetectionBox>,
+    /// Invalid boxes, in message order.
+    pub rejected: Vec<Rejected>,
+}
+
+/// The stamp rule of every reader: a message's own stamp, else the MCAP record's log_time.
+pub fn stamp_or_log_time(stamp: Option<u64>, log_time: u64) -> u64 {
+    stamp.unwrap_or(log_time)
+}
+
+/// Checks one decoded box: `Err` names the first failed check (missing field, non-finite,
+/// non-positive size, in that order).
+pub fn check_box(d: &Detection3D) -> Result<Box3, SkipReason> {
+    let (Some(c), Some(s)) = (&d.center, &d.size) else {
+        return Err(SkipReason::MissingField);
+    };
+    let bbox = Box3 {
+        center: [c.x, c.y, c.z],
+        yaw: d.yaw,
+        size: [s.length, s.width, s.height],
+    };
+    let finite = bbox.center.iter().chain(&bbox.size).all(|v| v.is_finite())
+        && bbox.yaw.is_finite()
+        && d.score.is_finite();
+    if !finite {
+        return Err(SkipReason::NonFinite);
+    }
+    if bbox.size.iter().any(|v| *v <= 0.0) {
+        return Err(SkipReason::NonPositiveSize);
+    }
+    Ok(bbox)
+}
+
+impl DetectionFrame {
+    /// Checks and converts a decoded message (moving its strings and attributes).
+    pub fn from_message(msg: Detections3D, log_time: u64) -> DetectionFrame {
+        let mut frame = DetectionFrame {
+            stamp: stamp_or_log_time(msg.stamp, log_time),
+            frame_id: msg.frame_id,
+            boxes: Vec::with_capacity(msg.detections.len()),
+            rejected: Vec::new(),
+        };
+        for (i, d) in msg.detections.into_iter().enumerate() {
+            let index = i as u32;
+            match check_box(&d) {
+                Ok(bbox) => frame.boxes.push(DetectionBox {
+                    index,
+                    bbox,
+                    label: d.label,
+                    score: d.score,
+                    velocity: d.velocity.map(|v| [v.x, v.y, v.z]),
+                    image_box: d.image_box,
+                    attributes: d.attributes,
+                }),
+                Err(reason) => frame.rejected.push(Rejected {
+                    index,
+                    label: d.label,
+                    reason,
+                }),
+            }
+        }
+        frame
+    }
+
+    /// Number of boxes in the message, valid or not.
+    pub fn len(&self) -> usize {
+        self.boxes.len() + self.rejected.len()
+    }
+
+    /// True when the message held no box.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Drops every box, valid or not.
+    pub fn clear(&mut self) {
+        self.boxes.clear();
+        self.rejected.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msgs::{v3, Size3};
+
+    fn det(center: Option<[f64; 3]>, size: [f64; 3], score: f64) -> Detection3D {
+        Detection3D {
+            center: center.map(v3),
+            size: Some(Size3 {
+                length: size[0],
+                width: size[1],
+                height: size[2],
+            }),
+            yaw: 0.5,
+            label: "car".into(),
+            score,
+            velocity: Some(v3([1.0, 2.0, 0.0])),
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn boxes_are_checked_once_in_message_order() {
+        let msg = Detections3D {
+            stamp: None,
+            frame_id: "map".into(),
+            detections: vec![
+                det(Some([1.0, 2.0, 3.0]), [4.0, 2.0, 1.5], 0.9),
+                det(None, [4.0, 2.0, 1.5], 0.9),
+                det(Some([f64::NAN, 0.0, 0.0]), [4.0, 2.0, 1.5], 0.9),
+                det(Some([0.0, 0.0, 0.0]), [4.0, 0.0, 1.5], 0.9),
+                det(Some([0.0, 0.0, 0.0]), [4.0, 2.0, 1.5], f64::INFINITY),
+                det(Some([5.0, 6.0, 7.0]), [1.0, 1.0, 1.0], 1.7),
+            ],
+        };
+        let f = DetectionFrame::from_message(msg, 42);
+        assert_eq!(f.stamp, 42, "no stamp: the log_time");
+        assert_eq!(f.len(), 6);
+        let valid: Vec<u32> = f.boxes.iter().map(|b| b.index).collect();
+        assert_eq!(valid, [0, 5]);
+        assert_eq!(f.boxes[0].bbox.center, [1.0, 2.0, 3.0]);
+        assert_eq!(f.boxes[0].bbox.size, [4.0, 2.0, 1.5]);
+        assert_eq!(f.boxes[0].velocity, Some([1.0, 2.0, 0.0]));
+        assert_eq!(f.boxes[1].score, 1.7, "scores outside [0, 1] are kept");
+        let reasons: Vec<(u32, SkipReason)> =
+            f.rejected.iter().map(|r| (r.index, r.reason)).collect();
+        assert_eq!(
+            reasons,
+            [
+                (1, SkipReason::MissingField),
+                (2, SkipReason::NonFinite),
+                (3, SkipReason::NonPositiveSize),
+                (4, SkipReason::NonFinite),
+            ]
+        );
+    }
+
+    #[test]
+    fn own_stamp_wins_over_log_time() {
+        let msg = Detections3D {
+            stamp: Some(7),
+            ..Default::default()
+        };
+        assert_eq!(DetectionFrame::from_message(msg, 42).stamp, 7);
+        assert_eq!(stamp_or_log_time(Some(0), 42), 0, "a zero stamp is a stamp");
+    }
+}

@@ -1,0 +1,87 @@
+//! Settings and summary of a `track` run (shared by the file adapter and the session).
+
+use std::collections::BTreeMap;
+
+use super::detections::InputCounters;
+use super::ego::{EgoOptions, EgoSummary};
+use crate::mcapio::writer::OutputCompression;
+use crate::tracker::TrackerConfig;
+
+/// Settings of one `track` run.
+#[derive(Debug, Clone)]
+pub struct TrackOptions {
+    /// Detection topics; empty: every channel of a supported detection schema
+    /// ([`crate::msgs::detection_source::is_detection_schema`]).
+    pub detection_topics: Vec<String>,
+    /// Topic of the tracks channel written.
+    pub tracks_topic: String,
+    /// Message type of the tracks channel; `None`: by input
+    /// ([`super::tracks_format::TracksFormat::resolve`]).
+    pub tracks_format: Option<super::tracks_format::TracksFormat>,
+    /// Tracker configuration.
+    pub config: TrackerConfig,
+    /// Copy only, no tracking (for measuring the cost of I/O).
+    pub no_track: bool,
+    /// Turn every skipped box into an error.
+    pub strict: bool,
+    /// Largest number of boxes accepted in one detection message; more is an error (a frame
+    /// that large is a corrupted or misrouted message, and would stall the tracker).
+    pub max_detections_per_message: usize,
+    /// Ego motion: the fixed frame and the `--tracks-frame ego` output (see [`super::ego`]).
+    pub ego: EgoOptions,
+    /// Topic of the `foxglove.SceneUpdate` output channel, if any.
+    pub scene_topic: Option<String>,
+    /// Chunk compression of the output.
+    pub compression: OutputCompression,
+    /// Write and compress the output on a thread of its own ([`crate::mcapio::background::BackgroundOutput`]), so that it
+    /// overlaps with reading and tracking: faster for one file when a core is spare; when files
+    /// already run in parallel on every core, writing on the file's own thread costs less.
+    pub background_writer: bool,
+}
+
+/// Default of [`TrackOptions::max_detections_per_message`].
+pub const DEFAULT_MAX_DETECTIONS: usize = 100_000;
+
+/// What a run did; printed as the summary line or as JSON.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct TrackSummary {
+    /// Input path.
+    pub input: String,
+    /// Output path.
+    pub output: String,
+    /// Detection topics used.
+    pub detection_topics: Vec<String>,
+    /// Frames (distinct detection stamps) tracked.
+    pub frames: u64,
+    /// Detection messages read.
+    pub detection_messages: u64,
+    /// Detections given to the tracker, per label, and the skipped ones by reason.
+    pub detections: InputCounters,
+    /// Tracks started.
+    pub tracks_born: u64,
+    /// Tracks that reached `min_hits`.
+    pub tracks_confirmed: u64,
+    /// Mean number of reported frames per confirmed track.
+    pub mean_track_length: Option<f64>,
+    /// Input messages copied.
+    pub messages_copied: u64,
+    /// Attachments copied.
+    pub attachments: u64,
+    /// Metadata records copied.
+    pub metadata: u64,
+    /// Tracks messages written.
+    pub tracks_messages: u64,
+    /// Per detection topic, messages whose stamp is earlier than the previous message's.
+    pub stamps_backwards: BTreeMap<String, u64>,
+    /// Detection messages that sharing a stamp with a message of another topic were merged.
+    pub merged_messages: u64,
+    /// Ego-motion compensation: fixed frame, transforms, messages moved or skipped.
+    pub ego: EgoSummary,
+    /// Warnings for the user.
+    pub warnings: Vec<String>,
+    /// Passes over the input: 1 (the summary section sufficed, or `--no-track`) or 2 (a first
+    /// pass learned the frames); see [`super::track::track_file`].
+    pub passes: u8,
+    /// Wall time in seconds.
+    pub wall_time_s: f64,
+}

@@ -1,0 +1,582 @@
+//! The tracking pass of `probmot track` as a session without I/O: the caller reads the input
+//! and feeds its records in file order, the session copies them to a [`RecordSink`], decodes the
+//! detection messages into [`DetectionFrame`]s, moves them into the fixed frame, tracks each
+//! frame as soon as the [`Schedule`] says it is complete, and writes the tracks (and the extra
+//! channels of [`ExtraOutputs`]). [`super::track::track_file`] is the file adapter around it.
+
+use std::collections::{BTreeMap, HashMap};
+
+use anyhow::{bail, Context, Result};
+use mcap::records::{MessageHeader, Record};
+
+use super::detections::{convert, reject, InputCounters, Origin};
+use super::ego::EgoMotion;
+use super::frame_schedule::Schedule;
+use super::progress::Progress;
+use super::track_options::{TrackOptions, TrackSummary};
+use super::track_outputs::ExtraOutputs;
+use super::tracks_format::TracksFormat;
+use crate::mcapio::sink::RecordSink;
+use crate::msgs::detection_frame::DetectionFrame;
+use crate::msgs::detection_source::DetectionSource;
+use crate::msgs::track_encode::fill_track3d;
+use crate::msgs::{ImageBox, Track3D, Tracks3D};
+use crate::tracker::{Detection, Tracker};
+
+/// The error of a detection message that does not decode.
+pub(super) fn undecodable(
+    file: &str,
+    topic: &str,
+    h: &MessageHeader,
+    source: &DetectionSource,
+) -> String {
+    format!(
+        "{}: cannot decode {}",
+        describe_message(file, topic, h),
+        source.describe()
+    )
+}
+
+/// Refuses a detection message with more boxes than `--max-detections`.
+pub(super) fn check_count(
+    count: usize,
+    opts: &TrackOptions,
+    file: &str,
+    topic: &str,
+    h: &MessageHeader,
+) -> Result<()> {
+    if count > opts.max_detections_per_message {
+        bail!(
+            "{}: {count} detections in one message, more than the limit of {} (--max-detections)",
+            describe_message(file, topic, h),
+            opts.max_detections_per_message
+        );
+    }
+    Ok(())
+}
+
+/// Counts, per topic, a stamp earlier than the previous one on the same channel.
+pub(super) fn note_stamp(
+    last: &mut HashMap<u16, u64>,
+    h: &MessageHeader,
+    stamp: u64,
+    topic: &str,
+    backwards: &mut BTreeMap<String, u64>,
+) {
+    if last
+        .insert(h.channel_id, stamp)
+        .is_some_and(|prev| stamp < prev)
+    {
+        *backwards.entry(topic.to_string()).or_default() += 1;
+    }
+}
+
+/// `FILE: topic T, message at log_time L (sequence S)`, for errors.
+pub(super) fn describe_message(file: &str, topic: &str, h: &MessageHeader) -> String {
+    format!(
+        "{file}: topic {topic}, message at log_time {} (sequence {})",
+        h.log_time, h.sequence
+    )
+}
+
+/// One decoded detection message waiting for its frame.
+pub(super) struct Pending {
+    pub(super) ordinal: u64,
+    pub(super) log_time: u64,
+    pub(super) topic_idx: usize,
+    pub(super) msg: DetectionFrame,
+}
+
+/// The tracking pass without I/O: records of the input go in ([`TrackSession::on_record`]), the
+/// records of the output go to the sink `S` (every input record copied, plus the tracks and the
+/// extra channels, each frame as soon as it is complete), the summary comes out of
+/// [`TrackSession::finish`], and progress goes to a callback.
+pub struct TrackSession<'a, S: RecordSink> {
+    pub(super) opts: &'a TrackOptions,
+    pub(super) file: &'a str,
+    /// Detection topics, indexed by [`Pending::topic_idx`].
+    pub(super) topics: Vec<String>,
+    /// Detection channels: how to decode them and the index of their topic.
+    pub(super) det_channels: HashMap<u16, (DetectionSource, usize)>,
+    /// `(schema id, channel id)` of the tracks channel.
+    pub(super) ids: Option<(u16, u16)>,
+    /// Message type of the tracks channel.
+    pub(super) format: TracksFormat,
+    pub(super) out: S,
+    pub(super) extra: ExtraOutputs,
+    pub(super) ego: EgoMotion,
+    pub(super) tracker: Tracker,
+    pub(super) counters: InputCounters,
+    /// When each frame is complete.
+    pub(super) schedule: Schedule,
+    /// Per detection channel, the stamp of its last message.
+    pub(super) last_stamp: HashMap<u16, u64>,
+    /// Decoded detection messages by stamp, waiting for their frame to be complete.
+    pub(super) pending: BTreeMap<u64, Vec<Pending>>,
+    pub(super) next_frame: usize,
+    pub(super) frame_state: FrameState,
+    pub(super) summary: TrackSummary,
+    pub(super) progress: &'a dyn Fn(Progress<'_>),
+    /// Progress already made before this pass (bytes).
+    pub(super) base: u64,
+}
+
+impl<S: RecordSink> TrackSession<'_, S> {
+    /// Takes the next record of the input (in file order); `bytes_read` is how far the reader
+    /// is, for the progress callback.
+    pub fn on_record(&mut self, rec: Record<'_>, bytes_read: u64) -> Result<()> {
+        let file = self.file;
+        match rec {
+            Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
+            Record::Schema { header, data } if header.id != 0 => {
+                self.schedule.on_schema(header.id)?;
+                self.out
+                    .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
+                    .with_context(|| format!("{file}: copying schema {}", header.id))?;
+            }
+            Record::Channel(c) => {
+                self.schedule.on_channel(c.id, &c.topic, c.schema_id)?;
+                self.out
+                    .add_channel_with_id(
+                        c.id,
+                        c.schema_id,
+                        &c.topic,
+                        &c.message_encoding,
+                        &c.metadata,
+                    )
+                    .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
+            }
+            Record::Message { header, data } => {
+                self.out
+                    .write_to_known_channel(&header, &data)
+                    .with_context(|| {
+                        format!(
+                            "{file}: copying message at log_time {} on channel {}",
+                            header.log_time, header.channel_id
+                        )
+                    })?;
+                self.summary.messages_copied += 1;
+                if let Some(&(source, topic_idx)) = self.det_channels.get(&header.channel_id) {
+                    let topic = &self.topics[topic_idx];
+                    let mut msg = source
+                        .decode_frame(&data, header.log_time)
+                        .with_context(|| undecodable(file, topic, &header, &source))?;
+                    check_count(msg.len(), self.opts, file, topic, &header)?;
+                    let stamp = msg.stamp;
+                    self.schedule.on_message(header.channel_id, stamp)?;
+                    // (With two passes, the first has counted them.)
+                    if self.schedule.is_streaming() {
+                        let backwards = &mut self.summary.stamps_backwards;
+                        note_stamp(&mut self.last_stamp, &header, stamp, topic, backwards);
+                    }
+                    self.ego
+                        .to_fixed(&mut msg, || describe_message(file, topic, &header))?;
+                    self.pending.entry(stamp).or_default().push(Pending {
+                        ordinal: self.summary.detection_messages,
+                        log_time: header.log_time,
+                        topic_idx,
+                        msg,
+                    });
+                    self.summary.detection_messages += 1;
+                    while let Some(stamp) = self.schedule.ready(&self.pending, self.next_frame) {
+                        self.track_frame(stamp, self.schedule.frames())?;
+                        self.schedule.tracked(stamp);
+                    }
+                }
+                if self.summary.messages_copied.is_multiple_of(256) {
+                    (self.progress)(Progress::Position(self.base + bytes_read));
+                }
+            }
+            Record::Attachment { header, data, .. } => {
+                self.out
+                    .attach(&mcap::Attachment {
+                        log_time: header.log_time,
+                        create_time: header.create_time,
+                        name: header.name,
+                        media_type: header.media_type,
+                        data,
+                    })
+                    .with_context(|| format!("{file}: copying an attachment"))?;
+                self.summary.attachments += 1;
+            }
+            Record::Metadata(m) => {
+                self.out
+                    .write_metadata(&m)
+                    .with_context(|| format!("{file}: copying metadata {}", m.name))?;
+                self.summary.metadata += 1;
+            }
+            _ => {}
+        }
+        Ok(())
+    }
+
+    /// Called after the last record: tracks the frames still pending (streaming), or checks
+    /// that every planned frame was seen.
+    pub fn end_of_input(&mut self) -> Result<()> {
+        let file = self.file;
+        match &self.schedule {
+            Schedule::Known(frames) if self.next_frame != frames.len() => bail!(
+                "{file}: the file changed while it was read ({} of {} frames seen)",
+                self.next_frame,
+                frames.len()
+            ),
+            Schedule::Known(_) => {}
+            // Every channel has delivered all it has: the frames left are complete.
+            Schedule::Streaming(_) => {
+                while let Some((&stamp, _)) = self.pending.first_key_value() {
+                    self.track_frame(stamp, None)?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Tracks the complete frame at `stamp` and writes its outputs.
+    fn track_frame(&mut self, stamp: u64, frames: Option<usize>) -> Result<()> {
+        let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
+        msgs_of_frame.sort_by_key(|p| p.ordinal);
+        let (_, channel_id) = self.ids.expect("ids exist with detections");
+        self.frame_state.run(
+            stamp,
+            &mut msgs_of_frame,
+            &mut self.tracker,
+            &mut self.counters,
+            self.opts.strict,
+            self.file,
+            &self.topics,
+        )?;
+        self.format
+            .encode_into(&self.frame_state.out, &mut self.frame_state.buf);
+        let sequence = self.next_frame as u32;
+        self.out.write_to_known_channel(
+            &MessageHeader {
+                channel_id,
+                sequence,
+                log_time: stamp,
+                publish_time: stamp,
+            },
+            &self.frame_state.buf,
+        )?;
+        self.extra.write_frame(
+            &mut self.out,
+            &self.frame_state.out,
+            self.ego.take_ego(stamp),
+            sequence,
+        )?;
+        self.frame_state.finish(self.tracker.deleted());
+        self.summary.tracks_messages += 1;
+        self.next_frame += 1;
+        if self.next_frame.is_multiple_of(64) {
+            let text = match frames {
+                Some(n) => format!("tracking: frame {}/{n}", self.next_frame),
+                None => format!("tracking: frame {}", self.next_frame),
+            };
+            (self.progress)(Progress::Message(&text));
+        }
+        Ok(())
+    }
+
+    /// Fills in the summary and gives back the sink (to commit).
+    pub fn finish(self) -> (S, TrackSummary) {
+        let TrackSession {
+            file,
+            out,
+            ego,
+            tracker,
+            counters,
+            mut summary,
+            ..
+        } = self;
+        let st = tracker.stats();
+        summary.frames = st.frames;
+        summary.tracks_born = st.born;
+        summary.tracks_confirmed = st.confirmed;
+        summary.mean_track_length = tracker.mean_confirmed_track_length();
+        summary.merged_messages = summary.detection_messages - summary.tracks_messages;
+        if counters.total_skipped() > 0 {
+            let parts: Vec<String> = counters
+                .skipped
+                .iter()
+                .map(|(r, n)| format!("{n} ({})", r.describe()))
+                .collect();
+            summary.warnings.push(format!(
+                "{file}: skipped {} detection boxes: {}",
+                counters.total_skipped(),
+                parts.join(", ")
+            ));
+        }
+        if counters.score_outside_unit > 0 {
+            summary.warnings.push(format!(
+                "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
+                counters.score_outside_unit
+            ));
+        }
+        for (topic, n) in &summary.stamps_backwards {
+            summary.warnings.push(format!(
+                "{file}: topic {topic}: {n} messages have a stamp earlier than the message \
+                 before them; frames were replayed in stamp order"
+            ));
+        }
+        summary.detections = counters;
+        summary.ego = ego.finish(file, &mut summary.warnings);
+        (out, summary)
+    }
+}
+
+/// Image box and attributes of a track's last matched detection.
+#[derive(Default)]
+struct Extra {
+    image_box: Option<ImageBox>,
+    attributes: BTreeMap<String, String>,
+}
+
+/// Per-frame buffers reused across frames, and the attributes of each track's last matched
+/// detection. Nothing is allocated per detection in steady state: the output message's tracks
+/// are overwritten in place, and a track's attributes are moved (not copied) from its detection
+/// into the side table and swapped into the message only while it is encoded.
+#[derive(Default)]
+pub(super) struct FrameState {
+    dets: Vec<Detection>,
+    /// `(message index within the frame, detection index within the message)` per detection.
+    src: Vec<(u32, u32)>,
+    last_extra: HashMap<u64, Extra>,
+    out: Tracks3D,
+    buf: Vec<u8>,
+}
+
+impl FrameState {
+    /// Tracks one frame and fills `self.out`. Call [`FrameState::finish`] after encoding it.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        stamp: u64,
+        frame: &mut [Pending],
+        tracker: &mut Tracker,
+        counters: &mut InputCounters,
+        strict: bool,
+        file: &str,
+        topics: &[String],
+    ) -> Result<()> {
+        self.dets.clear();
+        self.src.clear();
+        for (mi, p) in frame.iter().enumerate() {
+            let origin = Origin {
+                file,
+                topic: &topics[p.topic_idx],
+                log_time: p.log_time,
+            };
+            // Valid and rejected boxes in message order, as a --strict error names the first.
+            let mut rejected = p.msg.rejected.iter().peekable();
+            for (di, d) in p.msg.boxes.iter().enumerate() {
+                while let Some(r) = rejected.next_if(|r| r.index < d.index) {
+                    reject(r, counters, strict, &origin)?;
+                }
+                if let Some(det) = convert(d, tracker, counters, strict, &origin)? {
+                    self.dets.push(det);
+                    self.src.push((mi as u32, di as u32));
+                }
+            }
+            for r in rejected {
+                reject(r, counters, strict, &origin)?;
+            }
+        }
+        tracker
+            .step(stamp, &self.dets)
+            .with_context(|| format!("{file}: frame at stamp {stamp}"))?;
+        let reports = tracker.reports();
+        self.out.stamp = stamp;
+        self.out.frame_id.clear();
+        if let Some(p) = frame.first() {
+            self.out.frame_id.push_str(&p.msg.frame_id);
+        }
+        self.out.tracks.resize_with(reports.len(), Track3D::default);
+        for (t, r) in self.out.tracks.iter_mut().zip(reports) {
+            if let Some(i) = r.detection {
+                let (mi, di) = self.src[i as usize];
+                let d = &mut frame[mi as usize].msg.boxes[di as usize];
+                if d.image_box.is_some() || !d.attributes.is_empty() {
+                    let e = self.last_extra.entry(r.id).or_default();
+                    e.image_box = d.image_box;
+                    std::mem::swap(&mut e.attributes, &mut d.attributes);
+                } else {
+                    self.last_extra.remove(&r.id);
+                }
+            }
+            fill_track3d(t, r, tracker.label(r.class));
+            match self.last_extra.get_mut(&r.id) {
+                Some(e) => {
+                    t.image_box = e.image_box;
+                    std::mem::swap(&mut t.attributes, &mut e.attributes);
+                }
+                None => {
+                    t.image_box = None;
+                    t.attributes.clear();
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Gives the attributes lent to the encoded message back to the side table and forgets the
+    /// tracks deleted in this frame.
+    fn finish(&mut self, deleted: &[u64]) {
+        for t in &mut self.out.tracks {
+            if let Some(e) = self.last_extra.get_mut(&t.id) {
+                std::mem::swap(&mut t.attributes, &mut e.attributes);
+            }
+        }
+        for id in deleted {
+            self.last_extra.remove(id);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::borrow::Cow;
+
+    use mcap::records::{Channel, SchemaHeader};
+    use prost::Message as _;
+
+    use super::*;
+    use crate::mcapio::sink::{MemorySink, SinkRecord};
+    use crate::msgs::{self, v3, Detection3D, Detections3D, Encoding, Size3};
+    use crate::pipeline::ego::EgoOptions;
+    use crate::pipeline::progress::no_progress;
+    use crate::pipeline::track_outputs::ExtraRequest;
+    use crate::tracker::TrackerConfig;
+    use crate::transforms::TransformCollector;
+
+    fn detections(stamp: u64, x: f64) -> Vec<u8> {
+        let m = Detections3D {
+            stamp: Some(stamp),
+            frame_id: "map".into(),
+            detections: vec![
+                Detection3D {
+                    center: Some(v3([x, 0.0, 0.0])),
+                    size: Some(Size3 {
+                        length: 4.0,
+                        width: 2.0,
+                        height: 1.5,
+                    }),
+                    label: "car".into(),
+                    score: 0.9,
+                    ..Default::default()
+                },
+                // No size: rejected when decoded, counted when its frame is tracked.
+                Detection3D {
+                    center: Some(v3([50.0, 0.0, 0.0])),
+                    label: "car".into(),
+                    ..Default::default()
+                },
+            ],
+        };
+        m.encode_to_vec()
+    }
+
+    /// Two frames of one car fed as records, with no file anywhere: every record is copied to
+    /// the sink, a tracks message follows each frame, and the summary counts what happened.
+    #[test]
+    fn a_session_copies_records_and_writes_a_tracks_message_per_frame() {
+        let opts = TrackOptions {
+            detection_topics: vec![],
+            tracks_topic: "/tracks".into(),
+            tracks_format: None,
+            config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
+            no_track: false,
+            strict: false,
+            max_detections_per_message: 10,
+            ego: EgoOptions::default(),
+            scene_topic: None,
+            compression: Default::default(),
+            background_writer: false,
+        };
+        let request = ExtraRequest {
+            tracks_topic: "/tracks",
+            tracks_in_ego_frame: false,
+            scene_topic: None,
+        };
+        let mut session = TrackSession {
+            opts: &opts,
+            file: "memory",
+            topics: vec!["/detections".into()],
+            det_channels: HashMap::from([(1, (DetectionSource::Probmot(Encoding::Protobuf), 0))]),
+            ids: Some((9, 9)),
+            format: TracksFormat::Probmot,
+            out: MemorySink::default(),
+            extra: ExtraOutputs::new(&request, "memory", None, None).unwrap(),
+            ego: EgoMotion::new(TransformCollector::new(), &opts.ego, false).unwrap(),
+            tracker: Tracker::new(opts.config.clone()).unwrap(),
+            counters: InputCounters::default(),
+            schedule: Schedule::Known(vec![(100, 1), (200, 1)]),
+            last_stamp: HashMap::new(),
+            pending: BTreeMap::new(),
+            next_frame: 0,
+            frame_state: FrameState::default(),
+            summary: TrackSummary::default(),
+            progress: &no_progress,
+            base: 0,
+        };
+        let schema = Record::Schema {
+            header: SchemaHeader {
+                id: 1,
+                name: msgs::DETECTIONS_SCHEMA.into(),
+                encoding: "protobuf".into(),
+            },
+            data: Cow::Borrowed(msgs::DESCRIPTOR_SET),
+        };
+        session.on_record(schema, 0).unwrap();
+        let channel = Channel {
+            id: 1,
+            schema_id: 1,
+            topic: "/detections".into(),
+            message_encoding: "protobuf".into(),
+            metadata: BTreeMap::new(),
+        };
+        session.on_record(Record::Channel(channel), 0).unwrap();
+        for (i, stamp) in [100u64, 200].into_iter().enumerate() {
+            let header = MessageHeader {
+                channel_id: 1,
+                sequence: i as u32,
+                log_time: stamp + 1,
+                publish_time: stamp + 1,
+            };
+            let data = detections(stamp, i as f64);
+            let rec = Record::Message {
+                header,
+                data: Cow::Owned(data),
+            };
+            session.on_record(rec, 0).unwrap();
+        }
+        session.end_of_input().unwrap();
+        let (sink, summary) = session.finish();
+        let tracks: Vec<(u64, Tracks3D)> = sink
+            .records
+            .iter()
+            .filter_map(|r| match r {
+                SinkRecord::Message(h, d) if h.channel_id == 9 => {
+                    Some((h.log_time, Tracks3D::decode(d.as_slice()).unwrap()))
+                }
+                _ => None,
+            })
+            .collect();
+        let stamps: Vec<u64> = tracks.iter().map(|(t, m)| (*t).min(m.stamp)).collect();
+        assert_eq!(
+            stamps,
+            [100, 200],
+            "one tracks message per frame, at its stamp"
+        );
+        assert!(matches!(sink.records[0], SinkRecord::Schema(1, _, _)));
+        assert!(matches!(sink.records[1], SinkRecord::Channel(1, 1, _)));
+        assert_eq!(summary.messages_copied, 2);
+        assert_eq!(summary.detection_messages, 2);
+        assert_eq!(summary.tracks_messages, 2);
+        assert_eq!(summary.tracks_born, 1, "the car is one track");
+        assert_eq!(summary.detections.per_label["car"], 2);
+        assert_eq!(
+            summary.detections.total_skipped(),
+            2,
+            "the boxes without size"
+        );
+    }
+}

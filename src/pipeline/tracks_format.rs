@@ -1,0 +1,155 @@
+//! The message type of the tracks channel `track` writes: probmot's own `probmot.Tracks3D`
+//! (protobuf), or ROS 2 `vision_msgs/msg/Detection3DArray` (CDR) so that a tracked ROS 2 bag
+//! stays a bag ROS tooling reads ([`crate::msgs::ros2_tracks`]).
+
+use std::collections::BTreeMap;
+
+use anyhow::{bail, Result};
+
+use crate::msgs::detection_source::{DetectionSource, OUTPUT_METADATA_KEY};
+use crate::msgs::{self, ros2_tracks, Tracks3D};
+
+/// The message type of the tracks channel (`--tracks-format`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TracksFormat {
+    /// `probmot.Tracks3D`, protobuf: every field (velocities, variances, ages, attributes).
+    Probmot,
+    /// `vision_msgs/msg/Detection3DArray`, CDR with a `ros2msg` schema (ROS 2 Humble layout).
+    Ros2,
+}
+
+impl TracksFormat {
+    /// The format of a run: the requested one, else ROS 2 when the input is a ROS 2 bag (MCAP
+    /// profile `ros2`) or any chosen detection channel carries ROS 2 messages, else probmot's.
+    pub fn resolve<'a>(
+        requested: Option<TracksFormat>,
+        profile: &str,
+        sources: impl IntoIterator<Item = &'a DetectionSource>,
+    ) -> TracksFormat {
+        if let Some(f) = requested {
+            return f;
+        }
+        let ros2_input = profile == "ros2"
+            || sources
+                .into_iter()
+                .any(|s| matches!(s, DetectionSource::Ros2Vision(_)));
+        if ros2_input {
+            TracksFormat::Ros2
+        } else {
+            TracksFormat::Probmot
+        }
+    }
+
+    /// Name of the format on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            TracksFormat::Probmot => "probmot",
+            TracksFormat::Ros2 => "ros2",
+        }
+    }
+
+    /// `(schema name, schema encoding, schema data, message encoding)` of the tracks channel.
+    pub fn schema(self) -> (&'static str, &'static str, &'static [u8], &'static str) {
+        match self {
+            TracksFormat::Probmot => (
+                msgs::TRACKS_SCHEMA,
+                "protobuf",
+                msgs::DESCRIPTOR_SET,
+                "protobuf",
+            ),
+            TracksFormat::Ros2 => (
+                ros2_tracks::SCHEMA_NAME,
+                ros2_tracks::SCHEMA_ENCODING,
+                ros2_tracks::SCHEMA_TEXT.as_bytes(),
+                ros2_tracks::MESSAGE_ENCODING,
+            ),
+        }
+    }
+
+    /// Metadata of the tracks channel. The ROS 2 tracks have a detection schema, so they are
+    /// marked as probmot's output (a later `track` of the file does not read them as
+    /// detections); rosbag2's `offered_qos_profiles` key is left out, as for a bag recorded
+    /// from a publisher that offered nothing special (readers then use the default QoS).
+    pub fn channel_metadata(self) -> BTreeMap<String, String> {
+        match self {
+            TracksFormat::Probmot => BTreeMap::new(),
+            TracksFormat::Ros2 => {
+                BTreeMap::from([(OUTPUT_METADATA_KEY.to_string(), "tracks".to_string())])
+            }
+        }
+    }
+
+    /// Encodes one frame's tracks into `buf` (cleared first).
+    pub fn encode_into(self, tracks: &Tracks3D, buf: &mut Vec<u8>) {
+        match self {
+            TracksFormat::Probmot => msgs::encode_into(tracks, buf),
+            TracksFormat::Ros2 => ros2_tracks::encode_tracks_into(tracks, buf),
+        }
+    }
+
+    /// Refuses the optional outputs that have no ROS 2 form (`--tracks-frame ego` and
+    /// `--scene-topic` write protobuf channels, which ROS 2 bag readers cannot decode).
+    pub fn check_extras(self, file: &str, ego_tracks: bool, scene_topic: bool) -> Result<()> {
+        if self != TracksFormat::Ros2 {
+            return Ok(());
+        }
+        let what = match (ego_tracks, scene_topic) {
+            (false, false) => return Ok(()),
+            (true, false) => "--tracks-frame ego",
+            (false, true) => "--scene-topic",
+            (true, true) => "--tracks-frame ego and --scene-topic",
+        };
+        bail!(
+            "{file}: {what} writes protobuf channels, which ROS 2 bag readers cannot decode; \
+             the tracks of this ROS 2 input are written as vision_msgs/msg/Detection3DArray \
+             (--tracks-format ros2). Leave out {what}, or add --tracks-format probmot to write \
+             probmot.Tracks3D tracks and these channels"
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::msgs::ros2_vision::VisionLayout;
+    use crate::msgs::Encoding;
+
+    #[test]
+    fn ros2_inputs_get_ros2_tracks_unless_asked() {
+        let ros = DetectionSource::Ros2Vision(VisionLayout::V4);
+        let pb = DetectionSource::Probmot(Encoding::Protobuf);
+        let fox = DetectionSource::FoxgloveScene;
+        assert_eq!(
+            TracksFormat::resolve(None, "", [&pb]),
+            TracksFormat::Probmot
+        );
+        assert_eq!(
+            TracksFormat::resolve(None, "", [&fox]),
+            TracksFormat::Probmot
+        );
+        assert_eq!(TracksFormat::resolve(None, "", [&ros]), TracksFormat::Ros2);
+        assert_eq!(
+            TracksFormat::resolve(None, "ros2", [&pb]),
+            TracksFormat::Ros2
+        );
+        assert_eq!(
+            TracksFormat::resolve(Some(TracksFormat::Probmot), "ros2", [&ros]),
+            TracksFormat::Probmot
+        );
+        assert_eq!(
+            TracksFormat::resolve(Some(TracksFormat::Ros2), "", [&pb]),
+            TracksFormat::Ros2
+        );
+    }
+
+    #[test]
+    fn extras_refused_only_in_ros2() {
+        assert!(TracksFormat::Probmot.check_extras("f", true, true).is_ok());
+        assert!(TracksFormat::Ros2.check_extras("f", false, false).is_ok());
+        let e = TracksFormat::Ros2
+            .check_extras("f", false, true)
+            .unwrap_err();
+        assert!(e.to_string().contains("--scene-topic"), "{e}");
+        assert!(e.to_string().contains("--tracks-format probmot"), "{e}");
+    }
+}

@@ -1,0 +1,177 @@
+//! Every shell example of README.md and docs/*.md runs: each fenced ```sh block is run with bash
+//! (`set -euo pipefail`) against the binary under test, in a temporary directory per document
+//! (blocks of one document run in order there, so a later block may use an earlier one's
+//! output). The directory holds `sample_logs/` and `scripts/` of the repository and the files
+//! the examples name: `drive.mcap` (the city sample) and `logs/` (the three samples).
+//!
+//! A block that cannot run here (a Ray cluster, the `rerun` feature build, dataset files) has the
+//! line `<!-- not run in CI: REASON -->` right before its fence; the reason is required.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use common::repo;
+
+const MARKER: &str = "<!-- not run in CI:";
+
+/// One ```sh block: its first line number, its text, and the reason it is not run.
+struct Block {
+    line: usize,
+    text: String,
+    skip: Option<String>,
+    /// Indentation of the fence (a block inside a list item); removed from each line, the rest of
+    /// a line's indentation is kept (a here-document or `python3 -c` needs it).
+    indent: usize,
+}
+
+/// The ```sh blocks of a Markdown text. Panics on a shell block in another fence language, so
+/// none escapes the test.
+fn blocks(doc: &str, name: &str) -> Vec<Block> {
+    let mut out = Vec::new();
+    let mut current: Option<Block> = None;
+    let mut previous = "";
+    for (i, line) in doc.lines().enumerate() {
+        let t = line.trim();
+        if let Some(b) = current.as_mut() {
+            if t == "```" {
+                out.push(current.take().unwrap());
+            } else {
+                let lead = line.len() - line.trim_start().len();
+                b.text.push_str(&line[lead.min(b.indent)..]);
+                b.text.push('\n');
+            }
+            continue;
+        }
+        if let Some(lang) = t.strip_prefix("```") {
+            assert!(
+                !["bash", "shell", "console", "zsh"].contains(&lang),
+                "{name}:{}: use ```sh for shell examples",
+                i + 1
+            );
+            if lang == "sh" {
+                let skip = previous.strip_prefix(MARKER).map(|r| {
+                    let reason = r.trim_end_matches("-->").trim().to_string();
+                    assert!(
+                        !reason.is_empty(),
+                        "{name}:{}: marker without reason",
+                        i + 1
+                    );
+                    reason
+                });
+                current = Some(Block {
+                    line: i + 1,
+                    text: String::new(),
+                    skip,
+                    indent: line.len() - line.trim_start().len(),
+                });
+            }
+        }
+        if !t.is_empty() {
+            previous = t;
+        }
+    }
+    assert!(current.is_none(), "{name}: unclosed ```sh block");
+    out
+}
+
+/// README.md and docs/*.md.
+fn documents() -> Vec<PathBuf> {
+    let mut docs = vec![repo("README.md")];
+    let mut pages: Vec<PathBuf> = std::fs::read_dir(repo("docs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    pages.sort();
+    docs.extend(pages);
+    docs
+}
+
+/// A working directory with what the examples name.
+fn workdir() -> tempfile::TempDir {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::os::unix::fs::symlink(repo("sample_logs"), d.join("sample_logs")).unwrap();
+    std::os::unix::fs::symlink(repo("scripts"), d.join("scripts")).unwrap();
+    std::fs::copy(repo("sample_logs/city.mcap"), d.join("drive.mcap")).unwrap();
+    std::fs::create_dir(d.join("logs")).unwrap();
+    for s in ["city", "pedestrians", "turning-car"] {
+        let f = format!("{s}.mcap");
+        std::fs::copy(repo(&format!("sample_logs/{f}")), d.join("logs").join(&f)).unwrap();
+    }
+    dir
+}
+
+fn run_block(dir: &Path, name: &str, b: &Block) {
+    let bin_dir = Path::new(env!("CARGO_BIN_EXE_probmot")).parent().unwrap();
+    let path = format!(
+        "{}:{}",
+        bin_dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    );
+    let out = Command::new("bash")
+        .args(["-c", &format!("set -euo pipefail\n{}", b.text)])
+        .current_dir(dir)
+        .env("PATH", path)
+        .output()
+        .expect("run bash");
+    assert!(
+        out.status.success(),
+        "{name}:{}: the example failed ({}):\n{}\nstdout:\n{}\nstderr:\n{}",
+        b.line,
+        out.status,
+        b.text,
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+#[test]
+fn every_shell_example_of_the_docs_runs() {
+    use std::io::Write as _;
+    let (mut ran, mut not_run) = (0, Vec::new());
+    for doc in documents() {
+        let name = doc.strip_prefix(repo("")).unwrap().display().to_string();
+        let text = std::fs::read_to_string(&doc).unwrap();
+        let dir = workdir();
+        for b in blocks(&text, &name) {
+            match &b.skip {
+                Some(reason) => not_run.push(format!("{name}:{}: {reason}", b.line)),
+                None => {
+                    run_block(dir.path(), &name, &b);
+                    ran += 1;
+                }
+            }
+        }
+    }
+    assert!(ran >= 8, "only {ran} examples ran");
+    // Straight to stderr, past libtest's capture: which examples are documented as not run.
+    let mut err = std::io::stderr().lock();
+    let _ = writeln!(
+        err,
+        "doc examples: {ran} ran, {} marked not run:",
+        not_run.len()
+    );
+    for n in &not_run {
+        let _ = writeln!(err, "  {n}");
+    }
+}
+
+#[test]
+fn markers_and_blocks_are_parsed() {
+    let doc = "text\n\n<!-- not run in CI: needs a cluster -->\n```sh\na \\\n  b\n```\n\n```sh\nc\n```\n```rust\nx\n```\n";
+    let b = blocks(doc, "t");
+    assert_eq!(b.len(), 2);
+    assert_eq!(b[0].skip.as_deref(), Some("needs a cluster"));
+    // Indentation inside the block is kept.
+    assert_eq!(b[0].text, "a \\\n  b\n");
+    assert_eq!(
+        (b[1].skip.as_deref(), b[1].text.as_str(), b[1].line),
+        (None, "c\n", 9)
+    );
+    // The fence's own indentation (a block inside a list item) is removed.
+    let listed = blocks("- item\n\n  ```sh\n  a\n    b\n  ```\n", "t");
+    assert_eq!(listed[0].text, "a\n  b\n");
+}

@@ -1,0 +1,196 @@
+//! Interrupting a writing command: on SIGINT, SIGTERM or SIGHUP `probmot track` removes its
+//! partial output, says in one line what was left unwritten and exits with 128 + the signal
+//! number; the partial file of a hard-killed run (SIGKILL) is named after its output and the
+//! next run writing that output removes it.
+#![cfg(unix)]
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Stdio};
+use std::sync::OnceLock;
+use std::time::{Duration, Instant};
+
+use common::{bin, probmot_ok, repo};
+
+/// A log long enough that tracking it takes seconds (debug build): 1,500 frames of the city.
+fn long_log() -> &'static Path {
+    static LOG: OnceLock<(tempfile::TempDir, PathBuf)> = OnceLock::new();
+    let (_, path) = LOG.get_or_init(|| {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("long.mcap");
+        let p = path.to_str().unwrap();
+        probmot_ok(&[
+            "simulate",
+            "--scenario",
+            "city",
+            "--frames",
+            "1500",
+            "--objects",
+            "80",
+            "-o",
+            p,
+        ]);
+        (dir, path)
+    });
+    path
+}
+
+/// Names of the entries of `dir`, hidden ones included.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+/// Starts `probmot track ARGS` and waits until a partial file shows up in `out_dir`.
+fn start_track(args: &[&str], out_dir: &Path) -> Child {
+    start_track_with(bin(), args, out_dir)
+}
+
+/// As [`start_track`], the binary started by `cmd` (e.g. through `nohup`).
+fn start_track_with(mut cmd: std::process::Command, args: &[&str], out_dir: &Path) -> Child {
+    let mut child = cmd
+        .arg("track")
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let start = Instant::now();
+    while !entries(out_dir)
+        .iter()
+        .any(|n| n.ends_with(".probmot-partial"))
+    {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("track ended ({status}) before writing anything to {out_dir:?}");
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no partial file"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child
+}
+
+fn signal(child: &Child, sig: i32) {
+    // SAFETY: kill(2) on the pid of a child we have not yet waited for.
+    assert_eq!(unsafe { libc::kill(child.id() as i32, sig) }, 0);
+}
+
+/// Interrupts a `track` run with `sig` mid-run: exit status 128 + sig, one line naming the
+/// signal and the unwritten outputs, nothing left in `out_dir`.
+fn check_interrupt(args: &[&str], out_dir: &Path, sig: i32, name: &str, outputs: &[&str]) {
+    let child = start_track(args, out_dir);
+    signal(&child, sig);
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(128 + sig), "{stderr}");
+    let lines: Vec<&str> = stderr
+        .lines()
+        .filter(|l| l.contains("interrupted"))
+        .collect();
+    assert_eq!(lines.len(), 1, "{stderr}");
+    assert!(
+        lines[0].contains(&format!("interrupted by {name}")),
+        "{stderr}"
+    );
+    assert!(lines[0].contains("not written"), "{stderr}");
+    assert!(
+        outputs.iter().any(|o| lines[0].contains(o)),
+        "names none of {outputs:?}: {stderr}"
+    );
+    assert_eq!(
+        entries(out_dir),
+        Vec::<String>::new(),
+        "left in the output folder"
+    );
+}
+
+#[test]
+fn sigint_and_sigterm_with_o_leave_nothing() {
+    let log = long_log().to_str().unwrap();
+    for (sig, name) in [(libc::SIGINT, "SIGINT"), (libc::SIGTERM, "SIGTERM")] {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out.mcap");
+        let args = [log, "-o", out.to_str().unwrap()];
+        check_interrupt(&args, dir.path(), sig, name, &["out.mcap"]);
+    }
+}
+
+#[test]
+fn sigint_sigterm_and_sighup_with_out_dir_leave_nothing() {
+    let inputs = tempfile::tempdir().unwrap();
+    let a = inputs.path().join("a.mcap");
+    let b = inputs.path().join("b.mcap");
+    std::fs::copy(long_log(), &a).unwrap();
+    std::fs::copy(long_log(), &b).unwrap();
+    for (sig, name) in [
+        (libc::SIGINT, "SIGINT"),
+        (libc::SIGTERM, "SIGTERM"),
+        (libc::SIGHUP, "SIGHUP"),
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let args = [
+            a.to_str().unwrap(),
+            b.to_str().unwrap(),
+            "--out-dir",
+            dir.path().to_str().unwrap(),
+            "--jobs",
+            "2",
+        ];
+        check_interrupt(&args, dir.path(), sig, name, &["a.mcap", "b.mcap"]);
+    }
+}
+
+#[test]
+fn a_stale_partial_file_of_a_killed_run_is_removed_by_the_next_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.mcap");
+    let o = out.to_str().unwrap();
+    let child = start_track(&[long_log().to_str().unwrap(), "-o", o], dir.path());
+    signal(&child, libc::SIGKILL);
+    let status = child.wait_with_output().unwrap().status;
+    assert_eq!(status.code(), None, "killed by a signal");
+    // What a user finds after a hard kill: a hidden file named after the output.
+    assert_eq!(entries(dir.path()), [".out.mcap.probmot-partial"]);
+
+    let run = probmot_ok(&[
+        "track",
+        repo("sample_logs/city.mcap").to_str().unwrap(),
+        "-o",
+        o,
+    ]);
+    assert_eq!(entries(dir.path()), ["out.mcap"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains(".out.mcap.probmot-partial") && stderr.contains("interrupted run"),
+        "the removal is reported: {stderr}"
+    );
+    // The output is the complete, normal one.
+    assert!(!common::tracks(&out, "/tracks").is_empty());
+}
+
+#[test]
+fn sighup_stays_ignored_under_nohup() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.mcap");
+    let mut nohup = std::process::Command::new("nohup");
+    nohup.arg(env!("CARGO_BIN_EXE_probmot"));
+    let args = [long_log().to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let mut child = start_track_with(nohup, &args, dir.path());
+    signal(&child, libc::SIGHUP);
+    std::thread::sleep(Duration::from_millis(500));
+    assert!(
+        child.try_wait().unwrap().is_none(),
+        "SIGHUP ended a nohup run"
+    );
+    signal(&child, libc::SIGTERM);
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(128 + libc::SIGTERM));
+    assert_eq!(entries(dir.path()), Vec::<String>::new());
+}
