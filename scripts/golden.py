@@ -9,7 +9,8 @@ the ego-frame tracks, the SceneUpdate channel, the JSON summary), `info`, `eval`
 one `NAME SHA256` line per output, sorted.
 
 Volatile fields are removed before hashing: `wall_time_s` of the JSON summaries, and the temporary
-directory in printed paths (replaced by `$OUT`). The numbers of `fit`'s outputs are compared rounded
+directory in printed paths (replaced by `$OUT`), and the places of the checkout and of ../shared
+(`$REPO`, `$SHARED`). The numbers of `fit`'s outputs are compared rounded
 to 12 significant digits: main's `fit` (at daaba54) summed in HashMap order, so its last bits varied
 from run to run.
 
@@ -47,6 +48,8 @@ def scrub(text: bytes, out: Path, round_floats: bool = False) -> bytes:
     """Removes what changes from run to run: the temporary directory and wall times; with
     `round_floats`, every decimal number is rounded to 12 significant digits."""
     s = text.decode("utf-8", "replace").replace(str(out), "$OUT")
+    # The checkout's and the shared data's places (a clone elsewhere gives the same manifest).
+    s = s.replace(str(ROOT.parent / "shared"), "$SHARED").replace(str(ROOT), "$REPO")
     s = re.sub(r'"wall_time_s":\s*[0-9.eE+-]+', '"wall_time_s": 0', s)
     if round_floats:
         s = FLOAT.sub(lambda m: "%.12g" % float(m.group(0)), s)

@@ -46,9 +46,22 @@ fn entries(dir: &Path) -> Vec<String> {
     v
 }
 
-/// Starts `probmot track ARGS` and waits until a partial file shows up in `out_dir`.
+/// Starts `probmot track ARGS` as from a terminal (SIGINT, SIGTERM and SIGHUP at their default
+/// disposition, whatever this test process inherited: a test run started in the background of a
+/// script ignores SIGINT) and waits until a partial file shows up in `out_dir`.
 fn start_track(args: &[&str], out_dir: &Path) -> Child {
-    start_track_with(bin(), args, out_dir)
+    use std::os::unix::process::CommandExt;
+    let mut cmd = bin();
+    // SAFETY: signal(2) is async-signal-safe, the only call made between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+                libc::signal(sig, libc::SIG_DFL);
+            }
+            Ok(())
+        });
+    }
+    start_track_with(cmd, args, out_dir)
 }
 
 /// As [`start_track`], the binary started by `cmd` (e.g. through `nohup`).

@@ -11,9 +11,13 @@ use crate::formats::kitti::{
 };
 use crate::mcapio::reader::read_records;
 use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
+use crate::msgs::size3;
 use crate::msgs::{self, v3, Detection3D, Detections3D, ImageBox, Track3D, Tracks3D};
-use crate::sim::write::{size3, START_NS};
 use crate::tracker::Box3;
+
+/// KITTI has no absolute times: an imported log starts at 2026-01-01T00:00:00Z, as simulated
+/// logs do (`sim::write::START_NS`).
+const START_NS: u64 = 1_767_225_600_000_000_000;
 
 /// KITTI tracking runs at 10 Hz.
 pub const KITTI_PERIOD_NS: u64 = 100_000_000;

@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use crate::mcapio::writer::check_output_path;
 use crate::msgs;
-use crate::sim::write::size3;
+use crate::msgs::size3;
 
 use super::results::{read_results, DetectionResults};
 use super::scene_file::write_scene;
