@@ -12,4 +12,5 @@ pub mod pipeline;
 pub mod sim;
 pub mod tracker;
 pub mod transforms;
+pub mod tune;
 pub mod viz;

@@ -9,6 +9,7 @@ mod layer_topics;
 mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;
+mod tune_cmd;
 mod viz_cmd;
 
 use std::process::ExitCode;
@@ -45,6 +46,7 @@ enum Command {
     Export(import_cmd::ExportArgs),
     Plot(plot_cmd::PlotArgs),
     Viz(viz_cmd::VizArgs),
+    Tune(tune_cmd::TuneArgs),
 }
 
 /// Runs a parsed command line; the exit code on success.
@@ -60,6 +62,7 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
         Command::Export(a) => import_cmd::run_export(a),
         Command::Plot(a) => plot_cmd::run(a),
         Command::Viz(a) => viz_cmd::run(a),
+        Command::Tune(a) => tune_cmd::run(a),
     }
 }
 

@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+pub use super::levers::{Levers, ScoreMode};
 pub use super::presets::Preset;
 
 /// How a detection is compared with a track's predicted box.
@@ -101,6 +102,9 @@ pub struct ClassConfig {
     /// Number of samples the noise was fitted from, when fitted (informational).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub samples: Option<u64>,
+    /// Options beyond the paper (all off by default; see [`Levers`]).
+    #[serde(default, skip_serializing_if = "Levers::is_off")]
+    pub levers: Levers,
 }
 
 /// The full tracker configuration.
@@ -267,6 +271,7 @@ fn chiu_class(p0: [f64; 11], q4: [f64; 4]) -> ClassConfig {
         origin: BoxOrigin::Center,
         gate_after_assignment: false,
         samples: None,
+        levers: Levers::default(),
     }
 }
 
@@ -288,6 +293,7 @@ pub fn ab3dmot_class() -> ClassConfig {
         origin: BoxOrigin::Center,
         gate_after_assignment: false,
         samples: None,
+        levers: Levers::default(),
     }
 }
 
@@ -423,7 +429,7 @@ impl ClassConfig {
                 return Err(ConfigError(format!("score_floor must be finite, got {f}")));
             }
         }
-        Ok(())
+        self.levers.validate()
     }
 }
 

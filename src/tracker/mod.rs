@@ -6,14 +6,18 @@
 
 pub mod angle;
 pub mod boxes;
+pub mod confidence;
 pub mod config;
 pub mod geometry;
 pub mod kalman;
+pub mod levers;
 pub mod matching;
+pub mod nms;
 pub mod presets;
 pub mod track;
 #[allow(clippy::module_inception)]
 pub mod tracker;
+pub mod two_stage;
 
 pub use boxes::{Box3, ClassId, Detection};
 pub use config::{

@@ -17,7 +17,7 @@ pub enum Preset {
     Ab3dmotKitti,
     /// AB3DMOT's 2019 default: one setting for every class.
     Ab3dmot2019,
-    /// Noise fitted and gates tuned by probmot on the ten KITTI train sequences.
+    /// Made by `probmot tune --budget 100` on the ten KITTI train sequences only (docs/tune.md).
     KittiPointrcnn,
 }
 
@@ -59,8 +59,8 @@ impl Preset {
                  for every class, 0.5 s frames (old name: ab3dmot)"
             }
             Preset::KittiPointrcnn => {
-                "probmot fitted and tuned on the ten KITTI train sequences (PointRCNN), 0.1 s \
-                 frames"
+                "made by `probmot tune --budget 100` on the ten KITTI train sequences only \
+                 (PointRCNN; in-sample there, see docs/tune.md), 0.1 s frames"
             }
         }
     }
@@ -108,9 +108,10 @@ impl Preset {
                 classes: BTreeMap::new(),
                 default: Some(ab3dmot_class()),
             },
-            // Noise fitted with `probmot fit --fold-yaw --dt-nominal 0.1` on the ten KITTI
-            // tracking train sequences (PointRCNN detections); gates and life cycle tuned per
-            // class on the same sequences (scripts/kitti_benchmark.sh).
+            // Made by `probmot tune --budget 100` (noise fitted, per-class settings and levers
+            // tuned) on the ten KITTI tracking train sequences in ../shared/data/kitti-tracking-train
+            // only (PointRCNN detections); see docs/tune.md. In-sample on those sequences: use the
+            // cross-validated numbers of docs/tune.md to judge it.
             Preset::KittiPointrcnn => {
                 let mut cfg =
                     TrackerConfig::from_json(include_str!("presets/kitti-pointrcnn.json"))?;

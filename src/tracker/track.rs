@@ -1,6 +1,7 @@
 //! One track: its filter, its life-cycle counters and what the tracker reports of it.
 
 use super::boxes::{Box3, ClassId};
+use super::confidence::Confidence;
 use super::config::BoxOrigin;
 use super::kalman::{Innovation, KalmanState};
 
@@ -27,6 +28,8 @@ pub struct Track {
     pub confirmed: bool,
     /// Association cache of the current frame.
     pub(crate) innovation: Option<Innovation>,
+    /// Refined and mean score (see [`super::levers`]).
+    pub conf: Confidence,
 }
 
 /// What the tracker reports for one track in one frame.

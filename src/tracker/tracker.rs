@@ -3,11 +3,14 @@
 use std::collections::HashMap;
 
 use super::boxes::{Box3, ClassId, Detection};
+use super::confidence::Confidence;
 use super::config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
 use super::geometry::{giou3d, iou3d};
 use super::kalman::{mahalanobis_sq, mahalanobis_sq_xy, KalmanState, Noise};
 use super::matching::{greedy, hungarian, Pair, NOT_A_CANDIDATE};
+use super::nms::{suppress, NmsScratch};
 use super::track::{Track, TrackReport};
+use super::two_stage::split;
 
 /// Why a frame was refused. The tracker state is unchanged when an error is returned.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -75,6 +78,11 @@ struct Scratch {
     matched_det: Vec<bool>,
     track_match: Vec<Option<u32>>,
     pred: Vec<Box3>,
+    /// Tracks matched by the first round of a two-stage association.
+    trk_matched: Vec<bool>,
+    /// One round's optimal assignment, before its detection indices are offset.
+    round: Vec<(u32, u32)>,
+    nms: NmsScratch,
 }
 
 /// The probabilistic 3D multi-object tracker of Chiu et al. (2019), as a sans-I/O state machine.
@@ -292,34 +300,23 @@ fn step_class(
         }
     }
 
+    if let Some(max_iou) = c.cfg.levers.nms_iou {
+        suppress(&mut c.dets, all_dets, max_iou, &mut s.nms);
+    }
+    // Two-stage association: detections under the birth score come last and only get a 2nd round.
+    let n_high = split(&mut c.dets, all_dets, c.cfg.levers.birth_score);
     let n_det = c.dets.len();
     let n_trk = c.tracks.len();
     s.matches.clear();
+    s.trk_matched.clear();
+    s.trk_matched.resize(n_trk, false);
     if n_det > 0 && n_trk > 0 {
-        candidate_pairs(c, all_dets, s);
-        let max_cost = if c.cfg.distance.is_similarity() {
-            -c.cfg.threshold
-        } else {
-            c.cfg.threshold
-        };
-        match c.cfg.matcher {
-            MatcherKind::Greedy => greedy(
-                &mut s.pairs,
-                max_cost,
-                &mut s.det_taken,
-                &mut s.trk_taken,
-                n_det,
-                n_trk,
-                &mut s.matches,
-            ),
-            MatcherKind::Hungarian => {
-                s.cost.clear();
-                s.cost.resize(n_det * n_trk, NOT_A_CANDIDATE);
-                for p in &s.pairs {
-                    s.cost[p.det as usize * n_trk + p.trk as usize] = p.cost;
-                }
-                hungarian(&s.cost, n_det, n_trk, max_cost, &mut s.matches);
+        associate(c, all_dets, s, 0, n_high);
+        if n_high < n_det {
+            for &(_, t) in &s.matches {
+                s.trk_matched[t as usize] = true;
             }
+            associate(c, all_dets, s, n_high, n_det);
         }
     }
 
@@ -335,13 +332,14 @@ fn step_class(
         trk.hits += 1;
         trk.time_since_update = 0;
         trk.score = det.score;
+        trk.conf.on_match(det.score, &c.cfg.levers);
         s.matched_det[d as usize] = true;
         s.track_match[t as usize] = Some(c.dets[d as usize]);
     }
 
     // Birth: every unmatched detection starts a track.
     for (d, &det_index) in c.dets.iter().enumerate() {
-        if s.matched_det[d] {
+        if s.matched_det[d] || d >= n_high {
             continue;
         }
         let det = &all_dets[det_index as usize];
@@ -356,6 +354,7 @@ fn step_class(
             reported_frames: 0,
             confirmed: false,
             innovation: None,
+            conf: Confidence::born(det.score),
         });
         s.track_match.push(Some(det_index));
         *next_id += 1;
@@ -365,18 +364,24 @@ fn step_class(
     // Report, then delete.
     let min_hits = c.cfg.min_hits;
     let max_age = c.cfg.max_age;
+    let levers = &c.cfg.levers;
     for (t, m) in c.tracks.iter_mut().zip(&s.track_match) {
+        if m.is_none() {
+            t.conf.on_coast(levers);
+        }
         if !t.confirmed && t.hits >= min_hits {
             t.confirmed = true;
             stats.confirmed += 1;
         }
         if t.time_since_update < max_age && (t.hits >= min_hits || frame_count <= min_hits as u64) {
             t.reported_frames += 1;
-            reports.push(t.report(dt_nominal, c.cfg.origin, *m));
+            let mut r = t.report(dt_nominal, c.cfg.origin, *m);
+            r.score = t.conf.reported(t.score, levers);
+            reports.push(r);
         }
     }
     c.tracks.retain(|t| {
-        let keep = t.time_since_update < max_age;
+        let keep = t.time_since_update < max_age || t.conf.keeps_alive(levers);
         if !keep {
             deleted.push(t.id);
             if t.confirmed {
@@ -388,11 +393,57 @@ fn step_class(
     });
 }
 
-/// Fills `s.pairs` with the candidate pairs of a class: each pair that passes the cheap pre-gate,
-/// with its full cost. Pairs cut by the pre-gate could never be matched. With
-/// `gate_after_assignment` and the Hungarian matcher every pair is a candidate: the assignment is
-/// solved over all of them and the gate applied afterwards.
-fn candidate_pairs(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) {
+/// One association round: detections `lo..hi` of the class against the tracks not matched by an
+/// earlier round; the matches are appended to `s.matches`.
+fn associate(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch, lo: usize, hi: usize) {
+    if lo == hi {
+        return;
+    }
+    let n_det = c.dets.len();
+    let n_trk = c.tracks.len();
+    candidate_pairs(c, all_dets, s, lo, hi);
+    let max_cost = if c.cfg.distance.is_similarity() {
+        -c.cfg.threshold
+    } else {
+        c.cfg.threshold
+    };
+    match c.cfg.matcher {
+        MatcherKind::Greedy => greedy(
+            &mut s.pairs,
+            max_cost,
+            &mut s.det_taken,
+            &mut s.trk_taken,
+            n_det,
+            n_trk,
+            &mut s.matches,
+        ),
+        MatcherKind::Hungarian => {
+            let rows = hi - lo;
+            s.cost.clear();
+            s.cost.resize(rows * n_trk, NOT_A_CANDIDATE);
+            for p in &s.pairs {
+                s.cost[(p.det as usize - lo) * n_trk + p.trk as usize] = p.cost;
+            }
+            s.round.clear();
+            hungarian(&s.cost, rows, n_trk, max_cost, &mut s.round);
+            s.matches
+                .extend(s.round.iter().map(|&(d, t)| (d + lo as u32, t)));
+        }
+    }
+}
+
+/// Fills `s.pairs` with the candidate pairs of detections `lo..hi` of a class and the tracks not
+/// yet matched: each pair that passes the cheap pre-gate, with its full cost. Pairs cut by the
+/// pre-gate could never be matched. With `gate_after_assignment` and the Hungarian matcher every
+/// such pair is a candidate: the assignment is solved over all of them and the gate applied
+/// afterwards.
+fn candidate_pairs(
+    c: &mut ClassState,
+    all_dets: &[Detection],
+    s: &mut Scratch,
+    lo: usize,
+    hi: usize,
+) {
     s.pairs.clear();
     let cfg = &c.cfg;
     let thr = cfg.threshold;
@@ -411,9 +462,12 @@ fn candidate_pairs(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) 
                 t.innovation = Some(t.kf.innovation(&c.noise));
             }
             let g2 = thr * thr;
-            for (d, &di) in c.dets.iter().enumerate() {
+            for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
                 let b = all_dets[di as usize].bbox.to_origin(origin);
                 for (ti, t) in c.tracks.iter().enumerate() {
+                    if s.trk_matched[ti] {
+                        continue;
+                    }
                     let inn = t.innovation.as_ref().expect("computed above");
                     // Pre-gate: the x and y terms alone already exceed the gate.
                     if !all && mahalanobis_sq_xy(inn, &b) > g2 {
@@ -431,9 +485,12 @@ fn candidate_pairs(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) 
                     .iter()
                     .map(|t| Box3::from_slice(t.kf.x.as_slice()).from_origin(origin)),
             );
-            for (d, &di) in c.dets.iter().enumerate() {
+            for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
                 let b = &all_dets[di as usize].bbox;
                 for (ti, p) in s.pred.iter().enumerate() {
+                    if s.trk_matched[ti] {
+                        continue;
+                    }
                     let dx = b.center[0] - p.center[0];
                     let dy = b.center[1] - p.center[1];
                     let dz = if in_3d {
@@ -456,9 +513,12 @@ fn candidate_pairs(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) 
                     .map(|t| Box3::from_slice(t.kf.x.as_slice()).from_origin(origin)),
             );
             let giou = cfg.distance == DistanceKind::Giou3d;
-            for (d, &di) in c.dets.iter().enumerate() {
+            for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
                 let b = &all_dets[di as usize].bbox;
                 for (ti, p) in s.pred.iter().enumerate() {
+                    if s.trk_matched[ti] {
+                        continue;
+                    }
                     let sim = if giou {
                         giou3d(b, p)
                     } else {

@@ -1,0 +1,114 @@
+//! Per-class options beyond the paper: track confidence, two-stage association, non-maximum
+//! suppression of duplicate detections and a life cycle by confidence. All are off by default,
+//! so a config without them runs the method of Chiu et al. (2019) exactly.
+//!
+//! Sources of the ideas (own implementation): CBMOT (Benbarka et al. 2021) for score refinement,
+//! SimpleTrack (Pang et al. 2021) and ByteTrack (Zhang et al. 2022) for two-stage association and
+//! NMS before association, ImmortalTracker (Wang et al. 2021) and Fast-Poly (Li et al. 2024) for
+//! keeping confident tracks alive.
+
+use serde::{Deserialize, Serialize};
+
+use super::config::ConfigError;
+
+/// Which score a track reports.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ScoreMode {
+    /// The score of the last matched detection (the paper).
+    #[default]
+    Last,
+    /// The running mean of the matched detections' scores.
+    Mean,
+    /// The refined score (see [`Levers::blend`], [`Levers::boost`], [`Levers::decay`]).
+    Refined,
+}
+
+/// The options beyond the paper of one class. Every field's default is "off".
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Levers {
+    /// Score reported for the track.
+    pub score: ScoreMode,
+    /// Refinement on a match: `r <- r + blend * (s - r) + boost`, with `s` the detection score.
+    pub blend: f64,
+    /// Added to the refined score on every match (rewards long, consistent tracks).
+    pub boost: f64,
+    /// Subtracted from the refined score in every frame without a match.
+    pub decay: f64,
+    /// Two-stage association: detections scoring below this cannot start a track; they may
+    /// continue a track left unmatched by the first round (`None`: one round, every detection
+    /// may start a track).
+    pub birth_score: Option<f64>,
+    /// Non-maximum suppression before association: a detection whose 3D IoU with a higher
+    /// scoring detection of its class exceeds this is dropped (`None`: off).
+    pub nms_iou: Option<f64>,
+    /// Life cycle by confidence: a track past `max_age` frames without a match is kept (not
+    /// reported) while its refined score stays at or above this (`None`: delete by age only).
+    /// Needs `decay > 0` so that every track eventually ends.
+    pub keep_score: Option<f64>,
+}
+
+impl Default for Levers {
+    fn default() -> Self {
+        Levers {
+            score: ScoreMode::Last,
+            blend: 1.0,
+            boost: 0.0,
+            decay: 0.0,
+            birth_score: None,
+            nms_iou: None,
+            keep_score: None,
+        }
+    }
+}
+
+impl Levers {
+    /// True when every option is off (the paper's method); such levers are not serialized.
+    pub fn is_off(&self) -> bool {
+        *self == Levers::default()
+    }
+
+    /// Checks the values; see the field docs.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        if !(self.blend.is_finite() && (0.0..=1.0).contains(&self.blend)) {
+            return Err(ConfigError(format!(
+                "levers.blend must lie in [0, 1], got {}",
+                self.blend
+            )));
+        }
+        for (name, v) in [("boost", self.boost), ("decay", self.decay)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(ConfigError(format!(
+                    "levers.{name} must be non-negative and finite, got {v}"
+                )));
+            }
+        }
+        for (name, v) in [
+            ("birth_score", self.birth_score),
+            ("keep_score", self.keep_score),
+        ] {
+            if let Some(v) = v.filter(|v| !v.is_finite()) {
+                return Err(ConfigError(format!(
+                    "levers.{name} must be finite, got {v}"
+                )));
+            }
+        }
+        if let Some(v) = self
+            .nms_iou
+            .filter(|v| !(v.is_finite() && (0.0..=1.0).contains(v)))
+        {
+            return Err(ConfigError(format!(
+                "levers.nms_iou must lie in [0, 1], got {v}"
+            )));
+        }
+        if self.keep_score.is_some() && self.decay <= 0.0 {
+            return Err(ConfigError(
+                "levers.keep_score needs levers.decay > 0 (otherwise an unmatched track could \
+                 live forever)"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,156 @@
+//! The logs a tune works on, read once into memory: per frame the ground truth (as the
+//! evaluation sees it) and the detections (as the tracker sees them, with the 2D box the KITTI
+//! protocol needs).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+
+use crate::eval::scene::{read_tracks_topic, EvalBox};
+use crate::fit::data::{assemble_frames, FitBox, FitLog};
+use crate::mcapio::topic::for_each_message;
+use crate::msgs::{self, Detections3D};
+use crate::tracker::Box3;
+
+/// One detection, reduced to what tracking and scoring need.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TuneDet {
+    /// Class label.
+    pub label: String,
+    /// Box.
+    pub bbox: Box3,
+    /// Detector score.
+    pub score: f64,
+    /// 2D box (KITTI), carried to the track it updates.
+    pub image_box: Option<[f64; 4]>,
+}
+
+/// One frame: a stamp of either channel.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TuneFrame {
+    /// Stamp, nanoseconds.
+    pub stamp: u64,
+    /// Whether a ground-truth message has this stamp (the fit's frames).
+    pub has_truth: bool,
+    /// Whether a detection message has this stamp (the tracker steps only on those frames).
+    pub has_detections: bool,
+    /// Detections of this stamp (valid boxes only).
+    pub detections: Vec<TuneDet>,
+    /// Ground-truth boxes of this stamp.
+    pub truth: Vec<EvalBox>,
+}
+
+/// One log in memory.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct TuneLog {
+    /// File name (scene name in reports).
+    pub name: String,
+    /// Frames in stamp order.
+    pub frames: Vec<TuneFrame>,
+}
+
+impl TuneLog {
+    /// Reads a log: truth from `truth_topic` (`probmot.Tracks3D` with the true instance ids),
+    /// detections from `detections_topic` (`probmot.Detections3D`). Errors name the file.
+    pub fn load(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<TuneLog> {
+        let file = path.display().to_string();
+        let truth = read_tracks_topic(path, truth_topic)?;
+        if truth.is_empty() {
+            bail!("{file}: topic {truth_topic} (ground truth) has no messages; tune needs logs with ground truth, as `probmot import kitti|nuscenes` writes them");
+        }
+        let mut frames: BTreeMap<u64, TuneFrame> = BTreeMap::new();
+        for (stamp, boxes) in truth {
+            let f = frames.entry(stamp).or_default();
+            f.stamp = stamp;
+            f.has_truth = true;
+            f.truth.extend(boxes);
+        }
+        let mut n_msgs = 0u64;
+        for_each_message(
+            path,
+            detections_topic,
+            msgs::DETECTIONS_SCHEMA,
+            |header, m: Detections3D| {
+                let stamp = m.stamp.unwrap_or(header.log_time);
+                let f = frames.entry(stamp).or_default();
+                f.stamp = stamp;
+                f.has_detections = true;
+                n_msgs += 1;
+                f.detections
+                    .extend(m.detections.iter().filter_map(|d| -> Option<TuneDet> {
+                        let (c, s) = (d.center?, d.size?);
+                        let bbox = Box3 {
+                            center: [c.x, c.y, c.z],
+                            yaw: d.yaw,
+                            size: [s.length, s.width, s.height],
+                        };
+                        (bbox.is_valid() && d.score.is_finite()).then(|| TuneDet {
+                            label: d.label.clone(),
+                            bbox,
+                            score: d.score,
+                            image_box: d.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
+                        })
+                    }));
+                Ok(())
+            },
+            |_| Ok(()),
+        )
+        .with_context(|| format!("reading detections from {file}"))?;
+        if n_msgs == 0 {
+            bail!("{file}: topic {detections_topic} (detections) has no messages");
+        }
+        Ok(TuneLog {
+            name: path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or(file),
+            frames: frames.into_values().collect(),
+        })
+    }
+
+    /// The log as the noise fit sees it: truth stamps as frames, boxes without DontCare regions.
+    pub fn fit_log(&self) -> FitLog {
+        let fb = |b: &EvalBox, id| FitBox {
+            id,
+            label: b.label.clone(),
+            center: b.center,
+            size: b.size,
+            yaw: b.yaw,
+        };
+        let truth = self
+            .frames
+            .iter()
+            .filter(|f| f.has_truth)
+            .map(|f| {
+                let boxes = f.truth.iter().filter(|b| b.id != 0).map(|b| fb(b, b.id));
+                (f.stamp, boxes.collect())
+            })
+            .collect();
+        let dets = self
+            .frames
+            .iter()
+            .filter(|f| f.has_detections)
+            .map(|f| {
+                let boxes = f.detections.iter().map(|d| FitBox {
+                    id: 0,
+                    label: d.label.clone(),
+                    center: d.bbox.center,
+                    size: d.bbox.size,
+                    yaw: d.bbox.yaw,
+                });
+                (f.stamp, boxes.collect())
+            })
+            .collect();
+        assemble_frames(&self.name, truth, dets)
+    }
+
+    /// Scores of this log's detections of one class.
+    pub fn scores<'a>(&'a self, label: &'a str) -> impl Iterator<Item = f64> + 'a {
+        self.frames
+            .iter()
+            .flat_map(|f| f.detections.iter())
+            .filter(move |d| d.label == label)
+            .map(|d| d.score)
+    }
+}

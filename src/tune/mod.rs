@@ -1,0 +1,235 @@
+//! `probmot tune`: per-class settings chosen by search on logs with ground truth, with an
+//! honest K-fold cross-validation (noise fitted and settings tuned on the training folds only,
+//! scores measured on the held-out fold). Everything runs in memory: the logs are read once,
+//! tracked and evaluated with the library.
+
+pub mod data;
+pub mod score;
+pub mod search;
+pub mod space;
+
+use std::collections::BTreeMap;
+
+use anyhow::{anyhow, Result};
+use indicatif::ProgressBar;
+
+pub use data::TuneLog;
+pub use score::{Protocol, Scoring};
+pub use search::{ClassTune, SearchLimits};
+
+use crate::eval::scene::Scene;
+use crate::fit::{fit, fitted_config, timing::frame_period, FitOptions, YawMode};
+use crate::tracker::TrackerConfig;
+use space::{dims, ScoreStats};
+
+/// Settings of a tune.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TuneOptions {
+    /// Protocol whose headline metric is maximised.
+    pub scoring: Scoring,
+    /// Search bounds per class.
+    pub limits: SearchLimits,
+    /// Period of the config's velocities; `None`: the data's median frame period.
+    pub dt_nominal: Option<f64>,
+    /// Minimum matched pairs for fitted noise (as `probmot fit --min-samples`).
+    pub min_samples: u64,
+    /// Classes to tune and score; empty: every class of the protocol.
+    pub classes: Vec<String>,
+}
+
+/// A config fitted and tuned on some logs, with the per-class search outcomes.
+#[derive(Debug, Clone)]
+pub struct Tuned {
+    /// The base config with noise fitted on the logs (the starting point).
+    pub fitted: TrackerConfig,
+    /// The fitted config with the tuned settings of every tuned class.
+    pub tuned: TrackerConfig,
+    /// Per class.
+    pub classes: Vec<ClassTune>,
+}
+
+/// The base config with the noise fitted on `logs` (yaw residuals folded, as
+/// `probmot fit --fold-yaw`).
+pub fn fit_noise(
+    base: &TrackerConfig,
+    logs: &[&TuneLog],
+    o: &TuneOptions,
+) -> Result<TrackerConfig> {
+    let fit_logs: Vec<_> = logs.iter().map(|l| l.fit_log()).collect();
+    let dt_nominal = match o.dt_nominal {
+        Some(d) => d,
+        None => frame_period(&fit_logs)
+            .map(|p| p.median_s)
+            .filter(|p| *p > 0.0)
+            .unwrap_or(base.dt_nominal),
+    };
+    let options = FitOptions {
+        dt_nominal,
+        yaw: YawMode::Folded,
+        min_samples: o.min_samples,
+    };
+    let mut report = fit(&fit_logs, &options);
+    Ok(fitted_config(base, &mut report, &options)?)
+}
+
+/// The classes a tune works on: the chosen classes (default: the protocol's) that have
+/// detections in `logs`.
+pub fn classes(logs: &[&TuneLog], o: &TuneOptions) -> Vec<String> {
+    let wanted = if o.classes.is_empty() {
+        o.scoring.classes()
+    } else {
+        o.classes.clone()
+    };
+    wanted
+        .into_iter()
+        .filter(|c| logs.iter().any(|l| l.scores(c).next().is_some()))
+        .collect()
+}
+
+/// Fits the noise on `logs`, then tunes every class on them.
+pub fn tune(
+    base: &TrackerConfig,
+    logs: &[&TuneLog],
+    o: &TuneOptions,
+    progress: &ProgressBar,
+) -> Result<Tuned> {
+    let fitted = fit_noise(base, logs, o)?;
+    let mut tuned = fitted.clone();
+    let mut out = Vec::new();
+    for label in classes(logs, o) {
+        if fitted.class(&label).is_none() {
+            continue;
+        }
+        let stats = ScoreStats::of(logs.iter().flat_map(|l| l.scores(&label)).collect());
+        let space = dims(stats);
+        let r = search::tune_class(
+            logs, &fitted, &label, &space, &o.scoring, o.limits, progress,
+        )?;
+        tuned.classes.insert(label.clone(), r.config.clone());
+        out.push(r);
+    }
+    Ok(Tuned {
+        fitted,
+        tuned,
+        classes: out,
+    })
+}
+
+/// The folds of `n` logs: `k` contiguous chunks in input order, sizes differing by at most one
+/// (the first chunks take the remainder). With ten logs and `k = 2`: the first five and the last
+/// five, as in `scripts/kitti_benchmark.sh`.
+pub fn folds(n: usize, k: usize) -> Vec<std::ops::Range<usize>> {
+    let k = k.clamp(1, n.max(1));
+    let (q, r) = (n / k, n % k);
+    let mut start = 0;
+    (0..k)
+        .map(|i| {
+            let len = q + usize::from(i < r);
+            let range = start..start + len;
+            start += len;
+            range
+        })
+        .collect()
+}
+
+/// One fold of a cross-validation.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct FoldReport {
+    /// Held-out logs.
+    pub held_out: Vec<String>,
+    /// Held-out score per class with the base config (noise fitted on the training folds).
+    pub base: BTreeMap<String, f64>,
+    /// Held-out score per class with the config tuned on the training folds.
+    pub tuned: BTreeMap<String, f64>,
+    /// The search on the training folds.
+    pub search: Vec<ClassTune>,
+}
+
+/// A cross-validation: per fold, and over all held-out logs together (each tracked with the
+/// config of the fold that held it out), which is how `scripts/kitti_benchmark.sh` scores.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct CvReport {
+    /// Per fold.
+    pub folds: Vec<FoldReport>,
+    /// All held-out logs together, base config.
+    pub base: BTreeMap<String, f64>,
+    /// All held-out logs together, tuned configs.
+    pub tuned: BTreeMap<String, f64>,
+    /// The configs tuned per fold (for re-scoring with `probmot track` and `probmot eval`).
+    #[serde(skip)]
+    pub fold_configs: Vec<TrackerConfig>,
+}
+
+/// Mean over the classes with a value (the protocol's overall figure for sAMOTA and AMOTA).
+pub fn overall(scores: &BTreeMap<String, f64>) -> f64 {
+    let v: Vec<f64> = scores.values().copied().filter(|v| v.is_finite()).collect();
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().sum::<f64>() / v.len() as f64
+    }
+}
+
+fn track_all(logs: &[&TuneLog], cfg: &TrackerConfig) -> Result<Vec<Scene>> {
+    logs.iter().map(|l| score::track_log(l, cfg)).collect()
+}
+
+/// K-fold cross-validation of [`tune`] against the fitted base config.
+pub fn cross_validate(
+    base: &TrackerConfig,
+    logs: &[TuneLog],
+    k: usize,
+    o: &TuneOptions,
+    progress: &ProgressBar,
+) -> Result<CvReport> {
+    if k < 2 || logs.len() < k {
+        return Err(anyhow!(
+            "--folds {k} needs at least 2 folds and one log per fold ({} log(s) given)",
+            logs.len()
+        ));
+    }
+    let all: Vec<&TuneLog> = logs.iter().collect();
+    let classes = classes(&all, o);
+    let (mut base_scenes, mut tuned_scenes) = (Vec::new(), Vec::new());
+    let mut reports = Vec::new();
+    let mut fold_configs = Vec::new();
+    for range in folds(logs.len(), k) {
+        let held: Vec<&TuneLog> = all[range.clone()].to_vec();
+        let train: Vec<&TuneLog> = all
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !range.contains(i))
+            .map(|(_, l)| *l)
+            .collect();
+        let t = tune(base, &train, o, progress)?;
+        let b = track_all(&held, &t.fitted)?;
+        let u = track_all(&held, &t.tuned)?;
+        reports.push(FoldReport {
+            held_out: held.iter().map(|l| l.name.clone()).collect(),
+            base: o.scoring.evaluate(&b, &classes),
+            tuned: o.scoring.evaluate(&u, &classes),
+            search: t.classes,
+        });
+        base_scenes.extend(b);
+        tuned_scenes.extend(u);
+        fold_configs.push(t.tuned);
+    }
+    Ok(CvReport {
+        folds: reports,
+        base: o.scoring.evaluate(&base_scenes, &classes),
+        tuned: o.scoring.evaluate(&tuned_scenes, &classes),
+        fold_configs,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn folds_are_contiguous_and_cover() {
+        assert_eq!(folds(10, 2), vec![0..5, 5..10]);
+        assert_eq!(folds(7, 3), vec![0..3, 3..5, 5..7]);
+        assert_eq!(folds(2, 5), vec![0..1, 1..2]);
+    }
+}

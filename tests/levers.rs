@@ -1,0 +1,223 @@
+//! The per-class options beyond the paper, each shown to change what it should (and nothing when
+//! off), through the public tracker API.
+
+use probmot::tracker::levers::{Levers, ScoreMode};
+use probmot::tracker::{Box3, Detection, Tracker, TrackerConfig};
+use proptest::prelude::*;
+
+const DT: u64 = 100_000_000;
+
+fn config(levers: Levers) -> TrackerConfig {
+    let mut cfg = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    cfg.dt_nominal = 0.1;
+    cfg.for_each_class(|c| {
+        c.min_hits = 1;
+        c.max_age = 2;
+        c.levers = levers.clone();
+    });
+    cfg
+}
+
+fn car(x: f64, score: f64) -> Detection {
+    Detection {
+        bbox: Box3 {
+            center: [x, 0.0, 0.0],
+            yaw: 0.0,
+            size: [4.0, 2.0, 1.5],
+        },
+        class: 0,
+        score,
+    }
+}
+
+/// Runs frames of detections; per frame the `(id, score)` of every reported track.
+fn run(cfg: TrackerConfig, frames: &[Vec<Detection>]) -> (Vec<Vec<(u64, f64)>>, Tracker) {
+    let mut t = Tracker::new(cfg).unwrap();
+    let c = t.class_id("car").unwrap();
+    let mut out = vec![];
+    for (i, f) in frames.iter().enumerate() {
+        let dets: Vec<Detection> = f.iter().map(|d| Detection { class: c, ..*d }).collect();
+        let r = t.step(i as u64 * DT, &dets).unwrap();
+        out.push(r.iter().map(|r| (r.id, r.score)).collect());
+    }
+    (out, t)
+}
+
+#[test]
+fn old_configs_load_and_presets_keep_their_json() {
+    let cfg = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    assert!(cfg.classes.values().all(|c| c.levers.is_off()));
+    // Off levers are not written, so configs written before the levers existed read back equal.
+    assert!(!cfg.to_json().contains("levers"));
+    let mut on = cfg.clone();
+    on.for_each_class(|c| c.levers.score = ScoreMode::Mean);
+    let back = TrackerConfig::from_json(&on.to_json()).unwrap();
+    assert_eq!(back, on);
+}
+
+#[test]
+fn invalid_levers_are_refused() {
+    let mut cfg = config(Levers {
+        keep_score: Some(0.5),
+        ..Levers::default()
+    });
+    assert!(cfg.validate().unwrap_err().0.contains("decay"));
+    cfg.for_each_class(|c| c.levers.decay = 0.1);
+    cfg.validate().unwrap();
+    cfg.for_each_class(|c| c.levers.nms_iou = Some(1.5));
+    assert!(cfg.validate().is_err());
+}
+
+#[test]
+fn reported_score_modes() {
+    let frames = vec![
+        vec![car(0.0, 0.2)],
+        vec![car(0.0, 0.6)],
+        vec![car(0.0, 0.4)],
+    ];
+    let last = run(config(Levers::default()), &frames).0;
+    assert_eq!(last[2], vec![(1, 0.4)]);
+    let mean = run(
+        config(Levers {
+            score: ScoreMode::Mean,
+            ..Levers::default()
+        }),
+        &frames,
+    )
+    .0;
+    assert!((mean[2][0].1 - 0.4).abs() < 1e-12 && (mean[1][0].1 - 0.4).abs() < 1e-12);
+    // Refined with blend 0.5 and boost 0.1: 0.2 -> 0.2+0.2+0.1 = 0.5 -> 0.5-0.05+0.1 = 0.55.
+    let refined = run(
+        config(Levers {
+            score: ScoreMode::Refined,
+            blend: 0.5,
+            boost: 0.1,
+            ..Levers::default()
+        }),
+        &frames,
+    )
+    .0;
+    assert!((refined[1][0].1 - 0.5).abs() < 1e-12);
+    assert!((refined[2][0].1 - 0.55).abs() < 1e-12);
+}
+
+#[test]
+fn refined_score_decays_while_coasting() {
+    let frames = vec![vec![car(0.0, 0.8)], vec![]];
+    let l = Levers {
+        score: ScoreMode::Refined,
+        decay: 0.3,
+        ..Levers::default()
+    };
+    let r = run(config(l), &frames).0;
+    assert_eq!(r[0], vec![(1, 0.8)]);
+    assert!((r[1][0].1 - 0.5).abs() < 1e-12);
+}
+
+#[test]
+fn two_stage_low_scores_continue_but_never_start_tracks() {
+    let l = Levers {
+        birth_score: Some(0.5),
+        ..Levers::default()
+    };
+    // A low-scoring detection alone starts nothing.
+    let (r, t) = run(
+        config(l.clone()),
+        &[vec![car(0.0, 0.3)], vec![car(0.0, 0.3)]],
+    );
+    assert!(r.iter().all(|f| f.is_empty()));
+    assert_eq!(t.stats().born, 0);
+    // A low-scoring detection continues a track started by a high-scoring one; a second low one
+    // elsewhere starts nothing.
+    let frames = vec![
+        vec![car(0.0, 0.9)],
+        vec![car(0.0, 0.3), car(30.0, 0.3)],
+        vec![car(0.0, 0.3)],
+    ];
+    let (r, t) = run(config(l), &frames);
+    assert_eq!(r[2], vec![(1, 0.3)]);
+    assert_eq!(t.stats().born, 1);
+    // Without the option, the far detection starts track 2.
+    let (_, t) = run(config(Levers::default()), &frames);
+    assert_eq!(t.stats().born, 2);
+}
+
+#[test]
+fn two_stage_prefers_high_scores_in_the_first_round() {
+    // Track at x=0. Frame 2: a low-score box at x=0 and a high-score box at x=0.3. With the
+    // two-stage association the high-score box gets the track, the low one is dropped.
+    let l = Levers {
+        birth_score: Some(0.5),
+        ..Levers::default()
+    };
+    let frames = vec![vec![car(0.0, 0.9)], vec![car(0.0, 0.2), car(0.3, 0.8)]];
+    let (r, t) = run(config(l), &frames);
+    assert_eq!(r[1], vec![(1, 0.8)]);
+    assert_eq!(t.stats().born, 1);
+}
+
+#[test]
+fn nms_removes_duplicates_before_association() {
+    let frames = vec![vec![car(0.0, 0.9), car(0.5, 0.6)]];
+    let (r, _) = run(config(Levers::default()), &frames);
+    assert_eq!(r[0].len(), 2);
+    let l = Levers {
+        nms_iou: Some(0.3),
+        ..Levers::default()
+    };
+    let (r, _) = run(config(l), &frames);
+    assert_eq!(r[0], vec![(1, 0.9)]);
+}
+
+#[test]
+fn confident_tracks_outlive_max_age() {
+    // Seen twice, then missed for 3 frames (max_age 2), then seen again.
+    let frames = vec![
+        vec![car(0.0, 0.9)],
+        vec![car(0.0, 0.9)],
+        vec![],
+        vec![],
+        vec![],
+        vec![car(0.0, 0.9)],
+    ];
+    let (r, _) = run(config(Levers::default()), &frames);
+    assert_eq!(r[5], vec![(2, 0.9)]);
+    let l = Levers {
+        decay: 0.1,
+        keep_score: Some(0.5),
+        ..Levers::default()
+    };
+    let (r, _) = run(config(l.clone()), &frames);
+    assert_eq!(r[5], vec![(1, 0.9)]);
+    // Not reported while past max_age.
+    assert!(r[3].is_empty() && r[4].is_empty());
+    // A fast decay ends it as before.
+    let (r, _) = run(config(Levers { decay: 0.3, ..l }), &frames);
+    assert_eq!(r[5], vec![(2, 0.9)]);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// With every lever off, the reported scores are the matched detections' scores (the paper).
+    #[test]
+    fn off_levers_report_last_detection_score(xs in prop::collection::vec((0.0f64..0.1, 0.0f64..1.0), 1..15)) {
+        let frames: Vec<Vec<Detection>> = xs.iter().scan(0.0, |x, (dx, s)| { *x += dx; Some(vec![car(*x, *s)]) }).collect();
+        let (r, _) = run(config(Levers::default()), &frames);
+        for (f, (_, s)) in r.iter().zip(&xs) {
+            prop_assert_eq!(f.len(), 1);
+            prop_assert_eq!(f[0].1, *s);
+        }
+    }
+
+    /// NMS never keeps two boxes overlapping more than its threshold, and never starts more
+    /// tracks than there are detections.
+    #[test]
+    fn nms_bounds_births(xs in prop::collection::vec((0.0f64..6.0, 0.0f64..1.0), 1..8)) {
+        let frame: Vec<Detection> = xs.iter().map(|(x, s)| car(*x, *s)).collect();
+        let l = Levers { nms_iou: Some(0.1), ..Levers::default() };
+        let (_, t) = run(config(l), std::slice::from_ref(&frame));
+        let (_, t0) = run(config(Levers::default()), &[frame]);
+        prop_assert!(t.stats().born >= 1);
+        prop_assert!(t.stats().born <= t0.stats().born);
+    }
+}

@@ -1,0 +1,264 @@
+//! `probmot tune`: the search on tiny synthetic logs in memory (fast), and the 2-fold
+//! cross-validation on the shared KITTI data with a reduced budget (skipped without the data).
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use indicatif::ProgressBar;
+use probmot::eval::scene::EvalBox;
+use probmot::tracker::{Box3, TrackerConfig};
+use probmot::tune::data::{TuneDet, TuneFrame};
+use probmot::tune::{
+    cross_validate, overall, tune, Protocol, Scoring, SearchLimits, TuneLog, TuneOptions,
+};
+
+const PERIOD: u64 = 500_000_000;
+
+fn truth(id: u64, x: f64, y: f64) -> EvalBox {
+    EvalBox {
+        id,
+        label: "car".into(),
+        center: [x, y, 0.8],
+        size: [4.5, 1.9, 1.6],
+        yaw: 0.0,
+        score: 1.0,
+        attributes: BTreeMap::new(),
+        image_box: None,
+    }
+}
+
+fn det(x: f64, y: f64, score: f64) -> TuneDet {
+    TuneDet {
+        label: "car".into(),
+        bbox: Box3 {
+            center: [x, y, 0.8],
+            yaw: 0.0,
+            size: [4.5, 1.9, 1.6],
+        },
+        score,
+        image_box: None,
+    }
+}
+
+/// Deterministic pseudo-random numbers in [0, 1).
+struct Lcg(u64);
+impl Lcg {
+    fn next(&mut self) -> f64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (self.0 >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// Three cars driving along x at 5 m/s, detected every frame (small noise, score ~0.8) and
+/// each also detected a second time half a metre off with a low score (a duplicate the base
+/// config turns into a false track), plus low-scoring clutter.
+fn synthetic_log(seed: u64) -> TuneLog {
+    let mut rng = Lcg(seed);
+    let frames = (0..30u64)
+        .map(|i| {
+            let mut f = TuneFrame {
+                stamp: (i + 1) * PERIOD,
+                has_truth: true,
+                has_detections: true,
+                ..Default::default()
+            };
+            for car in 0..3u64 {
+                let (x, y) = (2.5 * i as f64 + 10.0 * car as f64, 6.0 * car as f64);
+                f.truth.push(truth(car + 1, x, y));
+                let n = |r: &mut Lcg| 0.2 * (r.next() - 0.5);
+                f.detections.push(det(
+                    x + n(&mut rng),
+                    y + n(&mut rng),
+                    0.7 + 0.2 * rng.next(),
+                ));
+                f.detections
+                    .push(det(x + 0.5, y + 0.3, 0.2 + 0.1 * rng.next()));
+            }
+            let (cx, cy) = (100.0 * rng.next() - 50.0, 100.0 * rng.next() - 50.0);
+            f.detections.push(det(cx, cy, 0.3 * rng.next()));
+            f
+        })
+        .collect();
+    TuneLog {
+        name: format!("synthetic_{seed}"),
+        frames,
+    }
+}
+
+fn options(budget: usize) -> TuneOptions {
+    TuneOptions {
+        scoring: Scoring {
+            protocol: Protocol::Nuscenes,
+            iou: 0.25,
+        },
+        limits: SearchLimits { budget, rounds: 2 },
+        dt_nominal: None,
+        min_samples: 10,
+        classes: vec![],
+    }
+}
+
+#[test]
+fn search_beats_the_base_on_synthetic_logs_and_is_deterministic() {
+    let logs: Vec<TuneLog> = (1..=2).map(synthetic_log).collect();
+    let refs: Vec<&TuneLog> = logs.iter().collect();
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let o = options(40);
+    let run = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap())
+    };
+    let a = run(1);
+    let b = run(2);
+    assert_eq!(
+        a.tuned, b.tuned,
+        "the result depends on the number of threads"
+    );
+    assert_eq!(a.classes.len(), 1);
+    let car = &a.classes[0];
+    assert!(car.evaluations <= 40);
+    // The duplicates cost the base config precision; some lever (NMS, birth score, score floor,
+    // min_hits) removes them.
+    assert!(
+        car.score > car.base_score + 0.01,
+        "tuned {} vs base {}",
+        car.score,
+        car.base_score
+    );
+    assert!(!car.steps.is_empty());
+    // The tuned config is valid and differs from the fitted one only in the car entry.
+    a.tuned.validate().unwrap();
+    assert_ne!(a.tuned.classes["car"], a.fitted.classes["car"]);
+    assert_eq!(a.tuned.classes["bus"], a.fitted.classes["bus"]);
+}
+
+#[test]
+fn cross_validation_scores_held_out_logs() {
+    let logs: Vec<TuneLog> = (1..=4).map(synthetic_log).collect();
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let cv = cross_validate(&base, &logs, 2, &options(25), &ProgressBar::hidden()).unwrap();
+    assert_eq!(cv.folds.len(), 2);
+    assert_eq!(cv.folds[0].held_out, vec!["synthetic_1", "synthetic_2"]);
+    assert_eq!(cv.folds[1].held_out, vec!["synthetic_3", "synthetic_4"]);
+    // The duplicates are systematic, so what is learnt on one fold carries to the other.
+    assert!(overall(&cv.tuned) > overall(&cv.base));
+    assert!(cross_validate(&base, &logs[..1], 2, &options(5), &ProgressBar::hidden()).is_err());
+}
+
+#[test]
+fn cli_tune_writes_a_config_that_track_accepts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tuned.json");
+    let logs = [
+        common::repo("sample_logs/pedestrians.mcap"),
+        common::repo("sample_logs/turning-car.mcap"),
+    ];
+    let (l0, l1) = (logs[0].to_str().unwrap(), logs[1].to_str().unwrap());
+    let o = out.to_str().unwrap();
+    let args = [
+        "tune",
+        l0,
+        l1,
+        "-o",
+        o,
+        "--protocol",
+        "nuscenes",
+        "--folds",
+        "2",
+        "--budget",
+        "6",
+        "--quiet",
+        "--json",
+    ];
+    let r = common::probmot_ok(&args);
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    assert_eq!(v["cross_validation"]["folds"].as_array().unwrap().len(), 2);
+    let cfg = TrackerConfig::from_json(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert!(cfg.name.starts_with("tune of 2 log(s)"));
+    let tracked = dir.path().join("t.mcap");
+    common::probmot_ok(&[
+        "track",
+        l0,
+        "-o",
+        tracked.to_str().unwrap(),
+        "--config",
+        o,
+        "--quiet",
+    ]);
+    assert!(!common::tracks(&tracked, "/tracks").is_empty());
+    // Bad input: a log without ground truth is refused with its name.
+    let r = common::probmot(&[
+        "tune",
+        tracked.to_str().unwrap(),
+        "-o",
+        o,
+        "--truth-topic",
+        "/nope",
+        "--quiet",
+    ]);
+    assert!(!r.status.success());
+    assert!(String::from_utf8_lossy(&r.stderr).contains("t.mcap"));
+}
+
+/// The acceptance run, reduced to fit CI time: 2-fold cross-validation of the car class on the
+/// ten KITTI train sequences with a small budget; the tuned configs must beat the fitted base
+/// config on the held-out folds. (Pedestrians and cyclists are left out: with these two folds
+/// their tuned settings do not carry to the other fold, see docs/tune.md.)
+#[test]
+fn kitti_two_fold_cross_validation_beats_the_base() {
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/data/kitti-tracking-train");
+    if !data.is_dir() {
+        common::skip(
+            "kitti_two_fold_cross_validation_beats_the_base",
+            "no ../shared/data/kitti-tracking-train",
+        );
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let seqs = [
+        "0000", "0002", "0003", "0004", "0005", "0007", "0009", "0011", "0017", "0020",
+    ];
+    let logs: Vec<TuneLog> = seqs
+        .iter()
+        .map(|s| {
+            let out = dir.path().join(format!("{s}.mcap"));
+            let dets =
+                probmot::pipeline::kitti_io::resolve_detection_files(&[data.join("pointrcnn")], s)
+                    .unwrap();
+            let labels = data.join("label_02").join(format!("{s}.txt"));
+            probmot::pipeline::kitti_io::import_kitti(Some(&labels), &dets, None, s, &out).unwrap();
+            TuneLog::load(&out, "/ground_truth", "/detections").unwrap()
+        })
+        .collect();
+    let o = TuneOptions {
+        scoring: Scoring {
+            protocol: Protocol::Kitti,
+            iou: 0.25,
+        },
+        limits: SearchLimits {
+            budget: 12,
+            rounds: 1,
+        },
+        dt_nominal: None,
+        min_samples: 50,
+        classes: vec!["car".into()],
+    };
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let cv = cross_validate(&base, &logs, 2, &o, &ProgressBar::hidden()).unwrap();
+    eprintln!("base {:?}\ntuned {:?}", cv.base, cv.tuned);
+    assert_eq!(cv.tuned.len(), 1);
+    assert!(
+        cv.tuned["car"] > cv.base["car"],
+        "held-out sAMOTA: tuned {:?} vs base {:?}",
+        cv.tuned,
+        cv.base
+    );
+}
