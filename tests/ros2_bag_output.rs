@@ -151,20 +151,7 @@ fn tracks_channel(path: &Path) -> Vec<(String, String, Vec<u8>)> {
 #[test]
 fn ros2_tracks_carry_the_same_tracks_as_probmot_tracks() {
     let dir = tempfile::tempdir().unwrap();
-    let ros = dir.path().join("ros.mcap");
-    let pb = dir.path().join("pb.mcap");
-    let input = repo(ROS2_FIXTURE);
-    let input = input.to_str().unwrap();
-    probmot_ok(&["track", input, "-o", ros.to_str().unwrap(), "--quiet"]);
-    probmot_ok(&[
-        "track",
-        input,
-        "-o",
-        pb.to_str().unwrap(),
-        "--quiet",
-        "--tracks-format",
-        "probmot",
-    ]);
+    let (ros, pb) = common::track_ros2_fixture_both_ways(dir.path());
     let ros_msgs = tracks_channel(&ros);
     let pb_msgs = tracks(&pb, "/tracks");
     assert_eq!(ros_msgs.len(), pb_msgs.len());

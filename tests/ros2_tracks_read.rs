@@ -17,20 +17,7 @@ use probmot::viz::{read_layers, Layer};
 
 /// Tracks the ROS 2 fixture twice into `dir`: `(ROS 2 tracks, probmot tracks)`.
 fn tracked_both_ways(dir: &Path) -> (PathBuf, PathBuf) {
-    let input = repo("tests/fixtures/ros2/city.mcap");
-    let input = input.to_str().unwrap();
-    let ros = dir.join("ros.mcap");
-    let pb = dir.join("pb.mcap");
-    probmot_ok(&["track", input, "-o", ros.to_str().unwrap(), "--quiet"]);
-    probmot_ok(&[
-        "track",
-        input,
-        "-o",
-        pb.to_str().unwrap(),
-        "--quiet",
-        "--tracks-format",
-        "probmot",
-    ]);
+    let (ros, pb) = common::track_ros2_fixture_both_ways(dir);
     let schemas: Vec<String> = messages(&ros)
         .into_iter()
         .filter(|m| m.topic == "/tracks")

@@ -284,17 +284,22 @@ mod tests {
         );
     }
 
-    #[test]
-    fn encoded_tracks_decode_with_the_ros2_reader() {
-        let msg = Tracks3D {
+    /// Two tracks in `map`; the pedestrian's label of odd length and negative yaw put padding
+    /// before the doubles.
+    fn two_tracks() -> Tracks3D {
+        Tracks3D {
             stamp: 1_700_000_000_250_000_000,
             frame_id: "map".into(),
             tracks: vec![
                 track(7, "car", [10.0, -2.5, 0.8], 0.3, 0.9),
-                // A label of odd length and a negative yaw: padding before the doubles.
                 track(12345678901, "pedestrian", [-1.0, 3.0, 0.9], -2.0, 0.55),
             ],
-        };
+        }
+    }
+
+    #[test]
+    fn encoded_tracks_decode_with_the_ros2_reader() {
+        let msg = two_tracks();
         let mut buf = Vec::new();
         encode_tracks_into(&msg, &mut buf);
         let back = decode(&buf, VisionLayout::V4).unwrap();
@@ -317,14 +322,7 @@ mod tests {
 
     #[test]
     fn tracks_read_back_with_their_ids() {
-        let msg = Tracks3D {
-            stamp: 1_700_000_000_250_000_000,
-            frame_id: "map".into(),
-            tracks: vec![
-                track(7, "car", [10.0, -2.5, 0.8], 0.3, 0.9),
-                track(12345678901, "pedestrian", [-1.0, 3.0, 0.9], -2.0, 0.55),
-            ],
-        };
+        let msg = two_tracks();
         let mut buf = Vec::new();
         encode_tracks_into(&msg, &mut buf);
         let back = decode_tracks(&buf, VisionLayout::V4).unwrap();
