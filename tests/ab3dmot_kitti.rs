@@ -206,16 +206,7 @@ fn ab3dmot_kitti_preset_gives_ab3dmots_tracks_and_scores() {
                     let input = tmp_path(ours_dir, seq, "input.mcap");
                     let tracked = ours_dir.join(format!("{seq}.mcap"));
                     let exported = tmp_path(ours_dir, seq, "txt");
-                    probmot_ok(&[
-                        "import",
-                        "kitti",
-                        "--labels",
-                        s(&label),
-                        "--detections",
-                        s(&data.join("pointrcnn")),
-                        "-o",
-                        s(&input),
-                    ]);
+                    common::import_kitti_sequence(data, seq, &input);
                     probmot_ok(&[
                         "track",
                         s(&input),

@@ -179,18 +179,7 @@ fn kitti_hota_equals_trackeval_on_the_train_sequences() {
     for seq in &seqs {
         let input = tmp.path().join(format!("{seq}.mcap"));
         let out = tracked.join(format!("{seq}.mcap"));
-        let label = data.join(format!("label_02/{seq}.txt"));
-        let dets = data.join("pointrcnn");
-        probmot_ok(&[
-            "import",
-            "kitti",
-            "--labels",
-            s(&label),
-            "--detections",
-            s(&dets),
-            "-o",
-            s(&input),
-        ]);
+        common::import_kitti_sequence(&data, seq, &input);
         probmot_ok(&["track", s(&input), "-o", s(&out), "--quiet"]);
         let result = results.join(format!("{seq}.txt"));
         probmot_ok(&["export", "kitti", s(&out), "-o", s(&result)]);

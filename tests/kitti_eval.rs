@@ -84,17 +84,7 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
         std::fs::create_dir_all(dir.join("results")).unwrap();
         let input = dir.join(format!("{seq}.mcap"));
         let out = dir.join("out.mcap");
-        let label = data.join(format!("label_02/{seq}.txt"));
-        probmot_ok(&[
-            "import",
-            "kitti",
-            "--labels",
-            s(&label),
-            "--detections",
-            s(&data.join("pointrcnn")),
-            "-o",
-            s(&input),
-        ]);
+        common::import_kitti_sequence(&data, seq, &input);
         let mut track = vec!["track", s(&input), "-o", s(&out), "--quiet"];
         let extra: Vec<&str> = run["track_args"]
             .as_array()
@@ -150,16 +140,7 @@ fn kitti_eval_table_and_gate() {
     };
     let tmp = tempfile::tempdir().unwrap();
     let input = tmp.path().join("0000.mcap");
-    probmot_ok(&[
-        "import",
-        "kitti",
-        "--labels",
-        s(&data.join("label_02/0000.txt")),
-        "--detections",
-        s(&data.join("pointrcnn")),
-        "-o",
-        s(&input),
-    ]);
+    common::import_kitti_sequence(&data, "0000", &input);
     let ab = tmp.path().join("ab.mcap");
     let nu = tmp.path().join("nu.mcap");
     probmot_ok(&[

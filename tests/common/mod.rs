@@ -183,3 +183,40 @@ pub fn truth_to_track(frames: &[Tracks3D]) -> std::collections::BTreeMap<u64, Ve
 pub fn id_switches(seq: &[(usize, u64)]) -> usize {
     seq.windows(2).filter(|w| w[0].1 != w[1].1).count()
 }
+
+/// Tracks the ROS 2 fixture (tests/fixtures/ros2/city.mcap) twice into `dir`: with the default
+/// tracks format (ROS 2 messages) and with `--tracks-format probmot`; `(ROS 2, probmot)` outputs.
+pub fn track_ros2_fixture_both_ways(dir: &Path) -> (PathBuf, PathBuf) {
+    let input = repo("tests/fixtures/ros2/city.mcap");
+    let input = input.to_str().unwrap();
+    let ros = dir.join("ros.mcap");
+    let pb = dir.join("pb.mcap");
+    probmot_ok(&["track", input, "-o", ros.to_str().unwrap(), "--quiet"]);
+    probmot_ok(&[
+        "track",
+        input,
+        "-o",
+        pb.to_str().unwrap(),
+        "--quiet",
+        "--tracks-format",
+        "probmot",
+    ]);
+    (ros, pb)
+}
+
+/// `probmot import kitti` of one sequence of a KITTI tracking folder (`label_02/SEQ.txt` and the
+/// PointRCNN detections in `pointrcnn/`) into `out`.
+pub fn import_kitti_sequence(data: &Path, seq: &str, out: &Path) {
+    let label = data.join(format!("label_02/{seq}.txt"));
+    let dets = data.join("pointrcnn");
+    probmot_ok(&[
+        "import",
+        "kitti",
+        "--labels",
+        label.to_str().unwrap(),
+        "--detections",
+        dets.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+}
