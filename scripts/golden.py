@@ -142,7 +142,9 @@ def run_all(r: Runner) -> list:
     tracked = sorted(o.glob("sample-*.tracked.mcap"))
     r.run("eval-many", ["eval", "--truth", *tracked, "--json"])
     # nuScenes tables -> MCAP -> track -> eval with the range filter -> submission JSON.
-    fixtures = ROOT / "tests" / "fixtures"
+    # Relative (runs start in ROOT): the imported recordings name their source file, and a
+    # relative name keeps them the same in every clone.
+    fixtures = Path("tests") / "fixtures"
     nin = o / "nuscenes-in"
     r.run("import-nuscenes", ["import", "nuscenes", "--detections", fixtures / "nuscenes" / "results.json",
                               "--meta", fixtures / "nuscenes", "-o", nin],
