@@ -12,7 +12,7 @@ use crate::mcapio::writer::{check_output_path, write_file_atomic};
 use crate::msgs::{self, Track3D, Tracks3D};
 use crate::tracker::config::NUSCENES_CLASSES;
 
-use super::import::{scene_samples, table};
+use super::plan::{scene_samples, table};
 use super::tables::{read_all, SampleRow, SceneRow};
 use super::{yaw_quaternion, MAX_BOXES_PER_SAMPLE, NUSCENES_METADATA, SAMPLES_METADATA};
 
@@ -346,7 +346,7 @@ pub(crate) fn tracking_box(t: &Track3D, sample_token: &str) -> Result<TrackingBo
 
 #[cfg(test)]
 mod tests {
-    use super::super::import::nusc_size;
+    use super::super::nusc_size;
     use super::super::quaternion_yaw;
     use super::*;
     use crate::msgs::v3;

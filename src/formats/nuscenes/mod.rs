@@ -4,8 +4,9 @@
 //! and/or a tracking submission, and the dataset's metadata tables (`sample.json`, `scene.json`,
 //! ...) into one MCAP file per scene. Export writes `Tracks3D` channels of such files as a
 //! tracking submission. Files: `tables` (table rows and readers), `results` (detection results),
-//! `tracks` (tracking submissions, bicycle racks), `import` (checks and plan), `scene_file`
-//! (writing one scene), `export`.
+//! `tracks` (tracking submissions, bicycle racks), `plan` (the scenes and their sample chains), `truth`
+//! (ground truth), `ego_pose`, `import` (the import: checks, then one file per scene),
+//! `scene_file` (writing one scene), `export`.
 //!
 //! Conventions (nuScenes -> probmot):
 //! - boxes stay in the global frame (`frame_id` [`FRAME_ID`]), centre = `translation`;
@@ -15,15 +16,21 @@
 //!   quaternion `[cos(yaw/2), 0, 0, sin(yaw/2)]`;
 //! - a frame per sample, stamp = sample `timestamp` (µs) × 1000 ns.
 
+mod ego_pose;
 mod export;
 mod import;
+mod plan;
 mod results;
 mod scene_file;
 mod tables;
 pub mod tracks;
+mod truth;
 
 pub use export::*;
-pub use import::{import_nuscenes, ImportOptions, ImportSummary, SceneSummary};
+pub use import::{import_nuscenes, ImportOptions, ImportSummary};
+pub use scene_file::SceneSummary;
+
+use std::collections::BTreeMap;
 
 /// Metadata record with the scene: `scene_token`, `scene_name`, `scene_description`,
 /// `nbr_samples`, `detections_file`, `ground_truth` (`true`/`false`), `ego_pose` (`true`/`false`).
@@ -91,6 +98,19 @@ pub fn tracking_name(category: &str) -> Option<&'static str> {
 pub fn quaternion_yaw(q: [f64; 4]) -> f64 {
     let [w, x, y, z] = q;
     (2.0 * (w * z + x * y)).atan2(w * w + x * x - y * y - z * z)
+}
+
+/// `[w, l, h]` -> probmot size.
+pub(crate) fn nusc_size(s: [f64; 3]) -> crate::msgs::Size3 {
+    crate::msgs::size3([s[1], s[0], s[2]])
+}
+
+/// String attributes from `(key, value)` pairs.
+pub(crate) fn attrs(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
+    pairs
+        .iter()
+        .map(|(k, v)| (k.to_string(), v.clone()))
+        .collect()
 }
 
 /// The rotation about +z by `yaw` as a quaternion `[w, x, y, z]`.
