@@ -228,6 +228,27 @@ pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
     Ok(out)
 }
 
+/// The frames of one tracks topic (`probmot.Tracks3D` or ROS 2 tracks, [`TopicKind::Tracks`]):
+/// `(stamp, tracks)` per message in file order; an error when the file has no such channel.
+pub fn tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Track3D>)>> {
+    let req = TopicRequest {
+        topic: topic.to_string(),
+        kind: TopicKind::Tracks,
+        role: "tracks or ground truth".to_string(),
+    };
+    let read = frames(path, std::slice::from_ref(&req))?;
+    let Some(frames) = read.frames.into_iter().next().flatten() else {
+        bail!("{}: no channel with topic {topic}", path.display());
+    };
+    frames
+        .into_iter()
+        .map(|f| match f.boxes {
+            Boxes::Tracks(t) => Ok((f.stamp, t)),
+            Boxes::Detections(_) => bail!("{}: topic {topic} gave detections", path.display()),
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -294,6 +315,23 @@ mod tests {
             kind,
             role: "test".into(),
         }
+    }
+
+    #[test]
+    fn tracks_topic_gives_stamped_tracks_or_names_the_missing_topic() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let t = tracks_topic(&path, "/tracks").unwrap();
+        // The second message has stamp 0: its log_time (40) stands in.
+        let stamps: Vec<u64> = t.iter().map(|f| f.0).collect();
+        assert_eq!(stamps, [7, 40]);
+        assert!(t.iter().all(|f| f.1.len() == 1 && f.1[0].id == 4));
+        let err = tracks_topic(&path, "/gt").unwrap_err().to_string();
+        assert!(err.contains("log.mcap: no channel with topic /gt"), "{err}");
+        // A detections channel is not a tracks topic.
+        let err = format!("{:#}", tracks_topic(&path, "/detections").unwrap_err());
+        assert!(err.contains("/detections"), "{err}");
     }
 
     #[test]

@@ -5,11 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
 
-use crate::eval::scene::read_tracks_topic;
 use crate::formats::kitti::{
     box_to_camera, camera_to_box, format_row, parse_detection_line, parse_label_line, KittiRow,
 };
 use crate::mcapio::reader::read_records;
+use crate::mcapio::recording::tracks_topic;
 use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
 use crate::msgs::size3;
 use crate::msgs::{self, v3, Detection3D, Detections3D, ImageBox, Track3D, Tracks3D};
@@ -18,6 +18,10 @@ use crate::tracker::Box3;
 /// KITTI has no absolute times: an imported log starts at 2026-01-01T00:00:00Z, as simulated
 /// logs do (`sim::write::START_NS`).
 const START_NS: u64 = 1_767_225_600_000_000_000;
+
+/// Coordinate frame of the imported boxes: KITTI's camera frame turned z-up
+/// ([`camera_to_box`]).
+const FRAME_ID: &str = "kitti_camera_z_up";
 
 /// KITTI tracking runs at 10 Hz.
 pub const KITTI_PERIOD_NS: u64 = 100_000_000;
@@ -224,50 +228,20 @@ pub fn import_kitti(
             publish_time: stamp,
         };
         let rows = dets.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
-        let msg = Detections3D {
-            stamp: Some(stamp),
-            frame_id: "kitti_camera_z_up".into(),
-            detections: rows
-                .iter()
-                .map(|r| {
-                    let b = camera_to_box(r.hwl, r.xyz, r.rotation_y);
-                    Detection3D {
-                        center: Some(v3(b.center)),
-                        size: Some(size3(b.size)),
-                        yaw: b.yaw,
-                        label: r.kind.to_lowercase(),
-                        score: r.score.unwrap_or(0.0),
-                        velocity: None,
-                        image_box: Some(image_box(r.bbox)),
-                        attributes: attrs(&[
-                            (attr::TYPE, r.kind.clone()),
-                            (attr::ALPHA, format!("{}", r.alpha)),
-                        ]),
-                    }
-                })
-                .collect(),
-        };
+        let msg = detections_msg(stamp, rows);
         summary.detections += rows.len() as u64;
         msgs::encode_into(&msg, &mut buf);
         w.write_to_known_channel(&header(c_det), &buf)?;
         if let Some(c_gt) = c_gt {
             let rows = truth.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
-            let gt = Tracks3D {
-                stamp,
-                frame_id: "kitti_camera_z_up".into(),
-                tracks: rows.iter().map(truth_track).collect(),
-            };
+            let gt = tracks_msg(stamp, rows.iter().map(truth_track).collect());
             summary.truth_rows += rows.len() as u64;
             msgs::encode_into(&gt, &mut buf);
             w.write_to_known_channel(&header(c_gt), &buf)?;
         }
         if let Some(c_trk) = c_trk {
             let rows = results.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
-            let msg = Tracks3D {
-                stamp,
-                frame_id: "kitti_camera_z_up".into(),
-                tracks: rows.iter().map(result_track).collect(),
-            };
+            let msg = tracks_msg(stamp, rows.iter().map(result_track).collect());
             summary.track_rows += rows.len() as u64;
             msgs::encode_into(&msg, &mut buf);
             w.write_to_known_channel(&header(c_trk), &buf)?;
@@ -276,6 +250,42 @@ pub fn import_kitti(
     out.commit()?;
     summary.frames = last + 1;
     Ok(summary)
+}
+
+/// The `/detections` message of one frame's detection rows.
+fn detections_msg(stamp: u64, rows: &[KittiRow]) -> Detections3D {
+    Detections3D {
+        stamp: Some(stamp),
+        frame_id: FRAME_ID.into(),
+        detections: rows
+            .iter()
+            .map(|r| {
+                let b = camera_to_box(r.hwl, r.xyz, r.rotation_y);
+                Detection3D {
+                    center: Some(v3(b.center)),
+                    size: Some(size3(b.size)),
+                    yaw: b.yaw,
+                    label: r.kind.to_lowercase(),
+                    score: r.score.unwrap_or(0.0),
+                    velocity: None,
+                    image_box: Some(image_box(r.bbox)),
+                    attributes: attrs(&[
+                        (attr::TYPE, r.kind.clone()),
+                        (attr::ALPHA, format!("{}", r.alpha)),
+                    ]),
+                }
+            })
+            .collect(),
+    }
+}
+
+/// A `Tracks3D` message of one frame.
+fn tracks_msg(stamp: u64, tracks: Vec<Track3D>) -> Tracks3D {
+    Tracks3D {
+        stamp,
+        frame_id: FRAME_ID.into(),
+        tracks,
+    }
 }
 
 fn truth_track(r: &KittiRow) -> Track3D {
@@ -370,7 +380,7 @@ pub fn export_kitti(
 ) -> Result<ExportSummary> {
     check_output_path(Some(input), output)?;
     let (first, period) = kitti_time_base(input)?;
-    let frames = read_tracks_topic(input, topic)?;
+    let frames = tracks_topic(input, topic)?;
     let mut text = String::new();
     let mut summary = ExportSummary::default();
     let truth = topic != "/tracks" && !scores;
@@ -387,10 +397,11 @@ pub fn export_kitti(
             summary.frames += 1;
         }
         for b in boxes {
+            let (c, s) = (b.center.unwrap_or_default(), b.size.unwrap_or_default());
             let bx = Box3 {
-                center: b.center,
+                center: [c.x, c.y, c.z],
                 yaw: b.yaw,
-                size: b.size,
+                size: [s.length, s.width, s.height],
             };
             let (hwl, xyz, ry) = box_to_camera(&bx);
             let a = &b.attributes;
@@ -420,7 +431,7 @@ pub fn export_kitti(
                     0
                 },
                 alpha: parse(attr::ALPHA, -10.0),
-                bbox: b.image_box.unwrap_or([0.0; 4]),
+                bbox: b.image_box.map_or([0.0; 4], |i| [i.x1, i.y1, i.x2, i.y2]),
                 hwl,
                 xyz,
                 rotation_y: ry,
