@@ -1,6 +1,6 @@
 //! `probmot export nuscenes`: `Tracks3D` channels as a tracking submission.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -180,48 +180,17 @@ pub fn export_nuscenes(
         check_output_path(Some(i), output)?;
     }
     let tables = match &opts.meta_dir {
-        Some(dir) => {
-            let samples: HashMap<String, SampleRow> =
-                read_all::<SampleRow>(&table(dir, "sample.json"))?
-                    .into_iter()
-                    .map(|s| (s.token.clone(), s))
-                    .collect();
-            let scenes: Vec<SceneRow> = read_all(&table(dir, "scene.json"))?;
-            Some((dir, samples, scenes))
-        }
+        Some(dir) => Some(ExportTables::read(dir)?),
         None => None,
     };
     let mut summary = ExportSummary::default();
     let mut results: BTreeMap<String, Vec<TrackingBox>> = BTreeMap::new();
     let mut owner: HashMap<String, String> = HashMap::new();
-    let classes: HashSet<&str> = NUSCENES_CLASSES.iter().copied().collect();
     for input in inputs {
         let file = input.display().to_string();
         let inp = read_export_input(input, &opts.topic)?;
-        let scene_name = inp.scene.get("scene_name").cloned().unwrap_or_default();
-        if let Some((dir, samples, scenes)) = &tables {
-            let tok = inp.scene.get("scene_token").with_context(|| {
-                format!("{file}: metadata {NUSCENES_METADATA} lacks scene_token")
-            })?;
-            let scene = scenes.iter().find(|s| s.token == *tok).with_context(|| {
-                format!(
-                    "{file}: scene {scene_name} ({tok}) is not in {}",
-                    table(dir, "scene.json").display()
-                )
-            })?;
-            let chain = scene_samples(dir, scene, samples)?;
-            let want: BTreeMap<u64, String> =
-                chain.into_iter().map(|(t, us)| (us * 1000, t)).collect();
-            if want != inp.samples {
-                bail!(
-                    "{file}: the samples recorded for scene {} ({tok}) differ from those of {} \
-                     ({} recorded, {} in the tables)",
-                    scene.name,
-                    dir.display(),
-                    inp.samples.len(),
-                    want.len()
-                );
-            }
+        if let Some(t) = &tables {
+            t.check(&file, &inp)?;
         }
         summary.scenes += 1;
         for tok in inp.samples.values() {
@@ -230,73 +199,10 @@ pub fn export_nuscenes(
             }
             results.entry(tok.clone()).or_default();
         }
-        let mut labels_of: HashMap<u64, String> = HashMap::new();
-        let mut relabelled = 0u64;
-        for (stamp, tracks) in inp.frames {
-            let tok = inp.samples.get(&stamp).with_context(|| {
-                format!(
-                    "{file}: topic {}: a frame at stamp {stamp} ns is not a sample of the scene \
-                     (metadata {SAMPLES_METADATA})",
-                    opts.topic
-                )
-            })?;
-            let list = results.get_mut(tok).expect("inserted above");
-            for t in tracks {
-                if !classes.contains(t.label.as_str()) {
-                    *summary.skipped_labels.entry(t.label.clone()).or_default() += 1;
-                    continue;
-                }
-                let b = tracking_box(&t, tok).with_context(|| {
-                    format!(
-                        "{file}: topic {}, stamp {stamp} (sample {tok}), track {}",
-                        opts.topic, t.id
-                    )
-                })?;
-                if let Some(prev) = labels_of.insert(t.id, t.label.clone()) {
-                    if prev != t.label {
-                        relabelled += 1;
-                    }
-                }
-                list.push(b);
-            }
-        }
-        if relabelled > 0 {
-            summary.warnings.push(format!(
-                "{file}: {relabelled} boxes have a label different from an earlier box of the \
-                 same track; the devkit expects one tracking_name per track"
-            ));
-        }
+        add_frames(&file, inp, &opts.topic, &mut results, &mut summary)?;
     }
-    for list in results.values_mut() {
-        if list.len() > MAX_BOXES_PER_SAMPLE {
-            summary.samples_over_cap += 1;
-            summary.dropped_over_cap += (list.len() - MAX_BOXES_PER_SAMPLE) as u64;
-            list.sort_by(|a, b| b.tracking_score.total_cmp(&a.tracking_score));
-            list.truncate(MAX_BOXES_PER_SAMPLE);
-        }
-        summary.boxes += list.len() as u64;
-    }
-    summary.samples = results.len() as u64;
-    if summary.dropped_over_cap > 0 {
-        summary.warnings.push(format!(
-            "{} samples had more than {MAX_BOXES_PER_SAMPLE} boxes; dropped their {} \
-             lowest-scoring boxes",
-            summary.samples_over_cap, summary.dropped_over_cap
-        ));
-    }
-    if !summary.skipped_labels.is_empty() {
-        let parts: Vec<String> = summary
-            .skipped_labels
-            .iter()
-            .map(|(l, n)| format!("{} {n}", if l.is_empty() { "(empty)" } else { l }))
-            .collect();
-        summary.warnings.push(format!(
-            "skipped {} boxes whose label is not a tracking class ({}): {}",
-            summary.skipped_labels.values().sum::<u64>(),
-            NUSCENES_CLASSES.join(", "),
-            parts.join(", ")
-        ));
-    }
+    summary.cap_samples(&mut results);
+    summary.skipped_warning();
     let sub = Submission {
         meta: opts.meta,
         results,
@@ -304,6 +210,151 @@ pub fn export_nuscenes(
     let bytes = serde_json::to_vec(&sub).context("serializing the submission")?;
     write_file_atomic(output, &bytes)?;
     Ok(summary)
+}
+
+/// The dataset tables an export checks each input's samples against (`--meta`).
+struct ExportTables<'a> {
+    dir: &'a Path,
+    samples: HashMap<String, SampleRow>,
+    scenes: Vec<SceneRow>,
+}
+
+impl<'a> ExportTables<'a> {
+    fn read(dir: &'a Path) -> Result<Self> {
+        let samples: HashMap<String, SampleRow> =
+            read_all::<SampleRow>(&table(dir, "sample.json"))?
+                .into_iter()
+                .map(|s| (s.token.clone(), s))
+                .collect();
+        let scenes: Vec<SceneRow> = read_all(&table(dir, "scene.json"))?;
+        Ok(ExportTables {
+            dir,
+            samples,
+            scenes,
+        })
+    }
+
+    /// The samples recorded in input `file` are those of its scene in the tables.
+    fn check(&self, file: &str, inp: &ExportInput) -> Result<()> {
+        let dir = self.dir;
+        let scene_name = inp.scene.get("scene_name").cloned().unwrap_or_default();
+        let tok = inp
+            .scene
+            .get("scene_token")
+            .with_context(|| format!("{file}: metadata {NUSCENES_METADATA} lacks scene_token"))?;
+        let scene = self
+            .scenes
+            .iter()
+            .find(|s| s.token == *tok)
+            .with_context(|| {
+                format!(
+                    "{file}: scene {scene_name} ({tok}) is not in {}",
+                    table(dir, "scene.json").display()
+                )
+            })?;
+        let chain = scene_samples(dir, scene, &self.samples)?;
+        let want: BTreeMap<u64, String> = chain.into_iter().map(|(t, us)| (us * 1000, t)).collect();
+        if want != inp.samples {
+            bail!(
+                "{file}: the samples recorded for scene {} ({tok}) differ from those of {} \
+                 ({} recorded, {} in the tables)",
+                scene.name,
+                dir.display(),
+                inp.samples.len(),
+                want.len()
+            );
+        }
+        Ok(())
+    }
+}
+
+/// Adds the boxes of one input's frames to `results` (every sample already has its list),
+/// skipping labels outside the tracking classes; warns when a track changes label.
+fn add_frames(
+    file: &str,
+    inp: ExportInput,
+    topic: &str,
+    results: &mut BTreeMap<String, Vec<TrackingBox>>,
+    summary: &mut ExportSummary,
+) -> Result<()> {
+    let mut labels_of: HashMap<u64, String> = HashMap::new();
+    let mut relabelled = 0u64;
+    for (stamp, tracks) in inp.frames {
+        let tok = inp.samples.get(&stamp).with_context(|| {
+            format!(
+                "{file}: topic {topic}: a frame at stamp {stamp} ns is not a sample of the scene \
+                 (metadata {SAMPLES_METADATA})"
+            )
+        })?;
+        let list = results.get_mut(tok).expect("every sample has a list");
+        for t in tracks {
+            if !NUSCENES_CLASSES.contains(&t.label.as_str()) {
+                *summary.skipped_labels.entry(t.label.clone()).or_default() += 1;
+                continue;
+            }
+            let b = tracking_box(&t, tok).with_context(|| {
+                format!(
+                    "{file}: topic {topic}, stamp {stamp} (sample {tok}), track {}",
+                    t.id
+                )
+            })?;
+            if let Some(prev) = labels_of.insert(t.id, t.label.clone()) {
+                if prev != t.label {
+                    relabelled += 1;
+                }
+            }
+            list.push(b);
+        }
+    }
+    if relabelled > 0 {
+        summary.warnings.push(format!(
+            "{file}: {relabelled} boxes have a label different from an earlier box of the \
+             same track; the devkit expects one tracking_name per track"
+        ));
+    }
+    Ok(())
+}
+
+impl ExportSummary {
+    /// Keeps at most [`MAX_BOXES_PER_SAMPLE`] boxes per sample (the highest scores), counting
+    /// samples and boxes, with a warning when any were dropped.
+    fn cap_samples(&mut self, results: &mut BTreeMap<String, Vec<TrackingBox>>) {
+        for list in results.values_mut() {
+            if list.len() > MAX_BOXES_PER_SAMPLE {
+                self.samples_over_cap += 1;
+                self.dropped_over_cap += (list.len() - MAX_BOXES_PER_SAMPLE) as u64;
+                list.sort_by(|a, b| b.tracking_score.total_cmp(&a.tracking_score));
+                list.truncate(MAX_BOXES_PER_SAMPLE);
+            }
+            self.boxes += list.len() as u64;
+        }
+        self.samples = results.len() as u64;
+        if self.dropped_over_cap > 0 {
+            self.warnings.push(format!(
+                "{} samples had more than {MAX_BOXES_PER_SAMPLE} boxes; dropped their {} \
+                 lowest-scoring boxes",
+                self.samples_over_cap, self.dropped_over_cap
+            ));
+        }
+    }
+
+    /// A warning listing the boxes skipped for their label, if any.
+    fn skipped_warning(&mut self) {
+        if self.skipped_labels.is_empty() {
+            return;
+        }
+        let parts: Vec<String> = self
+            .skipped_labels
+            .iter()
+            .map(|(l, n)| format!("{} {n}", if l.is_empty() { "(empty)" } else { l }))
+            .collect();
+        self.warnings.push(format!(
+            "skipped {} boxes whose label is not a tracking class ({}): {}",
+            self.skipped_labels.values().sum::<u64>(),
+            NUSCENES_CLASSES.join(", "),
+            parts.join(", ")
+        ));
+    }
 }
 
 pub(crate) fn tracking_box(t: &Track3D, sample_token: &str) -> Result<TrackingBox> {
