@@ -131,8 +131,19 @@ fn show(f: &Fields) -> String {
 /// `(type name, required, fields)` of the message types of one layout. The vision_msgs types
 /// must be defined in the schema text; the geometry and std types are checked when present.
 fn expected_sections(layout: VisionLayout) -> Vec<(&'static str, bool, Fields)> {
+    // Detection3D first: the most telling difference between layouts.
+    let mut all = match layout {
+        VisionLayout::V4 => v4_sections(),
+        VisionLayout::V2 => v2_sections(),
+    };
+    all.append(&mut common_sections());
+    all
+}
+
+/// The sections both layouts share: the array, the box and the geometry and std types.
+fn common_sections() -> Vec<(&'static str, bool, Fields)> {
     let float3 = [("float64", "x"), ("float64", "y"), ("float64", "z")];
-    let mut common = vec![
+    vec![
         (
             "Detection3DArray",
             true,
@@ -175,86 +186,88 @@ fn expected_sections(layout: VisionLayout) -> Vec<(&'static str, bool, Fields)> 
             false,
             fields(&[("int32", "sec"), ("uint32", "nanosec")]),
         ),
-    ];
-    let specific = match layout {
-        VisionLayout::V4 => vec![
-            (
-                "Detection3D",
-                true,
-                fields(&[
-                    ("Header", "header"),
-                    ("ObjectHypothesisWithPose[]", "results"),
-                    ("BoundingBox3D", "bbox"),
-                    ("string", "id"),
-                ]),
-            ),
-            (
-                "ObjectHypothesisWithPose",
-                true,
-                fields(&[
-                    ("ObjectHypothesis", "hypothesis"),
-                    ("PoseWithCovariance", "pose"),
-                ]),
-            ),
-            (
-                "ObjectHypothesis",
-                true,
-                fields(&[("string", "class_id"), ("float64", "score")]),
-            ),
-        ],
-        VisionLayout::V2 => vec![
-            (
-                "Detection3D",
-                true,
-                fields(&[
-                    ("Header", "header"),
-                    ("ObjectHypothesisWithPose[]", "results"),
-                    ("BoundingBox3D", "bbox"),
-                    ("PointCloud2", "source_cloud"),
-                    ("bool", "is_tracking"),
-                    ("string", "tracking_id"),
-                ]),
-            ),
-            (
-                "ObjectHypothesisWithPose",
-                true,
-                fields(&[
-                    ("string", "id"),
-                    ("float64", "score"),
-                    ("PoseWithCovariance", "pose"),
-                ]),
-            ),
-            (
-                "PointCloud2",
-                false,
-                fields(&[
-                    ("Header", "header"),
-                    ("uint32", "height"),
-                    ("uint32", "width"),
-                    ("PointField[]", "fields"),
-                    ("bool", "is_bigendian"),
-                    ("uint32", "point_step"),
-                    ("uint32", "row_step"),
-                    ("uint8[]", "data"),
-                    ("bool", "is_dense"),
-                ]),
-            ),
-            (
-                "PointField",
-                false,
-                fields(&[
-                    ("string", "name"),
-                    ("uint32", "offset"),
-                    ("uint8", "datatype"),
-                    ("uint32", "count"),
-                ]),
-            ),
-        ],
-    };
-    // Detection3D first: the most telling difference between layouts.
-    let mut all = specific;
-    all.append(&mut common);
-    all
+    ]
+}
+
+/// The sections of the vision_msgs 4.x layout ([`VisionLayout::V4`]).
+fn v4_sections() -> Vec<(&'static str, bool, Fields)> {
+    vec![
+        (
+            "Detection3D",
+            true,
+            fields(&[
+                ("Header", "header"),
+                ("ObjectHypothesisWithPose[]", "results"),
+                ("BoundingBox3D", "bbox"),
+                ("string", "id"),
+            ]),
+        ),
+        (
+            "ObjectHypothesisWithPose",
+            true,
+            fields(&[
+                ("ObjectHypothesis", "hypothesis"),
+                ("PoseWithCovariance", "pose"),
+            ]),
+        ),
+        (
+            "ObjectHypothesis",
+            true,
+            fields(&[("string", "class_id"), ("float64", "score")]),
+        ),
+    ]
+}
+
+/// The sections of the vision_msgs 2.x layout ([`VisionLayout::V2`]).
+fn v2_sections() -> Vec<(&'static str, bool, Fields)> {
+    vec![
+        (
+            "Detection3D",
+            true,
+            fields(&[
+                ("Header", "header"),
+                ("ObjectHypothesisWithPose[]", "results"),
+                ("BoundingBox3D", "bbox"),
+                ("PointCloud2", "source_cloud"),
+                ("bool", "is_tracking"),
+                ("string", "tracking_id"),
+            ]),
+        ),
+        (
+            "ObjectHypothesisWithPose",
+            true,
+            fields(&[
+                ("string", "id"),
+                ("float64", "score"),
+                ("PoseWithCovariance", "pose"),
+            ]),
+        ),
+        (
+            "PointCloud2",
+            false,
+            fields(&[
+                ("Header", "header"),
+                ("uint32", "height"),
+                ("uint32", "width"),
+                ("PointField[]", "fields"),
+                ("bool", "is_bigendian"),
+                ("uint32", "point_step"),
+                ("uint32", "row_step"),
+                ("uint8[]", "data"),
+                ("bool", "is_dense"),
+            ]),
+        ),
+        (
+            "PointField",
+            false,
+            fields(&[
+                ("string", "name"),
+                ("uint32", "offset"),
+                ("uint8", "datatype"),
+                ("uint32", "count"),
+            ]),
+        ),
+    ]
 }
 
 /// Why the schema text does not have `layout`, or `Ok`.
