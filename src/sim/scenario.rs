@@ -111,181 +111,201 @@ const PED: [f64; 3] = [0.7, 0.6, 1.75];
 /// Builds the true objects of a scenario.
 pub fn objects(opts: &SimOptions) -> Vec<SimObject> {
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed);
+    match opts.scenario {
+        Scenario::TurningCar => turning_car(opts),
+        Scenario::Pedestrians => pedestrians(opts, &mut rng),
+        Scenario::City => city(opts, &mut rng),
+    }
+}
+
+/// The turning car (the paper's Figure 2) and its background traffic.
+fn turning_car(opts: &SimOptions) -> Vec<SimObject> {
     let n = opts.frames;
     let dt = opts.dt();
-    match opts.scenario {
-        Scenario::TurningCar => {
-            // The turning car: 10 m/s along +x, then a 90-degree left turn over 3 seconds
-            // (about 19 m radius), then along +y.
-            let turn_start = n / 4;
-            let turn_frames = (3.0 / dt).round().max(1.0) as u32;
-            let rate = FRAC_PI_2 / (turn_frames as f64 * dt);
-            let mut v = vec![scripted(
-                1,
+    // The turning car: 10 m/s along +x, then a 90-degree left turn over 3 seconds
+    // (about 19 m radius), then along +y.
+    let turn_start = n / 4;
+    let turn_frames = (3.0 / dt).round().max(1.0) as u32;
+    let rate = FRAC_PI_2 / (turn_frames as f64 * dt);
+    let mut v = vec![scripted(
+        1,
+        "car",
+        CAR,
+        [-45.0, -2.0, 0.9],
+        0.0,
+        &[
+            (0, 10.0, 0.0),
+            (turn_start, 10.0, rate),
+            (turn_start + turn_frames, 10.0, 0.0),
+        ],
+        n,
+        dt,
+    )];
+    // Background traffic: oncoming and crossing cars and a parked one.
+    let extra = opts.objects.unwrap_or(4);
+    for i in 0..extra {
+        let id = 2 + i as u64;
+        let lane = (i % 4) as f64;
+        let obj = match i % 4 {
+            0 => scripted(
+                id,
                 "car",
                 CAR,
-                [-45.0, -2.0, 0.9],
+                [60.0, 2.0, 0.9],
+                PI,
+                &[(0, 9.0, 0.0)],
+                n,
+                dt,
+            ),
+            1 => scripted(
+                id,
+                "car",
+                CAR,
+                [8.0, -30.0 - 5.0 * lane, 0.9],
+                FRAC_PI_2,
+                &[(0, 7.0, 0.0)],
+                n,
+                dt,
+            ),
+            2 => scripted(
+                id,
+                "car",
+                CAR,
+                [-20.0, 8.0, 0.9],
                 0.0,
-                &[
-                    (0, 10.0, 0.0),
-                    (turn_start, 10.0, rate),
-                    (turn_start + turn_frames, 10.0, 0.0),
-                ],
-                n,
-                dt,
-            )];
-            // Background traffic: oncoming and crossing cars and a parked one.
-            let extra = opts.objects.unwrap_or(4);
-            for i in 0..extra {
-                let id = 2 + i as u64;
-                let lane = (i % 4) as f64;
-                let obj = match i % 4 {
-                    0 => scripted(
-                        id,
-                        "car",
-                        CAR,
-                        [60.0, 2.0, 0.9],
-                        PI,
-                        &[(0, 9.0, 0.0)],
-                        n,
-                        dt,
-                    ),
-                    1 => scripted(
-                        id,
-                        "car",
-                        CAR,
-                        [8.0, -30.0 - 5.0 * lane, 0.9],
-                        FRAC_PI_2,
-                        &[(0, 7.0, 0.0)],
-                        n,
-                        dt,
-                    ),
-                    2 => scripted(
-                        id,
-                        "car",
-                        CAR,
-                        [-20.0, 8.0, 0.9],
-                        0.0,
-                        &[(0, 0.0, 0.0)],
-                        n,
-                        dt,
-                    ),
-                    _ => scripted(
-                        id,
-                        "car",
-                        CAR,
-                        [-70.0 - 10.0 * i as f64, -2.0, 0.9],
-                        0.0,
-                        &[(0, 11.0, 0.0)],
-                        n,
-                        dt,
-                    ),
-                };
-                v.push(obj);
-            }
-            v
-        }
-        Scenario::Pedestrians => {
-            let mut v = Vec::new();
-            let mut id = 1;
-            // Two pairs walking side by side, 0.9 m apart, crossing each other's path.
-            for (k, (x0, y0, yaw)) in [(-10.0, -1.0, 0.0), (10.0, 3.0, PI)]
-                .into_iter()
-                .enumerate()
-            {
-                for side in 0..2 {
-                    let off = 0.9 * side as f64;
-                    let start = if k == 0 {
-                        [x0, y0 + off, 0.9]
-                    } else {
-                        [x0, y0 - off, 0.9]
-                    };
-                    v.push(scripted(
-                        id,
-                        "pedestrian",
-                        PED,
-                        start,
-                        yaw,
-                        &[(0, 1.4, 0.0)],
-                        n,
-                        dt,
-                    ));
-                    id += 1;
-                }
-            }
-            // Crossers on a diagonal, one turning slowly.
-            v.push(scripted(
-                id,
-                "pedestrian",
-                PED,
-                [-6.0, -8.0, 0.9],
-                0.8,
-                &[(0, 1.2, 0.0), (n / 2, 1.2, 0.15)],
-                n,
-                dt,
-            ));
-            id += 1;
-            v.push(scripted(
-                id,
-                "pedestrian",
-                PED,
-                [5.0, -9.0, 0.9],
-                2.2,
-                &[(0, 1.5, 0.0)],
-                n,
-                dt,
-            ));
-            id += 1;
-            // A standing person and a slow car passing by.
-            v.push(scripted(
-                id,
-                "pedestrian",
-                PED,
-                [0.0, 6.0, 0.9],
-                -0.3,
                 &[(0, 0.0, 0.0)],
                 n,
                 dt,
-            ));
-            id += 1;
-            v.push(scripted(
+            ),
+            _ => scripted(
                 id,
                 "car",
                 CAR,
-                [-40.0, -6.0, 0.9],
+                [-70.0 - 10.0 * i as f64, -2.0, 0.9],
                 0.0,
-                &[(0, 5.0, 0.0)],
+                &[(0, 11.0, 0.0)],
+                n,
+                dt,
+            ),
+        };
+        v.push(obj);
+    }
+    v
+}
+
+/// Pairs of pedestrians crossing, crossers, a standing person, a slow car, and `objects` more
+/// walkers at random.
+fn pedestrians(opts: &SimOptions, rng: &mut ChaCha8Rng) -> Vec<SimObject> {
+    let n = opts.frames;
+    let dt = opts.dt();
+    let mut v = Vec::new();
+    let mut id = 1;
+    // Two pairs walking side by side, 0.9 m apart, crossing each other's path.
+    for (k, (x0, y0, yaw)) in [(-10.0, -1.0, 0.0), (10.0, 3.0, PI)]
+        .into_iter()
+        .enumerate()
+    {
+        for side in 0..2 {
+            let off = 0.9 * side as f64;
+            let start = if k == 0 {
+                [x0, y0 + off, 0.9]
+            } else {
+                [x0, y0 - off, 0.9]
+            };
+            v.push(scripted(
+                id,
+                "pedestrian",
+                PED,
+                start,
+                yaw,
+                &[(0, 1.4, 0.0)],
                 n,
                 dt,
             ));
-            let extra = opts.objects.unwrap_or(0);
-            for _ in 0..extra {
-                id += 1;
-                let x0 = rng.random_range(-15.0..15.0);
-                let y0 = rng.random_range(-15.0..15.0);
-                let yaw = rng.random_range(-PI..PI);
-                v.push(scripted(
-                    id,
-                    "pedestrian",
-                    PED,
-                    [x0, y0, 0.9],
-                    yaw,
-                    &[(0, rng.random_range(0.8..1.8), 0.0)],
-                    n,
-                    dt,
-                ));
-            }
-            // Short occlusions: the second person of each pair is hidden for 2 frames when the
-            // pairs pass each other, and a crosser for 1 frame.
-            let mid = (n / 2) as usize;
-            for (obj, frames) in [(1usize, 2usize), (3, 2), (4, 1)] {
-                for f in mid..(mid + frames).min(n as usize) {
-                    v[obj].occluded[f] = true;
-                }
-            }
-            v
+            id += 1;
         }
-        Scenario::City => city(opts, &mut rng),
+    }
+    // Crossers on a diagonal, one turning slowly.
+    v.push(scripted(
+        id,
+        "pedestrian",
+        PED,
+        [-6.0, -8.0, 0.9],
+        0.8,
+        &[(0, 1.2, 0.0), (n / 2, 1.2, 0.15)],
+        n,
+        dt,
+    ));
+    id += 1;
+    v.push(scripted(
+        id,
+        "pedestrian",
+        PED,
+        [5.0, -9.0, 0.9],
+        2.2,
+        &[(0, 1.5, 0.0)],
+        n,
+        dt,
+    ));
+    id += 1;
+    // A standing person and a slow car passing by.
+    v.push(scripted(
+        id,
+        "pedestrian",
+        PED,
+        [0.0, 6.0, 0.9],
+        -0.3,
+        &[(0, 0.0, 0.0)],
+        n,
+        dt,
+    ));
+    id += 1;
+    v.push(scripted(
+        id,
+        "car",
+        CAR,
+        [-40.0, -6.0, 0.9],
+        0.0,
+        &[(0, 5.0, 0.0)],
+        n,
+        dt,
+    ));
+    random_walkers(&mut v, id, opts.objects.unwrap_or(0), opts, rng);
+    // Short occlusions: the second person of each pair is hidden for 2 frames when the
+    // pairs pass each other, and a crosser for 1 frame.
+    let mid = (n / 2) as usize;
+    for (obj, frames) in [(1usize, 2usize), (3, 2), (4, 1)] {
+        for f in mid..(mid + frames).min(n as usize) {
+            v[obj].occluded[f] = true;
+        }
+    }
+    v
+}
+
+/// Adds `extra` pedestrians walking straight from random places, ids after `last_id`.
+fn random_walkers(
+    v: &mut Vec<SimObject>,
+    last_id: u64,
+    extra: u32,
+    opts: &SimOptions,
+    rng: &mut ChaCha8Rng,
+) {
+    let mut id = last_id;
+    for _ in 0..extra {
+        id += 1;
+        let x0 = rng.random_range(-15.0..15.0);
+        let y0 = rng.random_range(-15.0..15.0);
+        let yaw = rng.random_range(-PI..PI);
+        v.push(scripted(
+            id,
+            "pedestrian",
+            PED,
+            [x0, y0, 0.9],
+            yaw,
+            &[(0, rng.random_range(0.8..1.8), 0.0)],
+            opts.frames,
+            opts.dt(),
+        ));
     }
 }
 

@@ -10,7 +10,8 @@ use rand_chacha::ChaCha8Rng;
 
 use super::ego::{self, ego_pose, EgoPose};
 use super::scenario::{objects, SimOptions};
-use super::sensor::detect;
+use super::sensor::{detect, SimDetection};
+use super::SimObject;
 use crate::mcapio::writer::{AtomicOutput, OutputOptions};
 use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 use crate::transforms::sources::FOXGLOVE_FRAME_TRANSFORM;
@@ -69,25 +70,7 @@ pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
     for f in 0..opts.frames as usize {
         let stamp = START_NS + f as u64 * period_ns;
         let dets = detect(opts.scenario, &objs, f, &mut rng);
-        let mut msg = Detections3D {
-            stamp: Some(stamp),
-            frame_id: "map".into(),
-            detections: dets
-                .iter()
-                .map(|d| Detection3D {
-                    center: Some(v3(d.center)),
-                    size: Some(size3(d.size)),
-                    yaw: d.yaw,
-                    label: d.label.into(),
-                    score: d.score,
-                    attributes: BTreeMap::from([(
-                        "sim_truth_id".to_string(),
-                        d.truth_id.to_string(),
-                    )]),
-                    ..Default::default()
-                })
-                .collect(),
-        };
+        let mut msg = detections_msg(&dets, stamp);
         summary.detections += dets.len() as u64;
         let pose = ego_pose(f as f64 * opts.dt());
         if let Some((ch_tf, _)) = ego_channels {
@@ -102,56 +85,90 @@ pub fn write_simulation(opts: &SimOptions, out: &Path) -> Result<SimSummary> {
                 let seq = (f as u64 * per + k) as usize;
                 w.write_to_known_channel(&header(ch_tf, seq, t_ns), &buf)?;
             }
-            msg.frame_id = ego::EGO_FRAME.into();
-            for d in &mut msg.detections {
-                let c = d.center.expect("set above");
-                d.center = Some(v3(pose.to_ego([c.x, c.y, c.z])));
-                d.yaw = pose.yaw_to_ego(d.yaw);
-            }
+            detections_to_ego(&mut msg, &pose);
         }
         msgs::encode_into(&msg, &mut buf);
         w.write_to_known_channel(&header(ch_det, f, stamp), &buf)?;
 
-        let gt = Tracks3D {
-            stamp,
-            frame_id: "map".into(),
-            tracks: objs
-                .iter()
-                .filter_map(|o| {
-                    let s = o.states[f]?;
-                    Some(Track3D {
-                        id: o.id,
-                        label: o.label.into(),
-                        center: Some(v3(s.center)),
-                        size: Some(size3(o.size)),
-                        yaw: s.yaw,
-                        velocity: Some(v3(s.velocity)),
-                        yaw_rate: s.yaw_rate,
-                        score: 1.0,
-                        ..Default::default()
-                    })
-                })
-                .collect(),
-        };
+        let gt = truth_msg(&objs, f, stamp);
         summary.truth_boxes += gt.tracks.len() as u64;
         msgs::encode_into(&gt, &mut buf);
         w.write_to_known_channel(&header(ch_gt, f, stamp), &buf)?;
         if let Some((_, ch_gt_ego)) = ego_channels {
-            let mut gt_ego = gt;
-            gt_ego.frame_id = ego::EGO_FRAME.into();
-            for t in &mut gt_ego.tracks {
-                let c = t.center.expect("set above");
-                let v = t.velocity.expect("set above");
-                t.center = Some(v3(pose.to_ego([c.x, c.y, c.z])));
-                t.velocity = Some(v3(pose.rotate_to_ego([v.x, v.y, v.z])));
-                t.yaw = pose.yaw_to_ego(t.yaw);
-            }
-            msgs::encode_into(&gt_ego, &mut buf);
+            msgs::encode_into(&truth_to_ego(gt, &pose), &mut buf);
             w.write_to_known_channel(&header(ch_gt_ego, f, stamp), &buf)?;
         }
     }
     output.commit()?;
     Ok(summary)
+}
+
+/// The `/detections` message of one frame, in the map frame.
+fn detections_msg(dets: &[SimDetection], stamp: u64) -> Detections3D {
+    Detections3D {
+        stamp: Some(stamp),
+        frame_id: "map".into(),
+        detections: dets
+            .iter()
+            .map(|d| Detection3D {
+                center: Some(v3(d.center)),
+                size: Some(size3(d.size)),
+                yaw: d.yaw,
+                label: d.label.into(),
+                score: d.score,
+                attributes: BTreeMap::from([("sim_truth_id".to_string(), d.truth_id.to_string())]),
+                ..Default::default()
+            })
+            .collect(),
+    }
+}
+
+/// The detections seen from the ego vehicle at `pose`.
+fn detections_to_ego(msg: &mut Detections3D, pose: &EgoPose) {
+    msg.frame_id = ego::EGO_FRAME.into();
+    for d in &mut msg.detections {
+        let c = d.center.expect("set above");
+        d.center = Some(v3(pose.to_ego([c.x, c.y, c.z])));
+        d.yaw = pose.yaw_to_ego(d.yaw);
+    }
+}
+
+/// The `/ground_truth` message of frame `f`: every object present, in the map frame.
+fn truth_msg(objs: &[SimObject], f: usize, stamp: u64) -> Tracks3D {
+    Tracks3D {
+        stamp,
+        frame_id: "map".into(),
+        tracks: objs
+            .iter()
+            .filter_map(|o| {
+                let s = o.states[f]?;
+                Some(Track3D {
+                    id: o.id,
+                    label: o.label.into(),
+                    center: Some(v3(s.center)),
+                    size: Some(size3(o.size)),
+                    yaw: s.yaw,
+                    velocity: Some(v3(s.velocity)),
+                    yaw_rate: s.yaw_rate,
+                    score: 1.0,
+                    ..Default::default()
+                })
+            })
+            .collect(),
+    }
+}
+
+/// The ground truth seen from the ego vehicle at `pose` (`/ground_truth/ego`).
+fn truth_to_ego(mut gt: Tracks3D, pose: &EgoPose) -> Tracks3D {
+    gt.frame_id = ego::EGO_FRAME.into();
+    for t in &mut gt.tracks {
+        let c = t.center.expect("set above");
+        let v = t.velocity.expect("set above");
+        t.center = Some(v3(pose.to_ego([c.x, c.y, c.z])));
+        t.velocity = Some(v3(pose.rotate_to_ego([v.x, v.y, v.z])));
+        t.yaw = pose.yaw_to_ego(t.yaw);
+    }
+    gt
 }
 
 /// The `FileDescriptorSet` of `foxglove.FrameTransform`.
