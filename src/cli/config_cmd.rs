@@ -4,10 +4,10 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
-use probmot::tracker::config::ab3dmot_covariances;
+use probmot::pipeline::overrides::{base_config, Overrides};
 use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Print a built-in preset as JSON, or load, validate and print a config file.
@@ -133,80 +133,35 @@ pub struct TrackerArgs {
 }
 
 impl TrackerArgs {
-    /// The configuration these flags describe, validated.
+    /// The configuration these flags describe, validated ([`Overrides`] holds the rules).
     pub fn resolve(&self) -> Result<TrackerConfig> {
-        let mut cfg = match &self.config {
-            Some(path) => {
-                let text = std::fs::read_to_string(path)
-                    .with_context(|| format!("cannot read config {}", path.display()))?;
-                TrackerConfig::from_json(&text)
-                    .with_context(|| format!("config {}", path.display()))?
-            }
-            None => self
-                .preset
-                .map_or(Preset::NuscenesChiu2019, |p| p.0)
-                .config()?,
-        };
-        if let Some(d) = self.dt_nominal {
-            cfg.dt_nominal = d;
-        }
-        let distance = self.distance.map(|d| match d {
-            DistanceArg::Mahalanobis => DistanceKind::Mahalanobis,
-            DistanceArg::Iou3d => DistanceKind::Iou3d,
-            DistanceArg::Giou3d => DistanceKind::Giou3d,
-            DistanceArg::Center => DistanceKind::Center,
-            DistanceArg::Dist3d => DistanceKind::Dist3d,
-        });
-        let matcher = self.matcher.map(|m| match m {
-            MatcherArg::Greedy => MatcherKind::Greedy,
-            MatcherArg::Hungarian => MatcherKind::Hungarian,
-        });
-        let (p0, q, r) = ab3dmot_covariances();
-        cfg.for_each_class(|c| {
-            if let Some(d) = distance {
-                if d != c.distance && self.threshold.is_none() {
-                    // A gate of another distance means nothing: use that distance's usual gate.
-                    c.threshold = default_threshold(d);
-                }
-                c.distance = d;
-            }
-            if let Some(t) = self.threshold {
-                c.threshold = t;
-            }
-            if let Some(m) = matcher {
-                c.matcher = m;
-            }
-            if self.no_angular_velocity {
-                c.angular_velocity = false;
-            }
-            if let Some(CovarianceArg::Default) = self.covariance {
-                c.p0 = p0;
-                c.q = q;
-                c.r = r;
-            }
-            if let Some(h) = self.min_hits {
-                c.min_hits = h;
-            }
-            if let Some(a) = self.max_age {
-                c.max_age = a;
-            }
-            if let Some(f) = self.score_floor {
-                c.score_floor = Some(f);
-            }
-        });
-        cfg.validate()?;
+        let mut cfg = base_config(self.config.as_deref(), self.preset.map(|p| p.0))?;
+        self.overrides().apply(&mut cfg)?;
         Ok(cfg)
     }
-}
 
-/// The usual gate of a distance: 11 for Mahalanobis (the paper), 0.1 IoU and -0.5 GIoU
-/// (AB3DMOT), 2 m for centre distances (the nuScenes matching radius; AB3DMOT's cyclist gate).
-pub fn default_threshold(d: DistanceKind) -> f64 {
-    match d {
-        DistanceKind::Mahalanobis => 11.0,
-        DistanceKind::Iou3d => 0.1,
-        DistanceKind::Giou3d => -0.5,
-        DistanceKind::Center | DistanceKind::Dist3d => 2.0,
+    /// The override flags as the library's [`Overrides`].
+    fn overrides(&self) -> Overrides {
+        Overrides {
+            distance: self.distance.map(|d| match d {
+                DistanceArg::Mahalanobis => DistanceKind::Mahalanobis,
+                DistanceArg::Iou3d => DistanceKind::Iou3d,
+                DistanceArg::Giou3d => DistanceKind::Giou3d,
+                DistanceArg::Center => DistanceKind::Center,
+                DistanceArg::Dist3d => DistanceKind::Dist3d,
+            }),
+            threshold: self.threshold,
+            matcher: self.matcher.map(|m| match m {
+                MatcherArg::Greedy => MatcherKind::Greedy,
+                MatcherArg::Hungarian => MatcherKind::Hungarian,
+            }),
+            no_angular_velocity: self.no_angular_velocity,
+            default_covariance: matches!(self.covariance, Some(CovarianceArg::Default)),
+            dt_nominal: self.dt_nominal,
+            min_hits: self.min_hits,
+            max_age: self.max_age,
+            score_floor: self.score_floor,
+        }
     }
 }
 

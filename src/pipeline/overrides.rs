@@ -1,0 +1,197 @@
+//! The tracker configuration a run uses: a config file or a preset, then the ablation overrides
+//! (the rows of the paper's Table 1) and the tracker-wide overrides applied to every class.
+//! `probmot track` and `probmot config` take these from flags; the rules live here.
+
+use std::path::Path;
+
+use anyhow::{Context, Result};
+
+use crate::tracker::config::ab3dmot_covariances;
+use crate::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
+
+/// Overrides applied to every class of a configuration; `None`/`false` leaves a setting as it
+/// is.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Overrides {
+    /// Distance of every class. A class whose distance changes gets that distance's usual gate
+    /// ([`default_threshold`]) unless `threshold` is given too.
+    pub distance: Option<DistanceKind>,
+    /// Gate of every class (max distance, or min IoU for IoU kinds).
+    pub threshold: Option<f64>,
+    /// Matcher of every class.
+    pub matcher: Option<MatcherKind>,
+    /// Turn off the angular velocity in the motion model.
+    pub no_angular_velocity: bool,
+    /// Use AB3DMOT's hand-set covariances (the paper's "default covariance" ablation).
+    pub default_covariance: bool,
+    /// Nominal frame period, seconds.
+    pub dt_nominal: Option<f64>,
+    /// min_hits of every class.
+    pub min_hits: Option<u32>,
+    /// max_age of every class.
+    pub max_age: Option<u32>,
+    /// Score floor of every class.
+    pub score_floor: Option<f64>,
+}
+
+impl Overrides {
+    /// Applies the overrides to `cfg` and validates the result.
+    pub fn apply(&self, cfg: &mut TrackerConfig) -> Result<()> {
+        if let Some(d) = self.dt_nominal {
+            cfg.dt_nominal = d;
+        }
+        let (p0, q, r) = ab3dmot_covariances();
+        cfg.for_each_class(|c| {
+            if let Some(d) = self.distance {
+                if d != c.distance && self.threshold.is_none() {
+                    // A gate of another distance means nothing: use that distance's usual gate.
+                    c.threshold = default_threshold(d);
+                }
+                c.distance = d;
+            }
+            if let Some(t) = self.threshold {
+                c.threshold = t;
+            }
+            if let Some(m) = self.matcher {
+                c.matcher = m;
+            }
+            if self.no_angular_velocity {
+                c.angular_velocity = false;
+            }
+            if self.default_covariance {
+                c.p0 = p0;
+                c.q = q;
+                c.r = r;
+            }
+            if let Some(h) = self.min_hits {
+                c.min_hits = h;
+            }
+            if let Some(a) = self.max_age {
+                c.max_age = a;
+            }
+            if let Some(f) = self.score_floor {
+                c.score_floor = Some(f);
+            }
+        });
+        cfg.validate()?;
+        Ok(())
+    }
+}
+
+/// The base configuration: the config file (JSON, as `probmot config` prints it) when given,
+/// else the preset (default [`Preset::NuscenesChiu2019`]).
+pub fn base_config(config: Option<&Path>, preset: Option<Preset>) -> Result<TrackerConfig> {
+    match config {
+        Some(path) => {
+            let text = std::fs::read_to_string(path)
+                .with_context(|| format!("cannot read config {}", path.display()))?;
+            TrackerConfig::from_json(&text).with_context(|| format!("config {}", path.display()))
+        }
+        None => Ok(preset.unwrap_or(Preset::NuscenesChiu2019).config()?),
+    }
+}
+
+/// The usual gate of a distance: 11 for Mahalanobis (the paper), 0.1 IoU and -0.5 GIoU
+/// (AB3DMOT), 2 m for centre distances (the nuScenes matching radius; AB3DMOT's cyclist gate).
+pub fn default_threshold(d: DistanceKind) -> f64 {
+    match d {
+        DistanceKind::Mahalanobis => 11.0,
+        DistanceKind::Iou3d => 0.1,
+        DistanceKind::Giou3d => -0.5,
+        DistanceKind::Center | DistanceKind::Dist3d => 2.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn preset() -> TrackerConfig {
+        base_config(None, None).unwrap()
+    }
+
+    fn classes(cfg: &mut TrackerConfig) -> Vec<crate::tracker::ClassConfig> {
+        let mut v = Vec::new();
+        cfg.for_each_class(|c| v.push(c.clone()));
+        v
+    }
+
+    #[test]
+    fn no_overrides_leave_the_preset_as_it_is() {
+        let mut cfg = preset();
+        Overrides::default().apply(&mut cfg).unwrap();
+        assert_eq!(cfg.to_json(), preset().to_json());
+    }
+
+    #[test]
+    fn a_new_distance_brings_its_usual_gate_unless_a_threshold_is_given() {
+        let mut cfg = preset();
+        let o = Overrides {
+            distance: Some(DistanceKind::Iou3d),
+            ..Default::default()
+        };
+        o.apply(&mut cfg).unwrap();
+        for c in classes(&mut cfg) {
+            assert_eq!(c.distance, DistanceKind::Iou3d);
+            assert_eq!(c.threshold, 0.1);
+        }
+        let mut cfg = preset();
+        let o = Overrides {
+            distance: Some(DistanceKind::Center),
+            threshold: Some(3.5),
+            ..Default::default()
+        };
+        o.apply(&mut cfg).unwrap();
+        assert!(classes(&mut cfg).iter().all(|c| c.threshold == 3.5));
+    }
+
+    #[test]
+    fn the_same_distance_keeps_each_class_gate() {
+        let mut cfg = preset();
+        let before: Vec<f64> = classes(&mut cfg).iter().map(|c| c.threshold).collect();
+        let o = Overrides {
+            distance: Some(DistanceKind::Mahalanobis),
+            ..Default::default()
+        };
+        o.apply(&mut cfg).unwrap();
+        let after: Vec<f64> = classes(&mut cfg).iter().map(|c| c.threshold).collect();
+        assert_eq!(before, after);
+    }
+
+    #[test]
+    fn every_class_gets_the_tracker_wide_overrides() {
+        let mut cfg = preset();
+        let o = Overrides {
+            matcher: Some(MatcherKind::Hungarian),
+            no_angular_velocity: true,
+            default_covariance: true,
+            dt_nominal: Some(0.1),
+            min_hits: Some(3),
+            max_age: Some(7),
+            score_floor: Some(0.25),
+            ..Default::default()
+        };
+        o.apply(&mut cfg).unwrap();
+        assert_eq!(cfg.dt_nominal, 0.1);
+        let (p0, q, r) = ab3dmot_covariances();
+        for c in classes(&mut cfg) {
+            assert_eq!(c.matcher, MatcherKind::Hungarian);
+            assert!(!c.angular_velocity);
+            assert_eq!((c.p0, c.q, c.r), (p0, q, r));
+            assert_eq!((c.min_hits, c.max_age), (3, 7));
+            assert_eq!(c.score_floor, Some(0.25));
+        }
+    }
+
+    #[test]
+    fn an_invalid_result_is_refused_and_a_missing_file_named() {
+        let mut cfg = preset();
+        let o = Overrides {
+            dt_nominal: Some(-1.0),
+            ..Default::default()
+        };
+        assert!(o.apply(&mut cfg).is_err());
+        let err = base_config(Some(Path::new("/nonexistent/cfg.json")), None).unwrap_err();
+        assert!(err.to_string().contains("/nonexistent/cfg.json"), "{err}");
+    }
+}
