@@ -1,6 +1,5 @@
 //! `probmot eval`.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -16,6 +15,7 @@ use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, 
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_with, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
+use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
 /// Evaluation protocols.
@@ -141,82 +141,6 @@ fn rows(r: &NuscenesResult) -> Vec<(String, Vec<f64>)> {
         COLUMNS.iter().map(|k| r.overall.get(k)).collect(),
     ));
     out
-}
-
-/// Expands files, directories (their `*.mcap`, sorted) and glob patterns.
-fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
-    for a in args {
-        let text = a.to_string_lossy();
-        if a.is_dir() {
-            let mut files: Vec<PathBuf> = std::fs::read_dir(a)
-                .with_context(|| format!("cannot list {}", a.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
-                .collect();
-            if files.is_empty() {
-                bail!("{}: no .mcap file in this directory", a.display());
-            }
-            files.sort();
-            out.extend(files);
-        } else if !a.exists() && text.contains(['*', '?', '[']) {
-            let mut files: Vec<PathBuf> = glob::glob(&text)
-                .with_context(|| format!("bad pattern {text}"))?
-                .filter_map(|p| p.ok())
-                .collect();
-            if files.is_empty() {
-                bail!("{text}: the pattern matches no file");
-            }
-            files.sort();
-            out.extend(files);
-        } else {
-            out.push(a.clone());
-        }
-    }
-    Ok(out)
-}
-
-/// Pairs truth and tracks files: the same files when `tracks` is empty, as given when both are
-/// one file, else by file name.
-fn log_pairs(truth: &[PathBuf], tracks: &[PathBuf]) -> Result<Vec<(PathBuf, PathBuf)>> {
-    let truth = expand(truth)?;
-    if tracks.is_empty() {
-        return Ok(truth.iter().map(|t| (t.clone(), t.clone())).collect());
-    }
-    let tracks = expand(tracks)?;
-    if truth.len() == 1 && tracks.len() == 1 {
-        return Ok(vec![(truth[0].clone(), tracks[0].clone())]);
-    }
-    let mut by_name: BTreeMap<String, PathBuf> = BTreeMap::new();
-    for t in &tracks {
-        let name = t
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
-        if by_name.insert(name.clone(), t.clone()).is_some() {
-            bail!("two tracks files are named {name}; they cannot be paired by name");
-        }
-    }
-    let mut pairs = Vec::new();
-    for t in &truth {
-        let name = t
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
-        match by_name.remove(&name) {
-            Some(tr) => pairs.push((t.clone(), tr)),
-            None => bail!(
-                "no tracks file named {name} for the truth file {}",
-                t.display()
-            ),
-        }
-    }
-    if let Some(name) = by_name.keys().next() {
-        bail!("tracks file {name} has no truth file of the same name");
-    }
-    Ok(pairs)
 }
 
 /// Applies the filters that are on to one log, in the devkit's order (range, points, racks),

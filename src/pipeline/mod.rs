@@ -5,6 +5,7 @@ pub mod ego;
 pub mod frame_schedule;
 pub mod info;
 pub mod kitti_io;
+pub mod log_pairs;
 pub mod overrides;
 pub mod progress;
 pub mod rosbag_dir;
