@@ -2,18 +2,17 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::writer::{check_output_path, OutputCompression};
 use probmot::pipeline::ego::EgoOptions;
-use probmot::pipeline::progress::{no_progress, Progress};
+use probmot::pipeline::many::{out_dir_outputs, track_many};
+use probmot::pipeline::progress::Progress;
 use probmot::pipeline::rosbag_dir;
 use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use probmot::pipeline::tracks_format::TracksFormat;
-use rayon::prelude::*;
 
 use super::config_cmd::TrackerArgs;
 use super::show_progress;
@@ -193,30 +192,7 @@ fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
             }
             Ok(Vec::new())
         }
-        (None, Some(dir)) => {
-            if let Some(i) = a.inputs.iter().find(|i| i.is_dir()) {
-                bail!(
-                    "{}: a directory (a rosbag2 bag?); track a bag directory with -o \
-                     OUT_BAG_DIR, one at a time",
-                    i.display()
-                );
-            }
-            if dir.exists() && !dir.is_dir() {
-                bail!("--out-dir {} exists and is not a directory", dir.display());
-            }
-            std::fs::create_dir_all(dir)
-                .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
-            let mut outputs = Vec::new();
-            for i in &a.inputs {
-                let o = output_in(dir, i)?;
-                if outputs.contains(&o) {
-                    bail!("two inputs would both be written to {}", o.display());
-                }
-                check_output_path(Some(i), &o)?;
-                outputs.push(o);
-            }
-            Ok(outputs)
-        }
+        (None, Some(dir)) => out_dir_outputs(dir, &a.inputs),
         _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
     }
 }
@@ -311,6 +287,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
 /// The Rerun recording of the finished output (`--rerun`).
 #[cfg(feature = "rerun")]
 fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
+    use anyhow::Context as _;
     // The recording shows one detections topic: the first --detections-topic, else /detections
     // (`probmot viz --detections-topic T` draws another one).
     let detections = a
@@ -337,13 +314,6 @@ fn write_recording(_: &TrackArgs, _: &Path, _: &Path) -> Result<()> {
     bail!("--rerun: {NEEDS_FEATURE}")
 }
 
-fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
-    let name = input
-        .file_name()
-        .with_context(|| format!("{} has no file name", input.display()))?;
-    Ok(dir.join(name))
-}
-
 fn run_many(
     a: &TrackArgs,
     outputs: &[PathBuf],
@@ -351,10 +321,6 @@ fn run_many(
     jobs: usize,
     progress: bool,
 ) -> Result<ExitCode> {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(jobs.max(1))
-        .build()
-        .context("starting the worker threads")?;
     let bar = if progress {
         ProgressBar::new(a.inputs.len() as u64).with_style(
             ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} files {msg} ETA {eta}")
@@ -364,22 +330,11 @@ fn run_many(
     } else {
         ProgressBar::hidden()
     };
-    let failed = AtomicUsize::new(0);
-    let results: Vec<Result<TrackSummary>> = pool.install(|| {
-        a.inputs
-            .par_iter()
-            .zip(outputs)
-            .map(|(input, output)| {
-                let r = track_file(input, output, opts, &no_progress);
-                if r.is_err() {
-                    failed.fetch_add(1, Ordering::Relaxed);
-                }
-                bar.inc(1);
-                bar.set_message(format!("({} failed)", failed.load(Ordering::Relaxed)));
-                r
-            })
-            .collect()
-    });
+    let on_done = |failed: usize| {
+        bar.inc(1);
+        bar.set_message(format!("({failed} failed)"));
+    };
+    let results = track_many(&a.inputs, outputs, opts, jobs, &on_done)?;
     bar.finish_and_clear();
     let mut json = Vec::new();
     for (input, r) in a.inputs.iter().zip(&results) {
@@ -402,7 +357,7 @@ fn run_many(
             }
         }
     }
-    let n_failed = failed.load(Ordering::Relaxed);
+    let n_failed = results.iter().filter(|r| r.is_err()).count();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&json)?);
     } else if !a.quiet {

@@ -6,6 +6,7 @@ pub mod frame_schedule;
 pub mod info;
 pub mod kitti_io;
 pub mod log_pairs;
+pub mod many;
 pub mod overrides;
 pub mod progress;
 pub mod rosbag_dir;

@@ -1,0 +1,156 @@
+//! Tracking many files in one run (`probmot track --out-dir`): each input's output in the
+//! output directory, checked before any work, and the files processed in parallel with one
+//! result per file (a failed file does not stop the others).
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use anyhow::{bail, Context, Result};
+use rayon::prelude::*;
+
+use super::progress::no_progress;
+use super::track::{track_file, TrackOptions, TrackSummary};
+use crate::mcapio::writer::check_output_path;
+
+/// The output of `input` in `dir`: the same file name.
+pub fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
+    let name = input
+        .file_name()
+        .with_context(|| format!("{} has no file name", input.display()))?;
+    Ok(dir.join(name))
+}
+
+/// The outputs of `inputs` in `dir` (created when missing), each checked with
+/// [`check_output_path`]; refuses directory inputs (bags are tracked one at a time) and two
+/// inputs of the same file name.
+pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    if let Some(i) = inputs.iter().find(|i| i.is_dir()) {
+        bail!(
+            "{}: a directory (a rosbag2 bag?); track a bag directory with -o \
+             OUT_BAG_DIR, one at a time",
+            i.display()
+        );
+    }
+    if dir.exists() && !dir.is_dir() {
+        bail!("--out-dir {} exists and is not a directory", dir.display());
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    let mut outputs = Vec::new();
+    for i in inputs {
+        let o = output_in(dir, i)?;
+        if outputs.contains(&o) {
+            bail!("two inputs would both be written to {}", o.display());
+        }
+        check_output_path(Some(i), &o)?;
+        outputs.push(o);
+    }
+    Ok(outputs)
+}
+
+/// Runs `job(input, output)` for every pair on `jobs` threads: one result per input, in input
+/// order. `on_done(failed)` is called after each file with the number of failures so far.
+pub fn run_many<T: Send>(
+    inputs: &[PathBuf],
+    outputs: &[PathBuf],
+    jobs: usize,
+    job: &(dyn Fn(&Path, &Path) -> Result<T> + Sync),
+    on_done: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<Result<T>>> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(jobs.max(1))
+        .build()
+        .context("starting the worker threads")?;
+    let failed = AtomicUsize::new(0);
+    Ok(pool.install(|| {
+        inputs
+            .par_iter()
+            .zip(outputs)
+            .map(|(input, output)| {
+                let r = job(input, output);
+                if r.is_err() {
+                    failed.fetch_add(1, Ordering::Relaxed);
+                }
+                on_done(failed.load(Ordering::Relaxed));
+                r
+            })
+            .collect()
+    }))
+}
+
+/// Tracks every input into its output ([`track_file`], without per-file progress) on `jobs`
+/// threads; see [`run_many`].
+pub fn track_many(
+    inputs: &[PathBuf],
+    outputs: &[PathBuf],
+    opts: &TrackOptions,
+    jobs: usize,
+    on_done: &(dyn Fn(usize) + Sync),
+) -> Result<Vec<Result<TrackSummary>>> {
+    let job = |input: &Path, output: &Path| track_file(input, output, opts, &no_progress);
+    run_many(inputs, outputs, jobs, &job, on_done)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::Mutex;
+
+    #[test]
+    fn every_file_gets_its_result_in_input_order_and_failures_are_counted() {
+        let inputs: Vec<PathBuf> = (0..7)
+            .map(|i| PathBuf::from(format!("in/{i}.mcap")))
+            .collect();
+        let outputs: Vec<PathBuf> = (0..7)
+            .map(|i| PathBuf::from(format!("out/{i}.mcap")))
+            .collect();
+        let job = |i: &Path, o: &Path| -> Result<String> {
+            let n: u32 = i.file_stem().unwrap().to_str().unwrap().parse()?;
+            if n % 3 == 1 {
+                bail!("file {n} fails");
+            }
+            Ok(format!("{} -> {}", i.display(), o.display()))
+        };
+        let seen = Mutex::new(Vec::new());
+        let r = run_many(&inputs, &outputs, 3, &job, &|f| {
+            seen.lock().unwrap().push(f)
+        })
+        .unwrap();
+        assert_eq!(r.len(), 7);
+        for (k, r) in r.iter().enumerate() {
+            match r {
+                Ok(s) => assert_eq!(*s, format!("in/{k}.mcap -> out/{k}.mcap")),
+                Err(e) => {
+                    assert_eq!(k % 3, 1);
+                    assert_eq!(e.to_string(), format!("file {k} fails"));
+                }
+            }
+        }
+        let mut seen = seen.into_inner().unwrap();
+        seen.sort();
+        // One call per file; the failure count never falls and ends at the 2 failures.
+        assert_eq!(seen.len(), 7);
+        assert_eq!(seen.last(), Some(&2));
+    }
+
+    #[test]
+    fn out_dir_outputs_keep_names_and_refuse_clashes() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("new/sub");
+        let inputs = vec![PathBuf::from("a/x.mcap"), PathBuf::from("b/y.mcap")];
+        let o = out_dir_outputs(&out, &inputs).unwrap();
+        assert_eq!(o, vec![out.join("x.mcap"), out.join("y.mcap")]);
+        assert!(out.is_dir(), "created");
+        let clash = vec![PathBuf::from("a/x.mcap"), PathBuf::from("b/x.mcap")];
+        let e = out_dir_outputs(&out, &clash).unwrap_err().to_string();
+        assert!(e.starts_with("two inputs would both be written to"), "{e}");
+        assert!(e.ends_with("x.mcap"), "{e}");
+        let bag = vec![dir.path().to_path_buf()];
+        let e = out_dir_outputs(&out, &bag).unwrap_err().to_string();
+        assert!(e.contains("a directory (a rosbag2 bag?)"), "{e}");
+        let file = dir.path().join("file");
+        std::fs::write(&file, b"").unwrap();
+        let e = out_dir_outputs(&file, &inputs).unwrap_err().to_string();
+        assert!(e.contains("exists and is not a directory"), "{e}");
+    }
+}
