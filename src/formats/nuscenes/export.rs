@@ -7,6 +7,7 @@ use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 use serde::{Deserialize, Serialize};
 
+use crate::mcapio::recording::tracks_stamp;
 use crate::mcapio::topic::for_each_message;
 use crate::mcapio::writer::{check_output_path, write_file_atomic};
 use crate::msgs::{self, Track3D, Tracks3D};
@@ -123,12 +124,7 @@ pub(crate) fn read_export_input(path: &Path, topic: &str) -> Result<ExportInput>
         topic,
         msgs::TRACKS_SCHEMA,
         |header, m: Tracks3D| {
-            let stamp = if m.stamp != 0 {
-                m.stamp
-            } else {
-                header.log_time
-            };
-            frames.push((stamp, m.tracks));
+            frames.push((tracks_stamp(m.stamp, header.log_time), m.tracks));
             Ok(())
         },
         |rec| {
