@@ -15,7 +15,9 @@ It also prints, as notes that do not fail, every function over 100 lines and eve
 lines (both counted without the test module; generated code is not under src/), so that the
 closing note of a change can list the exceptions.
 
-Usage (from the repository root): scripts/check_layering.py
+Usage (from the repository root): scripts/check_layering.py [--self-test]
+  --self-test   run the checks on a small made-up source tree (a cycle, a layering breach, a long
+                function with braces in strings and comments) and verify their verdicts.
 """
 
 import re
@@ -250,5 +252,49 @@ def main() -> int:
     return 1 if bad else 0
 
 
+def self_test() -> int:
+    """Checks the checker on a made-up tree: each rule must fire where it should, only there."""
+    import contextlib
+    import io
+    import tempfile
+
+    global ROOT, SRC
+    long_body = "".join(f"    let _x{i} = \"{{\"; // }} fn fake() {{\n" for i in range(101))
+    tree = {
+        "lib.rs": "pub mod formats;\npub mod sim;\n",
+        "formats/mod.rs": "mod a;\nmod b;\nmod c;\n",
+        # a <-> b: a cycle; c imports the simulator: a layering breach.
+        "formats/a.rs": "use super::b::B;\npub struct A;\n",
+        "formats/b.rs": "use crate::formats::a::A;\npub struct B;\n",
+        "formats/c.rs": "use crate::sim::S;\nfn short() { let c = '{'; }\n",
+        # 103 lines of function, braces in strings and comments; a test module left out.
+        "sim/mod.rs": "pub struct S;\nfn long() {\n" + long_body + "}\n#[cfg(test)]\nmod t { use crate::formats::a::A; }\n",
+    }
+    with tempfile.TemporaryDirectory() as tmp:
+        ROOT = Path(tmp)
+        SRC = ROOT / "src"
+        for name, text in tree.items():
+            (SRC / name).parent.mkdir(parents=True, exist_ok=True)
+            (SRC / name).write_text(text)
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = main()
+    lines = out.getvalue().splitlines()
+    want = [
+        "layering: src/formats/c.rs imports src/sim/mod.rs",
+        "import cycle: src/formats/a.rs, src/formats/b.rs",
+        "note (size): src/sim/mod.rs:2: fn long 103 lines (over 100)",
+        "check_layering: 6 files, 2 violation(s)",
+    ]
+    problems = [f"missing: {w}" for w in want if w not in lines]
+    problems += [f"unexpected: {l}" for l in lines if l not in want]
+    if code != 1:
+        problems.append(f"exit status {code}, want 1")
+    for p in problems:
+        print("self-test:", p)
+    print(f"check_layering self-test: {'failed' if problems else 'ok'}")
+    return 1 if problems else 0
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(self_test() if sys.argv[1:] == ["--self-test"] else main())

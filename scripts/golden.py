@@ -19,7 +19,8 @@ Usage (from the repository root):
   scripts/golden.py --check scripts/golden.manifest        # compare; exit 1 and list differences
 Options: --bin PATH (default target/debug/probmot, built with `cargo build` when missing),
          --keep DIR (write the outputs there instead of a temporary directory).
-Also runs scripts/check_layering.py when it exists (its failure fails --check).
+Also runs scripts/check_layering.py when it exists, its --self-test and then the check (either
+failing fails --check).
 """
 
 import argparse
@@ -229,7 +230,11 @@ def main() -> int:
     layering = ROOT / "scripts" / "check_layering.py"
     ok_layers = True
     if layering.exists():
-        ok_layers = subprocess.run([sys.executable, str(layering)], cwd=ROOT).returncode == 0
+        # The checker's own self-test first, then the check of src/.
+        ok_layers = all(
+            subprocess.run([sys.executable, str(layering), *args], cwd=ROOT).returncode == 0
+            for args in (["--self-test"], [])
+        )
     print(f"golden: {len(r.results)} outputs, {len(bad)} differ" + ("" if ok_layers else "; layering check failed"))
     return 0 if not bad and ok_layers else 1
 
