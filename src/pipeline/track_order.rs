@@ -163,7 +163,10 @@ mod tests {
             .unwrap();
         o.release(&mut sink).unwrap();
         // The image at 10 stays behind the one at 15 (file order is kept).
-        assert_eq!(log_times(&sink), [(1, 10), (9, 10), (2, 15), (2, 10), (1, 20)]);
+        assert_eq!(
+            log_times(&sink),
+            [(1, 10), (9, 10), (2, 15), (2, 10), (1, 20)]
+        );
         assert!(o.is_empty());
         let t = o.tracks_time(&mut sink, 20).unwrap();
         sink.write_to_known_channel(&header(9, t), b"tracks20")

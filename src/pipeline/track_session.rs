@@ -458,8 +458,8 @@ mod tests {
     use crate::msgs::{self, v3, Detection3D, Detections3D, Encoding, Size3};
     use crate::pipeline::ego::EgoOptions;
     use crate::pipeline::progress::no_progress;
-    use crate::pipeline::track_outputs::ExtraRequest;
     use crate::pipeline::track_options::SceneOutput;
+    use crate::pipeline::track_outputs::ExtraRequest;
     use crate::tracker::TrackerConfig;
     use crate::transforms::TransformCollector;
 
