@@ -126,27 +126,26 @@ fn compare_runs_puts_two_runs_side_by_side() {
     }
 }
 
-/// The boxes `to_rerun.read_run` decodes from `file`, per role: `log_time -> [[id, label,
-/// score, cx, cy, cz, l, w, h, yaw, velocity or null]]` (JSON; roles without a topic are null).
-fn read_run_boxes(file: &Path) -> Value {
+/// The boxes `to_rerun.read_run` decodes from each file (one Python run), per role:
+/// `log_time -> [[id, label, score, cx, cy, cz, l, w, h, yaw, velocity or null]]` (JSON; roles
+/// without a topic are null).
+fn read_run_boxes(files: &[PathBuf]) -> Vec<Value> {
     let code = "import json, sys; sys.path.insert(0, sys.argv[1]); import to_rerun\n\
-        run = to_rerun.read_run(sys.argv[2], require_tracks=False)\n\
         def enc(frames):\n\
         \x20   if frames is None: return None\n\
         \x20   return {str(t): [[b.id, b.label, b.score, *b.center, *b.size, b.yaw, b.velocity]\n\
         \x20                    for b in bs] for t, bs in frames.items()}\n\
-        print(json.dumps({r: enc(getattr(run, r)) for r in ('detections', 'tracks', 'ground_truth')}))";
+        for f in sys.argv[2:]:\n\
+        \x20   run = to_rerun.read_run(f, require_tracks=False)\n\
+        \x20   print(json.dumps({r: enc(getattr(run, r)) for r in ('detections', 'tracks')}))";
     let scripts = repo("scripts");
-    let out = ok(
-        python(&[
-            "-c",
-            code,
-            scripts.to_str().unwrap(),
-            file.to_str().unwrap(),
-        ]),
-        "to_rerun.read_run",
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
+    let mut args = vec!["-c", code, scripts.to_str().unwrap()];
+    args.extend(files.iter().map(|f| f.to_str().unwrap()));
+    let out = ok(python(&args), "to_rerun.read_run");
+    let text = String::from_utf8(out.stdout).unwrap();
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect()
 }
 
 /// One expected box: id, label, score, centre and size, yaw, velocity (None: not in the
@@ -263,11 +262,9 @@ fn to_rerun_reads_ros2_foxglove_and_json_inputs() {
     }
     let dir = tempfile::tempdir().unwrap();
     let city = repo("sample_logs/city.mcap");
-    let city_tracked = dir.path().join("city.tracked.mcap");
-    track(&city, &city_tracked, &[]);
     let json_log = dir.path().join("city.json.mcap");
     json_copy(&city, &json_log);
-    for (name, input, source, ros2_tracks) in [
+    let cases = [
         (
             "ros2",
             repo("tests/fixtures/ros2/city.mcap"),
@@ -287,28 +284,42 @@ fn to_rerun_reads_ros2_foxglove_and_json_inputs() {
             repo("sample_logs/turning-car.mcap"),
             true,
         ),
-    ] {
-        let tracked = dir
-            .path()
-            .join(format!("{}.tracked.mcap", name.replace(' ', "_")));
-        track(&input, &tracked, &[]);
-        let got = read_run_boxes(&tracked);
+    ];
+    let tracked: Vec<PathBuf> = cases
+        .iter()
+        .map(|(name, input, _, _)| {
+            let out = dir
+                .path()
+                .join(format!("{}.tracked.mcap", name.replace(' ', "_")));
+            track(input, &out, &[]);
+            out
+        })
+        .collect();
+    let read = read_run_boxes(&tracked);
+    for ((name, _, source, ros2_tracks), (tracked, got)) in
+        cases.iter().zip(tracked.iter().zip(&read))
+    {
+        let (name, ros2_tracks) = (*name, *ros2_tracks);
         assert_boxes(
             &got["detections"],
-            &det_boxes(&source),
+            &det_boxes(source),
             &format!("{name} detections"),
         );
         // ROS 2 tracks carry no velocity; their boxes are those of the probmot log's tracks
         // (tests/ros2_foxglove_input.rs: the same tracks to 1e-9).
-        let reference = dir.path().join("reference.tracked.mcap");
-        track(&source, &reference, &[]);
         let want = if ros2_tracks {
+            let reference = dir.path().join("reference.tracked.mcap");
+            track(source, &reference, &[]);
             track_boxes(&reference, false)
         } else {
             track_boxes(&tracked, true)
         };
         assert_boxes(&got["tracks"], &want, &format!("{name} tracks"));
 
+        // A recording (the slow part) of one CDR and one SceneUpdate input.
+        if !matches!(name, "ros2" | "foxglove") {
+            continue;
+        }
         let rrd = dir.path().join("out.rrd");
         let out = ok(
             python(&[
