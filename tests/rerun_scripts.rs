@@ -312,7 +312,7 @@ fn to_rerun_reads_ros2_foxglove_and_json_inputs() {
             track(source, &reference, &[]);
             track_boxes(&reference, false)
         } else {
-            track_boxes(&tracked, true)
+            track_boxes(tracked, true)
         };
         assert_boxes(&got["tracks"], &want, &format!("{name} tracks"));
 
