@@ -7,7 +7,7 @@
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::progress::no_progress;
-use probmot::pipeline::track::{track_file, TrackOptions, DEFAULT_MAX_DETECTIONS};
+use probmot::pipeline::track::{track_file, SceneOutput, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::sim::{write_simulation, Scenario, SimOptions};
 use probmot::tracker::TrackerConfig;
 
@@ -42,7 +42,7 @@ fn bench(c: &mut Criterion) {
         strict: false,
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
         ego: Default::default(),
-        scene_topic: None,
+        scene: SceneOutput::Off,
         compression: Default::default(),
         background_writer: true,
     };

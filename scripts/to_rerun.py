@@ -1,8 +1,18 @@
 #!/usr/bin/env python3
 """Convert a tracked MCAP file to a Rerun recording (.rrd) for scrubbing through the drive.
 
-The file is read with the `mcap` package and decoded with `mcap_protobuf`'s DecoderFactory from
-the schemas embedded in it (no generated code from this repository), like check_tracks.py.
+The file is read with the `mcap` package and decoded from the schemas embedded in it (no
+generated code from this repository), like check_tracks.py: protobuf with `mcap_protobuf`, ROS 2
+CDR with `mcap_ros2`, JSON with the standard library. Each topic may hold any box message
+`probmot track` reads or writes:
+  probmot.Detections3D               protobuf or json
+  probmot.Tracks3D                   protobuf (tracks, ground truth)
+  vision_msgs/msg/Detection3DArray   ROS 2 CDR, vision_msgs 4.x or 2.x layout (detections, and
+                                     the tracks of `track --tracks-format ros2`: id = the
+                                     Detection3D id; no velocity)
+  foxglove.SceneUpdate               protobuf; one box per cube; label, score and id from the
+                                     entity metadata `label` (else `class`, `class_id`),
+                                     `score`, `track_id`; each message is a whole frame
 
 Entities (all under `world`, z up, metres):
   world/detections    thin grey boxes, labelled with class and score (shown on hover)
@@ -28,6 +38,7 @@ Needs `python3 -m pip install -r scripts/requirements.txt` (rerun-sdk among them
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import sys
@@ -42,6 +53,7 @@ try:
     from mcap.exceptions import McapError
     from mcap.reader import make_reader
     from mcap_protobuf.decoder import DecoderFactory
+    from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 except ImportError as e:  # pragma: no cover - depends on the environment
     sys.stderr.write(
         f"{os.path.basename(sys.argv[0])}: error: {e}; install the packages with "
@@ -51,6 +63,9 @@ except ImportError as e:  # pragma: no cover - depends on the environment
 
 DETECTIONS_SCHEMA = "probmot.Detections3D"
 TRACKS_SCHEMA = "probmot.Tracks3D"
+ROS2_SCHEMA = "vision_msgs/msg/Detection3DArray"
+SCENE_SCHEMA = "foxglove.SceneUpdate"
+SCHEMAS = (DETECTIONS_SCHEMA, TRACKS_SCHEMA, ROS2_SCHEMA, SCENE_SCHEMA)
 APPLICATION_ID = "probmot"
 
 # Same table and hash as src/viz/plot.rs (PALETTE, mix64, id_color): an id has one colour in
@@ -108,7 +123,8 @@ class Box:
     size: tuple[float, float, float]
     yaw: float
     score: float
-    velocity: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    # None: the message has no velocity (ROS 2 and SceneUpdate boxes).
+    velocity: tuple[float, float, float] | None = (0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -140,20 +156,137 @@ class Run:
         ]
 
 
+def _get(o: Any, name: str, default: Any = None) -> Any:
+    """Field `name` of a decoded protobuf or ROS 2 message, or of a JSON object."""
+    if isinstance(o, dict):
+        return o.get(name, default)
+    return getattr(o, name, default)
+
+
+def _num(o: Any, name: str) -> float:
+    v = _get(o, name)
+    return 0.0 if v is None else float(v)
+
+
 def _vec(v: Any) -> tuple[float, float, float]:
-    return (float(v.x), float(v.y), float(v.z))
+    return (_num(v, "x"), _num(v, "y"), _num(v, "z")) if v is not None else (0.0, 0.0, 0.0)
 
 
-def _box(m: Any, with_id: bool) -> Box:
+def _probmot_box(m: Any, with_id: bool) -> Box:
+    """A probmot Detection3D or Track3D (protobuf or JSON)."""
+    size = _get(m, "size")
     return Box(
-        id=int(m.id) if with_id else 0,
-        label=m.label,
-        center=_vec(m.center),
-        size=(float(m.size.length), float(m.size.width), float(m.size.height)),
-        yaw=float(m.yaw),
-        score=float(m.score),
-        velocity=_vec(m.velocity),
+        id=int(_get(m, "id", 0) or 0) if with_id else 0,
+        label=_get(m, "label", "") or "",
+        center=_vec(_get(m, "center")),
+        size=(_num(size, "length"), _num(size, "width"), _num(size, "height"))
+        if size is not None
+        else (0.0, 0.0, 0.0),
+        yaw=_num(m, "yaw"),
+        score=_num(m, "score"),
+        velocity=_vec(_get(m, "velocity")),
     )
+
+
+def _yaw(q: Any) -> float:
+    """The rotation about +z of a quaternion (x, y, z, w)."""
+    x, y, z, w = (float(q.x), float(q.y), float(q.z), float(q.w))
+    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def _int_or_zero(text: Any) -> int:
+    try:
+        return int(str(text))
+    except ValueError:
+        return 0
+
+
+def _ros2_box(d: Any) -> Box:
+    """A vision_msgs Detection3D (4.x: hypothesis.class_id; 2.x: id), best hypothesis."""
+    best: tuple[str, float] | None = None
+    for r in d.results:
+        h = getattr(r, "hypothesis", r)
+        label = h.class_id if hasattr(h, "class_id") else h.id
+        if best is None or float(h.score) > best[1]:
+            best = (label, float(h.score))
+    if best is None:
+        best = ("", 0.0)
+    if hasattr(d, "id"):
+        track_id = _int_or_zero(d.id)
+    else:
+        track_id = _int_or_zero(d.tracking_id) if d.is_tracking else 0
+    c = d.bbox.center
+    return Box(
+        id=track_id,
+        label=best[0],
+        center=_vec(c.position),
+        size=_vec(d.bbox.size),
+        yaw=_yaw(c.orientation),
+        score=best[1],
+        velocity=None,
+    )
+
+
+def _scene_boxes(u: Any) -> list[Box]:
+    """The cubes of a foxglove.SceneUpdate, labelled by their entity's metadata."""
+    out = []
+    for e in u.entities:
+        meta = {kv.key: kv.value for kv in e.metadata}
+        label = meta.get("label", meta.get("class", meta.get("class_id", "")))
+        try:
+            score = float(meta.get("score", "1"))
+        except ValueError:
+            score = 1.0
+        for c in e.cubes:
+            out.append(
+                Box(
+                    id=_int_or_zero(meta.get("track_id", "0")),
+                    label=label,
+                    center=_vec(c.pose.position),
+                    size=_vec(c.size),
+                    yaw=_yaw(c.pose.orientation),
+                    score=score,
+                    velocity=None,
+                )
+            )
+    return out
+
+
+def boxes_of(schema: str, decoded: Any) -> list[Box]:
+    """The boxes of one decoded message of a schema in SCHEMAS."""
+    if schema == DETECTIONS_SCHEMA:
+        return [_probmot_box(m, False) for m in _get(decoded, "detections", []) or []]
+    if schema == TRACKS_SCHEMA:
+        return [_probmot_box(m, True) for m in _get(decoded, "tracks", []) or []]
+    if schema == ROS2_SCHEMA:
+        return [_ros2_box(d) for d in decoded.detections]
+    return _scene_boxes(decoded)
+
+
+class _Decoders:
+    """Per channel, a function from message bytes to the decoded message."""
+
+    def __init__(self) -> None:
+        self.factories = [DecoderFactory(), Ros2DecoderFactory()]
+        self.by_channel: dict[int, Any] = {}
+
+    def decode(self, schema: Any, channel: Any, data: bytes) -> Any:
+        fn = self.by_channel.get(channel.id)
+        if fn is None:
+            if channel.message_encoding == "json":
+                fn = json.loads
+            else:
+                for f in self.factories:
+                    fn = f.decoder_for(channel.message_encoding, schema)
+                    if fn is not None:
+                        break
+            if fn is None:
+                raise UsageError(
+                    f"topic {channel.topic!r}: no decoder for message encoding "
+                    f"{channel.message_encoding!r}"
+                )
+            self.by_channel[channel.id] = fn
+        return fn(data)
 
 
 def read_run(
@@ -168,9 +301,9 @@ def read_run(
     tracks when `require_tracks`). Boxes of other classes than `classes` (if given) are dropped.
     Raises UsageError on an unreadable file, a wrong schema or a missing tracks topic."""
     roles = {
-        detections_topic: ("detections", DETECTIONS_SCHEMA),
-        tracks_topic: ("tracks", TRACKS_SCHEMA),
-        truth_topic: ("ground_truth", TRACKS_SCHEMA),
+        detections_topic: "detections",
+        tracks_topic: "tracks",
+        truth_topic: "ground_truth",
     }
     run = Run(path=path)
     try:
@@ -179,25 +312,32 @@ def read_run(
         raise UsageError(f"cannot open {path}: {e.strerror}") from e
     with f:
         try:
-            reader = make_reader(f, decoder_factories=[DecoderFactory()])
+            reader = make_reader(f)
+            decoders = _Decoders()
             summary = reader.get_summary()
             if summary is not None:
                 run.topics = sorted({c.topic for c in summary.channels.values()})
-            for schema, channel, message, decoded in reader.iter_decoded_messages(
+            for schema, channel, message in reader.iter_messages(
                 topics=list(roles), log_time_order=True
             ):
-                role, want = roles[channel.topic]
+                role = roles[channel.topic]
                 name = schema.name if schema is not None else "(no schema)"
-                if name != want:
+                if name not in SCHEMAS:
                     raise UsageError(
-                        f"{path}: topic {channel.topic!r} has schema {name!r}, not {want!r}"
+                        f"{path}: topic {channel.topic!r} has schema {name!r}, not one of "
+                        f"{', '.join(SCHEMAS)}"
                     )
-                items = decoded.detections if role == "detections" else decoded.tracks
-                boxes = [
-                    _box(m, role != "detections")
-                    for m in items
-                    if not classes or m.label in classes
-                ]
+                try:
+                    decoded = decoders.decode(schema, channel, message.data)
+                    boxes = boxes_of(name, decoded)
+                except UsageError as e:
+                    raise UsageError(f"{path}: {e}") from e
+                except Exception as e:  # noqa: BLE001 - any decoder error names the message
+                    raise UsageError(
+                        f"{path}: topic {channel.topic!r}, message at log_time "
+                        f"{message.log_time}: cannot decode {name}: {type(e).__name__}: {e}"
+                    ) from e
+                boxes = [b for b in boxes if not classes or b.label in classes]
                 frames = getattr(run, role)
                 if frames is None:
                     frames = {}
@@ -290,15 +430,16 @@ def log_run(
             rec.log(
                 f"{prefix}/trails", rr.LineStrips3D(strips, colors=strip_colors, radii=-1.0)
             )
-            n = len(tracks)
+            moving = [b for b in tracks if b.velocity is not None]
+            n = len(moving)
             rec.log(
                 f"{prefix}/velocity",
                 rr.Arrows3D(
-                    origins=np.array([b.center for b in tracks], dtype=np.float32).reshape(n, 3),
-                    vectors=np.array([b.velocity for b in tracks], dtype=np.float32).reshape(
+                    origins=np.array([b.center for b in moving], dtype=np.float32).reshape(n, 3),
+                    vectors=np.array([b.velocity for b in moving], dtype=np.float32).reshape(
                         n, 3
                     ),
-                    colors=colors,
+                    colors=[id_color(b.id) for b in moving],
                     radii=-1.0,
                 ),
             )

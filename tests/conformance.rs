@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use mcap::records::Record;
 use probmot::mcapio::reader::read_records;
 use probmot::pipeline::progress::no_progress;
-use probmot::pipeline::track::{track_file, TrackOptions};
+use probmot::pipeline::track::{track_file, SceneOutput, TrackOptions};
 use probmot::tracker::TrackerConfig;
 use serde_json::Value;
 
@@ -216,7 +216,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
         strict: false,
         max_detections_per_message: 100_000,
         ego: Default::default(),
-        scene_topic: None,
+        scene: SceneOutput::Off,
         compression: Default::default(),
         background_writer: true,
     };

@@ -15,7 +15,7 @@ use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Detections3D, DetectionsEnvelope, Encoding};
 use probmot::pipeline::info::file_info;
 use probmot::pipeline::progress::no_progress;
-use probmot::pipeline::track::{track_file, TrackOptions, DEFAULT_MAX_DETECTIONS};
+use probmot::pipeline::track::{track_file, SceneOutput, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::tracker::TrackerConfig;
 
 /// Counts the largest single allocation of the current thread, so a test can tell that a file
@@ -73,7 +73,7 @@ fn options() -> TrackOptions {
         strict: false,
         max_detections_per_message: DEFAULT_MAX_DETECTIONS,
         ego: Default::default(),
-        scene_topic: None,
+        scene: SceneOutput::Off,
         compression: Default::default(),
         background_writer: true,
     }

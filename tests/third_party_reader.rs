@@ -1,7 +1,7 @@
 //! A third-party reader agrees with ours: `scripts/check_tracks.py` (PyPI `mcap` +
 //! `mcap-protobuf-support`, decoding with the schemas embedded in the file) must print exactly
 //! the tracks that prost decodes, and `pymcap-cli doctor` must pass on every file the binary
-//! writes.
+//! writes, with the messages in log-time order.
 //!
 //! Needs `python3 -m pip install -r scripts/requirements.txt`; without those packages the test
 //! prints SKIPPED on stderr and passes (fails under CI=true).
@@ -147,6 +147,8 @@ fn compare(ours: &Tracks3D, theirs: &Value, ctx: &str, stats: &mut Stats) {
 }
 
 /// `pymcap-cli doctor` on each file, all at once; asserts success, no error and no warning.
+/// With `--strict-message-order` a message whose log time is earlier than the one before it is
+/// an error: `track` writes each frame's tracks before any later message.
 fn doctor(files: &[PathBuf]) {
     let cli_on_path = Command::new("pymcap-cli")
         .arg("--version")
@@ -162,7 +164,7 @@ fn doctor(files: &[PathBuf]) {
                 c.args(["-c", PYMCAP_CLI_MODULE]);
                 c
             };
-            cmd.args(["doctor", "--format", "jsonl"])
+            cmd.args(["doctor", "--strict-message-order", "--format", "jsonl"])
                 .arg(f)
                 .stdout(std::process::Stdio::piped())
                 .stderr(std::process::Stdio::piped())

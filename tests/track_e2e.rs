@@ -70,7 +70,7 @@ fn every_input_message_survives_and_tracks_decode_with_the_embedded_descriptor()
         let after = messages(&output);
         let mut copied: Vec<Msg> = after
             .iter()
-            .filter(|m| m.topic != "/tracks")
+            .filter(|m| m.topic != "/tracks" && m.topic != "/tracks/scene")
             .cloned()
             .collect();
         let mut original = before.clone();
@@ -78,7 +78,8 @@ fn every_input_message_survives_and_tracks_decode_with_the_embedded_descriptor()
         original.sort();
         assert_eq!(copied, original, "{name}: input messages changed");
 
-        // One tracks message per frame (distinct detection stamps), at the frame's stamp.
+        // One tracks message per frame (distinct detection stamps), at the frame's log time
+        // (here its stamp), and its SceneUpdate beside it.
         let det_times: Vec<u64> = before
             .iter()
             .filter(|m| m.topic == "/detections")
@@ -90,6 +91,15 @@ fn every_input_message_survives_and_tracks_decode_with_the_embedded_descriptor()
             trk.iter().map(|m| m.log_time).collect::<Vec<_>>(),
             det_times
         );
+        let scene: Vec<&Msg> = after
+            .iter()
+            .filter(|m| m.topic == "/tracks/scene")
+            .collect();
+        assert_eq!(
+            scene.iter().map(|m| m.log_time).collect::<Vec<_>>(),
+            det_times
+        );
+        assert!(scene.iter().all(|m| m.schema == "foxglove.SceneUpdate"));
 
         // Decode with the descriptor embedded in the file's schema record, not our types.
         let bytes = std::fs::read(&output).unwrap();

@@ -11,7 +11,9 @@ use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::many::{out_dir_outputs, track_many};
 use probmot::pipeline::progress::Progress;
 use probmot::pipeline::rosbag_dir;
-use probmot::pipeline::track::{track_file, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
+use probmot::pipeline::track::{
+    track_file, SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS,
+};
 use probmot::pipeline::tracks_format::TracksFormat;
 
 use super::config_cmd::TrackerArgs;
@@ -22,8 +24,11 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///
 /// Every input record (schemas, channels, messages with their times and sequence numbers,
 /// attachments, metadata) is copied unchanged; the tracks are written one message per frame,
-/// with log_time = the frame's stamp, as `probmot.Tracks3D` or, for ROS 2 inputs,
-/// `vision_msgs/msg/Detection3DArray` (see --tracks-format). Frames are the distinct
+/// as `probmot.Tracks3D` (and as foxglove.SceneUpdate on /tracks/scene, see --scene-topic) or,
+/// for ROS 2 inputs, `vision_msgs/msg/Detection3DArray` (see --tracks-format). A tracks message
+/// has the frame's stamp in the message and, as log_time, the latest log_time of the frame's
+/// detection messages; it is written before any later input message, so the output is in
+/// log-time order when the input is. Frames are the distinct
 /// detection stamps, replayed in stamp order. The output is written to a partial file beside it
 /// (.NAME.probmot-partial) and renamed at the end; the input is never modified. --out-dir is
 /// created when missing. Ctrl-C, SIGTERM or SIGHUP remove the partial files (exit 130/143/129).
@@ -46,7 +51,7 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
-///   probmot track drive.mcap -o out.mcap --fixed-frame map --tracks-frame ego --scene-topic /tracks/scene
+///   probmot track drive.mcap -o out.mcap --fixed-frame map --tracks-frame ego
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct TrackArgs {
@@ -110,10 +115,17 @@ pub struct TrackArgs {
     /// the transforms' time range (that transform is held; further is a missing transform).
     #[arg(long, value_name = "SECONDS", default_value_t = 0.1)]
     tf_tolerance: f64,
-    /// Also write a foxglove.SceneUpdate channel on this topic (boxes, ids, velocity arrows)
-    /// for the Foxglove 3D panel.
-    #[arg(long, value_name = "TOPIC")]
+    /// Topic of the foxglove.SceneUpdate channel written beside the tracks (boxes, ids,
+    /// velocity arrows for the Foxglove 3D panel). Default: <tracks-topic>/scene (/tracks/scene)
+    /// when the tracks are probmot.Tracks3D; none with ROS 2 tracks (a ROS 2 bag keeps CDR
+    /// channels only), where giving it is refused. See docs/viewing.md.
+    /// Example: probmot track drive.mcap -o out.mcap --scene-topic /viz/tracks
+    #[arg(long, value_name = "TOPIC", conflicts_with = "no_scene")]
     scene_topic: Option<String>,
+    /// Write no foxglove.SceneUpdate channel (only the tracks channel).
+    /// Example: probmot track drive.mcap -o out.mcap --no-scene
+    #[arg(long)]
+    no_scene: bool,
     /// Also write a Rerun recording of the output (as `probmot viz OUTPUT -o OUT.rrd`; one input
     /// with -o only; needs the `rerun` cargo feature).
     #[arg(long, value_name = "OUT.rrd", conflicts_with = "out_dir")]
@@ -236,7 +248,11 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             tolerance_ns: (a.tf_tolerance * 1e9) as u64,
             tracks_in_ego_frame: a.tracks_frame == TracksFrame::Ego,
         },
-        scene_topic: a.scene_topic.clone(),
+        scene: match (&a.scene_topic, a.no_scene) {
+            (Some(t), _) => SceneOutput::Topic(t.clone()),
+            (None, true) => SceneOutput::Off,
+            (None, false) => SceneOutput::Default,
+        },
         compression: a.compression,
         // A file gets a writer thread of its own when there is a core for it: one file on two
         // or more, not several files that already keep every core busy.

@@ -12,6 +12,7 @@ pub mod progress;
 pub mod rosbag_dir;
 pub mod track;
 pub mod track_options;
+mod track_order;
 pub mod track_outputs;
 pub mod track_session;
 pub mod tracks_format;

@@ -36,7 +36,9 @@ pub use crate::msgs::track_encode::{fill_track3d, to_track3d};
 use crate::tracker::Tracker;
 use crate::transforms::TransformCollector;
 
-pub use super::track_options::{TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
+pub use super::track_options::{
+    SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS, SCENE_TOPIC_SUFFIX,
+};
 
 /// Result of the first pass.
 #[derive(Default)]
@@ -456,14 +458,15 @@ fn run_pass(
         format.check_extras(
             &file,
             opts.ego.tracks_in_ego_frame,
-            opts.scene_topic.is_some(),
+            matches!(opts.scene, SceneOutput::Topic(_)),
         )?;
     }
     let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
+    let scene_topic = opts.scene.topic(&opts.tracks_topic, format);
     let request = ExtraRequest {
         tracks_topic: &opts.tracks_topic,
         tracks_in_ego_frame: opts.ego.tracks_in_ego_frame,
-        scene_topic: opts.scene_topic.as_deref(),
+        scene_topic: scene_topic.as_deref(),
     };
     let extra = ExtraOutputs::new(&request, &file, scan_ids.as_ref(), ids)?;
 
@@ -486,6 +489,7 @@ fn run_pass(
         pending: BTreeMap::new(),
         next_frame: 0,
         frame_state: FrameState::default(),
+        order: Default::default(),
         summary,
         progress,
         base,

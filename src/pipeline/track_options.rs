@@ -29,14 +29,48 @@ pub struct TrackOptions {
     pub max_detections_per_message: usize,
     /// Ego motion: the fixed frame and the `--tracks-frame ego` output (see [`super::ego`]).
     pub ego: EgoOptions,
-    /// Topic of the `foxglove.SceneUpdate` output channel, if any.
-    pub scene_topic: Option<String>,
+    /// The `foxglove.SceneUpdate` output channel (boxes for the Foxglove 3D panel).
+    pub scene: SceneOutput,
     /// Chunk compression of the output.
     pub compression: OutputCompression,
     /// Write and compress the output on a thread of its own ([`crate::mcapio::background::BackgroundOutput`]), so that it
     /// overlaps with reading and tracking: faster for one file when a core is spare; when files
     /// already run in parallel on every core, writing on the file's own thread costs less.
     pub background_writer: bool,
+}
+
+/// Whether and where `track` writes the tracks as `foxglove.SceneUpdate` beside the tracks
+/// channel, so a tracked log shows boxes in Foxglove without extra files.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum SceneOutput {
+    /// On `<tracks-topic>/scene` ([`SCENE_TOPIC_SUFFIX`]) when the tracks are `probmot.Tracks3D`;
+    /// none with ROS 2 tracks, whose bag must stay decodable by ROS 2 tools (CDR only).
+    #[default]
+    Default,
+    /// On this topic (`--scene-topic`); refused with ROS 2 tracks.
+    Topic(String),
+    /// None (`--no-scene`).
+    Off,
+}
+
+/// Suffix of the tracks topic for the default scene topic (`/tracks` → `/tracks/scene`).
+pub const SCENE_TOPIC_SUFFIX: &str = "/scene";
+
+impl SceneOutput {
+    /// The scene topic of a run with tracks on `tracks_topic` written as `format`, or `None`.
+    pub fn topic(
+        &self,
+        tracks_topic: &str,
+        format: super::tracks_format::TracksFormat,
+    ) -> Option<String> {
+        match self {
+            SceneOutput::Default if format == super::tracks_format::TracksFormat::Probmot => {
+                Some(format!("{tracks_topic}{SCENE_TOPIC_SUFFIX}"))
+            }
+            SceneOutput::Default | SceneOutput::Off => None,
+            SceneOutput::Topic(t) => Some(t.clone()),
+        }
+    }
 }
 
 /// Default of [`TrackOptions::max_detections_per_message`].

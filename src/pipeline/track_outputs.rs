@@ -118,7 +118,7 @@ impl ExtraOutputs {
         Ok(())
     }
 
-    /// Writes one frame's extra messages: the tracks in the ego frame (when its transform is
+    /// Writes one frame's extra messages (at the tracks' `log_time`): the tracks in the ego frame (when its transform is
     /// known; `ego` = detection frame and fixed-to-ego transform) and the scene update (with
     /// deletions for the tracks shown before and not reported now).
     pub fn write_frame(
@@ -127,12 +127,13 @@ impl ExtraOutputs {
         tracks: &Tracks3D,
         ego: Option<(String, Isometry3<f64>)>,
         sequence: u32,
+        log_time: u64,
     ) -> Result<()> {
         let header = |channel_id| MessageHeader {
             channel_id,
             sequence,
-            log_time: tracks.stamp,
-            publish_time: tracks.stamp,
+            log_time,
+            publish_time: log_time,
         };
         if let (Some((_, id)), Some((frame, iso))) = (&self.ego, ego) {
             transform_tracks_into(tracks, &iso, &frame, &mut self.ego_msg);

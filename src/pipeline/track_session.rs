@@ -14,6 +14,7 @@ use super::ego::EgoMotion;
 use super::frame_schedule::Schedule;
 use super::progress::Progress;
 use super::track_options::{TrackOptions, TrackSummary};
+use super::track_order::LogTimeOrder;
 use super::track_outputs::ExtraOutputs;
 use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
@@ -115,6 +116,8 @@ pub struct TrackSession<'a, S: RecordSink> {
     pub(super) pending: BTreeMap<u64, Vec<Pending>>,
     pub(super) next_frame: usize,
     pub(super) frame_state: FrameState,
+    /// Holds input messages until the tracks before them (in log time) are written.
+    pub(super) order: LogTimeOrder,
     pub(super) summary: TrackSummary,
     pub(super) progress: &'a dyn Fn(Progress<'_>),
     /// Progress already made before this pass (bytes).
@@ -147,8 +150,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
                     .with_context(|| format!("{file}: copying channel {} ({})", c.id, c.topic))?;
             }
             Record::Message { header, data } => {
-                self.out
-                    .write_to_known_channel(&header, &data)
+                self.order
+                    .copy(&mut self.out, &header, &data)
                     .with_context(|| {
                         format!(
                             "{file}: copying message at log_time {} on channel {}",
@@ -171,17 +174,22 @@ impl<S: RecordSink> TrackSession<'_, S> {
                     }
                     self.ego
                         .to_fixed(&mut msg, || describe_message(file, topic, &header))?;
-                    self.pending.entry(stamp).or_default().push(Pending {
+                    let frame = self.pending.entry(stamp).or_default();
+                    let old = frame.iter().map(|p| p.log_time).max();
+                    let new = old.map_or(header.log_time, |t| t.max(header.log_time));
+                    frame.push(Pending {
                         ordinal: self.summary.detection_messages,
                         log_time: header.log_time,
                         topic_idx,
                         msg,
                     });
+                    self.order.frame_time(old, new);
                     self.summary.detection_messages += 1;
                     while let Some(stamp) = self.schedule.ready(&self.pending, self.next_frame) {
                         self.track_frame(stamp, self.schedule.frames())?;
                         self.schedule.tracked(stamp);
                     }
+                    self.order.release(&mut self.out)?;
                 }
                 if self.summary.messages_copied.is_multiple_of(256) {
                     (self.progress)(Progress::Position(self.base + bytes_read));
@@ -228,6 +236,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
                 }
             }
         }
+        self.order.release(&mut self.out)?;
+        debug_assert!(self.order.is_empty(), "every held message is written");
         Ok(())
     }
 
@@ -236,6 +246,10 @@ impl<S: RecordSink> TrackSession<'_, S> {
         let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
         msgs_of_frame.sort_by_key(|p| p.ordinal);
         let (_, channel_id) = self.ids.expect("ids exist with detections");
+        let latest = msgs_of_frame.iter().map(|p| p.log_time).max();
+        let log_time = self
+            .order
+            .tracks_time(&mut self.out, latest.expect("a frame has a message"))?;
         self.frame_state.run(
             stamp,
             &mut msgs_of_frame,
@@ -252,8 +266,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
             &MessageHeader {
                 channel_id,
                 sequence,
-                log_time: stamp,
-                publish_time: stamp,
+                log_time,
+                publish_time: log_time,
             },
             &self.frame_state.buf,
         )?;
@@ -262,6 +276,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
             &self.frame_state.out,
             self.ego.take_ego(stamp),
             sequence,
+            log_time,
         )?;
         self.frame_state.finish(self.tracker.deleted());
         self.summary.tracks_messages += 1;
@@ -443,6 +458,7 @@ mod tests {
     use crate::msgs::{self, v3, Detection3D, Detections3D, Encoding, Size3};
     use crate::pipeline::ego::EgoOptions;
     use crate::pipeline::progress::no_progress;
+    use crate::pipeline::track_options::SceneOutput;
     use crate::pipeline::track_outputs::ExtraRequest;
     use crate::tracker::TrackerConfig;
     use crate::transforms::TransformCollector;
@@ -487,7 +503,7 @@ mod tests {
             strict: false,
             max_detections_per_message: 10,
             ego: EgoOptions::default(),
-            scene_topic: None,
+            scene: SceneOutput::Off,
             compression: Default::default(),
             background_writer: false,
         };
@@ -513,6 +529,7 @@ mod tests {
             pending: BTreeMap::new(),
             next_frame: 0,
             frame_state: FrameState::default(),
+            order: LogTimeOrder::default(),
             summary: TrackSummary::default(),
             progress: &no_progress,
             base: 0,

@@ -14,12 +14,12 @@ use crate::common::{detections, probmot_ok, repo, tracks};
 
 /// Whether the tests can run; prints why not.
 pub fn available(test: &str) -> bool {
-    if crate::common::python_has("rerun, mcap, mcap_protobuf") {
+    if crate::common::python_has("rerun, mcap, mcap_protobuf, mcap_ros2") {
         return true;
     }
     crate::common::skip(
         test,
-        "`python3 -c \"import rerun, mcap, mcap_protobuf\"` failed; install with \
+        "`python3 -c \"import rerun, mcap, mcap_protobuf, mcap_ros2\"` failed; install with \
          `python3 -m pip install -r scripts/requirements.txt` (rerun-sdk==0.36.3)",
     );
     false

@@ -1,0 +1,212 @@
+//! `track`'s output is in log-time order when its input is: each frame's tracks (and their
+//! SceneUpdate) come before every later input message, at the latest log time of the frame's
+//! detection messages; the input messages keep their order and bytes. And the SceneUpdate
+//! channel is there by default, on `--scene-topic`, or not at all with `--no-scene` or ROS 2
+//! tracks.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use common::*;
+use probmot::msgs::{self, v3, Detection3D, Detections3D, Size3};
+
+const MS: u64 = 1_000_000;
+
+/// A car driving along x, detected every 100 ms; each detection message is logged 30 ms after
+/// its stamp (the detector's latency), between camera messages logged every 25 ms, and the
+/// messages are written in log-time order. Returns the detection stamps.
+fn write_latency_log(path: &Path) -> Vec<u64> {
+    let file = std::fs::File::create(path).unwrap();
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
+    let s = w
+        .add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)
+        .unwrap();
+    let det = w
+        .add_channel(s, "/detections", "protobuf", &BTreeMap::new())
+        .unwrap();
+    let camera = w
+        .add_channel(0, "/camera", "raw", &BTreeMap::new())
+        .unwrap();
+    let t0 = 1_000 * 1_000 * MS;
+    let mut records: Vec<(u64, u16, Vec<u8>)> = Vec::new();
+    let mut stamps = Vec::new();
+    for k in 0..30u64 {
+        let stamp = t0 + k * 100 * MS;
+        stamps.push(stamp);
+        let m = Detections3D {
+            stamp: Some(stamp),
+            frame_id: "map".into(),
+            detections: vec![Detection3D {
+                center: Some(v3([k as f64, 0.0, 0.0])),
+                size: Some(Size3 {
+                    length: 4.0,
+                    width: 2.0,
+                    height: 1.5,
+                }),
+                label: "car".into(),
+                score: 0.9,
+                ..Default::default()
+            }],
+        };
+        records.push((stamp + 30 * MS, det, prost::Message::encode_to_vec(&m)));
+    }
+    for k in 0..130u64 {
+        records.push((t0 + k * 25 * MS, camera, format!("image {k}").into_bytes()));
+    }
+    records.sort_by_key(|r| (r.0, r.1));
+    for (i, (log_time, channel_id, data)) in records.iter().enumerate() {
+        let header = mcap::records::MessageHeader {
+            channel_id: *channel_id,
+            sequence: i as u32,
+            log_time: *log_time,
+            publish_time: *log_time,
+        };
+        w.write_to_known_channel(&header, data).unwrap();
+    }
+    w.finish().unwrap();
+    stamps
+}
+
+fn log_times(msgs: &[Msg]) -> Vec<u64> {
+    msgs.iter().map(|m| m.log_time).collect()
+}
+
+/// The output's messages are in log-time order, the input's keep their order, and the tracks
+/// and scene of each frame are at its detection message's log time.
+fn assert_ordered(input: &Path, output: &Path, name: &str) {
+    let before = messages(input);
+    let after = messages(output);
+    let times = log_times(&after);
+    let back = times.windows(2).filter(|w| w[1] < w[0]).count();
+    assert_eq!(back, 0, "{name}: {back} messages before an earlier one");
+    let ours = |m: &&Msg| m.topic == "/tracks" || m.topic == "/tracks/scene";
+    let copied: Vec<Msg> = after.iter().filter(|m| !ours(m)).cloned().collect();
+    assert_eq!(
+        copied, before,
+        "{name}: input messages changed or reordered"
+    );
+    let det: Vec<u64> = before
+        .iter()
+        .filter(|m| m.topic == "/detections")
+        .map(|m| m.log_time)
+        .collect();
+    for topic in ["/tracks", "/tracks/scene"] {
+        let t: Vec<Msg> = after.iter().filter(|m| m.topic == topic).cloned().collect();
+        assert_eq!(log_times(&t), det, "{name}: log times of {topic}");
+    }
+}
+
+#[test]
+fn tracks_come_before_every_later_message() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("latency.mcap");
+    let stamps = write_latency_log(&input);
+    let output = dir.path().join("latency.tracked.mcap");
+    // Read once: the summary section plans the pass, and a frame is complete only when the
+    // next detection message arrives, so the camera messages between them wait.
+    let out = probmot_ok(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--json",
+    ]);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["passes"], 1);
+    assert_ordered(&input, &output, "latency log");
+    // The stamp in the message stays the detection stamp.
+    let got: Vec<u64> = tracks(&output, "/tracks").iter().map(|f| f.stamp).collect();
+    assert_eq!(got, stamps);
+
+    // Two passes: an ego-frame simulation with /tf.
+    let ego = dir.path().join("ego.mcap");
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--frames",
+        "20",
+        "--ego-frame",
+        "-o",
+        ego.to_str().unwrap(),
+    ]);
+    let ego_out = dir.path().join("ego.tracked.mcap");
+    let out = probmot_ok(&[
+        "track",
+        ego.to_str().unwrap(),
+        "-o",
+        ego_out.to_str().unwrap(),
+        "--json",
+    ]);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["passes"], 2);
+    assert_ordered(&ego, &ego_out, "ego-frame simulation");
+}
+
+fn topics(path: &Path) -> Vec<String> {
+    let mut t: Vec<String> = messages(path).into_iter().map(|m| m.topic).collect();
+    t.sort();
+    t.dedup();
+    t
+}
+
+#[test]
+fn the_scene_channel_is_on_by_default_and_can_be_moved_or_left_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("sample_logs/turning-car.mcap");
+    let out = dir.path().join("out.mcap");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["track", "-q", input.to_str().unwrap()];
+        args.extend(["-o", out.to_str().unwrap()]);
+        args.extend(extra);
+        probmot_ok(&args);
+        topics(&out)
+    };
+    let base = ["/detections", "/ground_truth", "/tracks"];
+    assert_eq!(run(&[]), [&base[..], &["/tracks/scene"]].concat());
+    assert_eq!(run(&["--no-scene"]), base);
+    assert_eq!(
+        run(&["--scene-topic", "/viz"]),
+        [&base[..], &["/viz"]].concat()
+    );
+    // The default follows --tracks-topic.
+    assert_eq!(
+        run(&["--tracks-topic", "/t"]),
+        ["/detections", "/ground_truth", "/t", "/t/scene"]
+    );
+    let both = probmot(&[
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--no-scene",
+        "--scene-topic",
+        "/viz",
+    ]);
+    assert_eq!(both.status.code(), Some(2), "--no-scene with --scene-topic");
+}
+
+#[test]
+fn ros2_tracks_get_no_scene_unless_asked_and_asking_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("tests/fixtures/ros2/city.mcap");
+    let out = dir.path().join("out.mcap");
+    let args = ["track", "-q", input.to_str().unwrap(), "-o"];
+    probmot_ok(&[&args[..], &[out.to_str().unwrap()]].concat());
+    assert_eq!(topics(&out), ["/detections", "/tracks"]);
+    let refused = probmot(&[&args[..], &[out.to_str().unwrap(), "--scene-topic", "/s"]].concat());
+    assert_eq!(refused.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(err.contains("--scene-topic"), "{err}");
+    // Protobuf tracks asked for: the scene comes with them.
+    probmot_ok(
+        &[
+            &args[..],
+            &[out.to_str().unwrap(), "--tracks-format", "probmot"],
+        ]
+        .concat(),
+    );
+    assert_eq!(topics(&out), ["/detections", "/tracks", "/tracks/scene"]);
+}
