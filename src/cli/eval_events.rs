@@ -144,13 +144,11 @@ pub fn write(
     for ce in &classes {
         for e in &ce.events {
             let stamp = scenes[e.scene].frames[e.frame].0;
-            let frame = per_log[e.scene]
-                .entry(stamp)
-                .or_insert_with(|| EvalEvents {
-                    stamp,
-                    protocol: name.to_string(),
-                    ..Default::default()
-                });
+            let frame = per_log[e.scene].entry(stamp).or_insert_with(|| EvalEvents {
+                stamp,
+                protocol: name.to_string(),
+                ..Default::default()
+            });
             frame.events.push(e.event.clone());
         }
     }
@@ -191,7 +189,10 @@ fn report(outputs: Vec<PathBuf>, classes: &[ClassEvents], scenes: &[Scene]) -> E
     worst.truncate(WORST);
     EventsReport {
         outputs,
-        counts: classes.iter().map(|c| (c.class.clone(), c.counts)).collect(),
+        counts: classes
+            .iter()
+            .map(|c| (c.class.clone(), c.counts))
+            .collect(),
         total_switches: classes.iter().map(|c| c.counts.ids).sum(),
         total_frags: classes.iter().map(|c| c.counts.frag).sum(),
         worst,

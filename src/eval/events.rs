@@ -256,9 +256,9 @@ impl Boxes<'_> {
 
     fn track(&self, scene: usize, frame: usize, id: u64) -> Option<&EvalBox> {
         let boxes = &self.scenes.get(scene)?.frames.get(frame)?.2;
-        boxes.iter().find(|b| {
-            b.id == id && (self.protocol == Protocol::Kitti || b.label == self.class)
-        })
+        boxes
+            .iter()
+            .find(|b| b.id == id && (self.protocol == Protocol::Kitti || b.label == self.class))
     }
 
     /// The event of kind `kind` at `(scene, frame)`, its geometry from the truth box (else the
@@ -317,7 +317,12 @@ pub fn resolve(scenes: &[Scene], class: &str, log: &Collector, protocol: Protoco
             seq.push((i, matches!(d.outcome, Outcome::Match | Outcome::Switch)));
         }
         let (kind, previous) = match d.outcome {
-            Outcome::Ignored => continue,
+            // An ignored object paired with a track is a true positive of KITTI's count.
+            Outcome::Ignored if d.track.is_none() => continue,
+            Outcome::Ignored => {
+                out.counts.tp += 1;
+                (Kind::Match, 0)
+            }
             Outcome::Match => {
                 out.counts.tp += 1;
                 (Kind::Match, 0)
@@ -361,10 +366,9 @@ fn nuscenes_fragmentations(
 ) {
     for key in order {
         let seq = &seqs[key];
-        let (Some(first), Some(last)) = (
-            seq.iter().position(|s| s.1),
-            seq.iter().rposition(|s| s.1),
-        ) else {
+        let (Some(first), Some(last)) =
+            (seq.iter().position(|s| s.1), seq.iter().rposition(|s| s.1))
+        else {
             continue;
         };
         for k in first + 1..=last {
@@ -386,7 +390,10 @@ fn kitti_marks(
     out: &mut ClassEvents,
 ) {
     for m in &log.marks {
-        let Some(&(i, _)) = seqs.get(&(m.scene, m.truth)).and_then(|s| s.get(m.position)) else {
+        let Some(&(i, _)) = seqs
+            .get(&(m.scene, m.truth))
+            .and_then(|s| s.get(m.position))
+        else {
             continue;
         };
         let d = Decision {

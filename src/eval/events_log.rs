@@ -53,7 +53,12 @@ pub fn write_events_log(
         opts.profile = h.profile;
     }
     let mut out = BackgroundOutput::create_inline(dest, &opts)?;
-    out.add_schema_with_id(EVENTS_ID, EVAL_EVENTS_SCHEMA, "protobuf", EVAL_DESCRIPTOR_SET)?;
+    out.add_schema_with_id(
+        EVENTS_ID,
+        EVAL_EVENTS_SCHEMA,
+        "protobuf",
+        EVAL_DESCRIPTOR_SET,
+    )?;
     let scene_descriptor = scene_update_descriptor();
     out.add_schema_with_id(SCENE_ID, SCENE_UPDATE_SCHEMA, "protobuf", &scene_descriptor)?;
     let meta = BTreeMap::new();
@@ -152,9 +157,11 @@ impl Writer<'_> {
                 publish_time: stamp,
             };
             encode_into(&ev, &mut self.buf);
-            self.out.write_to_known_channel(&header(EVENTS_ID), &self.buf)?;
+            self.out
+                .write_to_known_channel(&header(EVENTS_ID), &self.buf)?;
             encode_into(&scene_update(&ev, self.scene_matches), &mut self.buf);
-            self.out.write_to_known_channel(&header(SCENE_ID), &self.buf)?;
+            self.out
+                .write_to_known_channel(&header(SCENE_ID), &self.buf)?;
             self.written.frames += 1;
             self.pending.next();
         }

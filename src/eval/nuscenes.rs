@@ -634,10 +634,10 @@ pub fn best_threshold_decisions(scenes: &[Scene], p: &NuscenesParams) -> Vec<(St
     let prepared: Vec<Prepared> = scenes.iter().map(prepare).collect();
     p.classes
         .par_iter()
-        .map(|c| {
+        .filter_map(|c| {
             let mut log = Collector::default();
-            evaluate_class_with(&prepared, c, p, &mut Vec::new(), Some(&mut log));
-            (c.clone(), log)
+            let m = evaluate_class_with(&prepared, c, p, &mut Vec::new(), Some(&mut log));
+            (!m.gt.is_nan()).then(|| (c.clone(), log))
         })
         .collect()
 }

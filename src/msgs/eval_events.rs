@@ -186,6 +186,9 @@ mod tests {
         );
         assert_eq!(u.entities.len(), 1, "matches are left out");
         assert_eq!(u.entities[0].frame_id, "map");
-        assert_eq!(u.entities[0].timestamp, Some(Timestamp::new(1, 500_000_000)));
+        assert_eq!(
+            u.entities[0].timestamp,
+            Some(Timestamp::new(1, 500_000_000))
+        );
     }
 }
