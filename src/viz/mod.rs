@@ -3,10 +3,13 @@
 //! This module reads the layers (detections, tracks, ground truth) of an MCAP file into plain
 //! per-frame box lists and selects a class and a time window; [`plot`] draws them, with no I/O.
 
+pub mod labels;
 pub mod plot;
+mod plot_panel;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;
+pub mod truth_colors;
 pub mod window;
 
 use std::collections::BTreeSet;

@@ -17,10 +17,14 @@ use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
 use mcap::{Channel, Summary};
 
 use super::{read_layers, BevBox, FileLayers, Frame, Layer, LayerFrames};
+use crate::mcapio::reader::read_records;
 use crate::mcapio::recording::tracks_stamp;
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
-use crate::msgs::{self, ros2_tracks, ros2_vision, Encoding, Tracks3D, TRACKS_SCHEMA};
+use crate::msgs::eval_events::EVAL_EVENTS_SCHEMA;
+use crate::msgs::{self, ros2_tracks, ros2_vision, Encoding, EvalEvents, Tracks3D, TRACKS_SCHEMA};
+use mcap::records::Record;
+use prost::Message as _;
 
 /// Log times read beyond each end of the window: a message's stamp (what the window is in) may
 /// differ from its log time by up to this much (probmot writes them equal).
@@ -244,4 +248,66 @@ pub fn read_window(
         topics,
         span,
     })
+}
+
+/// The `probmot.EvalEvents` messages of `topic` in `path` (written by `eval --events`) whose log
+/// time lies in `[from_ns, to_ns]`, read through the chunk indexes when the file has them.
+pub fn read_events(path: &Path, topic: &str, from_ns: u64, to_ns: u64) -> Result<Vec<EvalEvents>> {
+    let name = path.display().to_string();
+    let mut file = File::open(path).with_context(|| format!("cannot open {name}"))?;
+    let mut out = Vec::new();
+    let mut decode = |h: &MessageHeader, data: &[u8]| -> Result<()> {
+        if (from_ns..=to_ns).contains(&h.log_time) {
+            let m = EvalEvents::decode(data).with_context(|| {
+                format!(
+                    "{name}: topic {topic}, message at log_time {}: not probmot.EvalEvents",
+                    h.log_time
+                )
+            })?;
+            out.push(m);
+        }
+        Ok(())
+    };
+    if let Some(summary) = summary(&mut file) {
+        let Some(c) = summary.channels.values().find(|c| c.topic == topic) else {
+            bail!("{name} has no topic {topic} (write it with `probmot eval --events {name}`)");
+        };
+        check_events_schema(&name, c)?;
+        let opts = IndexedReaderOptions::new()
+            .with_order(ReadOrder::File)
+            .include_topics([topic])
+            .starting_at(from_ns)
+            .ending_at(to_ns);
+        indexed(&mut file, &summary, opts, |h, data| {
+            decode(h, data).map(|_| true)
+        })?;
+        return Ok(out);
+    }
+    let mut channel = None;
+    read_records(path, |rec, _| {
+        match rec {
+            Record::Channel(c) if c.topic == topic => channel = Some(c.id),
+            Record::Message { header, data } if Some(header.channel_id) == channel => {
+                decode(&header, &data)?
+            }
+            _ => {}
+        }
+        Ok(())
+    })?;
+    if channel.is_none() {
+        bail!("{name} has no topic {topic} (write it with `probmot eval --events {name}`)");
+    }
+    Ok(out)
+}
+
+fn check_events_schema(name: &str, c: &Channel<'_>) -> Result<()> {
+    let schema = c.schema.as_ref().map(|s| s.name.as_str()).unwrap_or("");
+    if schema != EVAL_EVENTS_SCHEMA || c.message_encoding != "protobuf" {
+        bail!(
+            "{name}: topic {} has schema '{schema}' ({}), expected {EVAL_EVENTS_SCHEMA} (protobuf)",
+            c.topic,
+            c.message_encoding
+        );
+    }
+    Ok(())
 }
