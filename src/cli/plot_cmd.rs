@@ -66,8 +66,7 @@ pub struct PlotArgs {
         long,
         value_name = "X0,X1,Y0,Y1",
         value_delimiter = ',',
-        num_args = 4,
-        allow_negative_numbers = true
+        allow_hyphen_values = true
     )]
     extent: Vec<f64>,
     /// Mark the evaluation's errors of the window (identity switches, fragmentations, false
@@ -80,6 +79,10 @@ pub struct PlotArgs {
     /// ground truth whose colour it takes.
     #[arg(long, value_name = "M", default_value_t = 2.0)]
     match_distance: f64,
+    /// Give each track its own colour (by track id) instead of that of its ground truth.
+    /// Example: --own-colors
+    #[arg(long)]
+    own_colors: bool,
     #[command(flatten)]
     topics: LayerTopics,
     /// Print nothing on success.
@@ -293,7 +296,10 @@ fn colour_and_marks(
         None => None,
     };
     let truth = read.get(Layer::GroundTruth).map(|lf| &lf.frames);
-    for p in panels.iter_mut().filter(|p| p.layer == Layer::Tracks) {
+    for p in panels
+        .iter_mut()
+        .filter(|p| p.layer == Layer::Tracks && !a.own_colors)
+    {
         p.truth_of = match (&events, truth) {
             (Some(ev), _) => Some(match_from_events(ev)),
             (None, Some(gt)) if !gt.is_empty() => {
