@@ -162,3 +162,68 @@ fn one_log_writes_one_file_and_the_report_lists_the_moments() {
     assert!(!same.status.success());
     assert!(String::from_utf8_lossy(&same.stderr).contains("is the input file"));
 }
+
+#[test]
+fn to_rerun_draws_the_events_layer() {
+    if !common::python_has("rerun, mcap, mcap_protobuf, pyarrow") {
+        skip(
+            "to_rerun_draws_the_events_layer",
+            "python3 lacks rerun-sdk / mcap (pip install -r scripts/requirements.txt)",
+        );
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let tracked = tmp.path().join("ped.tracked.mcap");
+    let events = tmp.path().join("ped.events.mcap");
+    let rrd = tmp.path().join("ped.rrd");
+    let input = common::repo("sample_logs/pedestrians.mcap");
+    probmot_ok(&["track", s(&input), "-o", s(&tracked), "--quiet"]);
+    let out = probmot_ok(&[
+        "eval",
+        "--truth",
+        s(&tracked),
+        "--events",
+        s(&events),
+        "--json",
+    ]);
+    let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let moments: u64 = v["events"]["counts"]
+        .as_object()
+        .unwrap()
+        .values()
+        .map(|c| c["ids"].as_u64().unwrap() + c["frag"].as_u64().unwrap())
+        .sum();
+    assert!(moments > 0);
+    let py = |args: &[&str]| {
+        let out = std::process::Command::new("python3")
+            .args(args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out.stdout
+    };
+    let script = |n: &str| {
+        common::repo(&format!("scripts/{n}"))
+            .to_str()
+            .unwrap()
+            .to_string()
+    };
+    py(&[&script("to_rerun.py"), s(&events), "-o", s(&rrd)]);
+    let summary: Value =
+        serde_json::from_slice(&py(&[&script("inspect_rrd.py"), s(&rrd)])).unwrap();
+    let e = &summary["entities"];
+    // One text entry per switch and fragmentation (the moments to jump to), a row of error boxes
+    // per frame.
+    assert_eq!(e["/events"]["rows"].as_u64(), Some(moments), "{e}");
+    assert_eq!(e["/world/events"]["rows"].as_u64(), Some(40), "{e}");
+    // A tracked log without events: no events entities.
+    let plain = tmp.path().join("plain.rrd");
+    py(&[&script("to_rerun.py"), s(&tracked), "-o", s(&plain)]);
+    let summary: Value =
+        serde_json::from_slice(&py(&[&script("inspect_rrd.py"), s(&plain)])).unwrap();
+    assert!(summary["entities"].get("/events").is_none());
+}
