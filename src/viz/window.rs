@@ -138,6 +138,39 @@ fn indexed(
     Ok(())
 }
 
+/// First and last frame stamp over `topics` (the first message of each topic in log-time order,
+/// and the last), and the stamp minus the log time of the first frame.
+fn span(
+    file: &mut File,
+    summary: &Summary,
+    topics: &[&String],
+    decoders: &BTreeMap<u16, (usize, Decoder)>,
+    ctx: &dyn Fn(&MessageHeader) -> String,
+) -> Result<(Option<(u64, u64)>, i128)> {
+    let mut span: Option<(u64, u64)> = None;
+    let mut offset: i128 = 0;
+    for order in [ReadOrder::LogTime, ReadOrder::ReverseLogTime] {
+        for topic in topics {
+            let opts = IndexedReaderOptions::new()
+                .with_order(order)
+                .include_topics([topic.as_str()]);
+            indexed(file, summary, opts, |h, data| {
+                let (stamp, _, _) = decoders[&h.channel_id]
+                    .1
+                    .decode(h, data)
+                    .with_context(|| ctx(h))?;
+                let (a, b) = span.unwrap_or((stamp, stamp));
+                if span.is_none() || stamp < a {
+                    offset = stamp as i128 - h.log_time as i128;
+                }
+                span = Some((a.min(stamp), b.max(stamp)));
+                Ok(false)
+            })?;
+        }
+    }
+    Ok((span, offset))
+}
+
 /// The layers of `path` for a window of `[from_s, to_s]` seconds after the first frame: every
 /// asked-for topic's presence and the first and last frame stamps over them
 /// ([`FileLayers::span`]), and the frames of the `drawn` layers in the window (a little more:
@@ -179,28 +212,7 @@ pub fn read_window(
             h.log_time
         )
     };
-    // First and last frame: the first message of each topic either way (stamp - log_time kept).
-    let mut span: Option<(u64, u64)> = None;
-    let mut offset: i128 = 0;
-    for order in [ReadOrder::LogTime, ReadOrder::ReverseLogTime] {
-        for topic in &present {
-            let opts = IndexedReaderOptions::new()
-                .with_order(order)
-                .include_topics([topic.as_str()]);
-            indexed(&mut file, &summary, opts, |h, data| {
-                let (stamp, _, _) = decoders[&h.channel_id]
-                    .1
-                    .decode(h, data)
-                    .with_context(|| ctx(h))?;
-                let (a, b) = span.unwrap_or((stamp, stamp));
-                if span.is_none() || stamp < a {
-                    offset = stamp as i128 - h.log_time as i128;
-                }
-                span = Some((a.min(stamp), b.max(stamp)));
-                Ok(false)
-            })?;
-        }
-    }
+    let (span, offset) = span(&mut file, &summary, &present, &decoders, &ctx)?;
     let mut layers: Vec<LayerFrames> = wanted
         .iter()
         .filter(|(_, t)| topics.contains(t))
