@@ -429,7 +429,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         } else {
             Vec::new()
         };
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "logs": paths(&pairs), "result": result, "per_log": per_log,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
@@ -442,8 +442,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
                 "removed_truth_boxes": r.truth, "removed_track_boxes": r.tracks})
             }),
             "filters": filters_json(&a, &removed),
-            "events": events.as_ref().map(|e| e.json()),
         });
+        if let Some(e) = &events {
+            v["events"] = e.json();
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
@@ -607,13 +609,15 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     };
 
     if a.json {
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "logs": paths(&pairs), "result": result,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
             "hota": {"image_2d": hota_2d, "iou_3d": hota_3d, "notes": hota_notes},
-            "events": events.as_ref().map(|e| e.json()),
         });
+        if let Some(e) = &events {
+            v["events"] = e.json();
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(

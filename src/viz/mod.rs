@@ -6,6 +6,7 @@
 pub mod labels;
 pub mod plot;
 mod plot_panel;
+pub mod plot_types;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;

@@ -10,46 +10,17 @@
 //! Pure drawing: frames in, PNG bytes out. Text is drawn with a TTF embedded in the binary (Hack,
 //! from the `epaint_default_fonts` crate), so no system font is needed.
 
-use std::collections::HashMap;
 use std::sync::OnceLock;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{bail, Context, Result};
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
 use super::plot_panel::draw_panel;
-use super::{Frame, Layer};
-use crate::msgs::eval_event::Kind;
-
-/// One panel: a titled BEV view of one layer's frames.
-#[derive(Debug, Clone)]
-pub struct Panel {
-    /// Title drawn above the panel.
-    pub title: String,
-    /// The layer, which decides the colouring (grey detections, a colour per id otherwise).
-    pub layer: Layer,
-    /// The frames to draw, all in place.
-    pub frames: Vec<Frame>,
-    /// Tracks: the ground-truth id each `(stamp, track id)` box matched; such a box takes that
-    /// id's colour, an unmatched one [`UNMATCHED`]. `None`: each track its own colour.
-    pub truth_of: Option<HashMap<(u64, u64), u64>>,
-}
-
-/// An evaluation event marked on the panels with ids.
-#[derive(Debug, Clone, PartialEq)]
-pub struct EventMark {
-    /// What happened.
-    pub kind: Kind,
-    /// Where (metres).
-    pub x: f64,
-    /// Where (metres).
-    pub y: f64,
-    /// Text drawn beside switches and fragmentations.
-    pub text: String,
-}
-
-/// World region `(x0, x1, y0, y1)`, metres.
-pub type Extent = (f64, f64, f64, f64);
+use super::plot_types::{draw_err, rgb, FONT};
+pub use super::plot_types::{
+    equal_aspect, EventMark, Extent, Panel, BACKGROUND, DETECTION_GREY, UNMATCHED,
+};
 
 /// Size and title of the picture.
 #[derive(Debug, Clone)]
@@ -79,23 +50,6 @@ impl Default for PlotOptions {
 }
 
 pub use crate::msgs::colors::{id_color, mix64, PALETTE};
-
-/// Colour of detections, which have no id.
-pub const DETECTION_GREY: (u8, u8, u8) = (0x8c, 0x8c, 0x8c);
-
-/// Picture background.
-pub const BACKGROUND: (u8, u8, u8) = (0xff, 0xff, 0xff);
-
-/// Colour of a track box that matches no ground truth (when tracks take the truth's colours).
-pub const UNMATCHED: (u8, u8, u8) = (0x3a, 0x3a, 0x3a);
-
-pub(super) fn rgb(c: (u8, u8, u8)) -> RGBColor {
-    RGBColor(c.0, c.1, c.2)
-}
-
-/// Font family name under which the embedded font is registered (also as `sans-serif`, the
-/// family plotters uses for its default text).
-pub(super) const FONT: &str = "sans-serif";
 
 /// Registers the embedded font with plotters, once per process.
 pub fn register_fonts() -> Result<()> {
@@ -142,21 +96,6 @@ pub fn world_extent(panels: &[Panel]) -> Option<Extent> {
     let (hx, hy) = (((x1 - x0) / 2.0).max(5.0), ((y1 - y0) / 2.0).max(5.0));
     let m = (0.05 * hx.max(hy)).max(2.0);
     Some((cx - hx - m, cx + hx + m, cy - hy - m, cy + hy + m))
-}
-
-/// Widens `ext` along x or y so that a `pw` x `ph` pixel area shows it with equal metres per
-/// pixel on both axes, keeping its centre. Returns the new region.
-pub fn equal_aspect(ext: (f64, f64, f64, f64), pw: u32, ph: u32) -> (f64, f64, f64, f64) {
-    let (x0, x1, y0, y1) = ext;
-    let (pw, ph) = (f64::from(pw.max(1)), f64::from(ph.max(1)));
-    let scale = ((x1 - x0) / pw).max((y1 - y0) / ph);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let (hx, hy) = (scale * pw / 2.0, scale * ph / 2.0);
-    (cx - hx, cx + hx, cy - hy, cy + hy)
-}
-
-pub(super) fn draw_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
-    anyhow!("drawing failed: {e}")
 }
 
 /// Renders the panels side by side into an RGB buffer of `width * height * 3` bytes.

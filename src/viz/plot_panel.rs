@@ -10,11 +10,11 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::labels::{place_labels, Label};
-use super::plot::{
-    draw_err, equal_aspect, id_color, rgb, EventMark, Extent, Panel, DETECTION_GREY, FONT,
-    UNMATCHED,
+use super::plot_types::{
+    draw_err, equal_aspect, rgb, EventMark, Extent, Panel, DETECTION_GREY, FONT, UNMATCHED,
 };
 use super::{BevBox, Frame};
+use crate::msgs::colors::id_color;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::eval_events::kind_rgb;
 

@@ -5,7 +5,7 @@
 
 use std::collections::HashMap;
 
-use super::plot::EventMark;
+use super::plot_types::EventMark;
 use super::Frame;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::eval_events::event_text;
