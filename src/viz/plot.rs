@@ -163,7 +163,7 @@ pub fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::viz::BevBox;
+    use crate::viz::{BevBox, Frame, Layer};
 
     fn bx(id: u64, x: f64, y: f64, yaw: f64) -> BevBox {
         BevBox {
