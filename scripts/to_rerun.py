@@ -22,6 +22,10 @@ Entities (all under `world`, z up, metres):
                       ground truth
   world/trails        a line strip per track through its last N centres
   world/velocity      an arrow per track: its velocity over one second
+  world/events        when the file has the /eval/events channel (`probmot eval --events`):
+                      the evaluation's errors of each frame as boxes coloured by kind, and
+  events              a text log entry per identity switch and fragmentation: the list of
+                      moments to jump to (clicking an entry moves the timelines there)
 
 Timelines: `log_time` (the MCAP messages' log time) and `frame` (index of the frame among all
 distinct log times of the topics read, from 0). Every entity gets one row per frame in which its
@@ -518,6 +522,62 @@ def save_atomically(
         raise
 
 
+# Same as src/msgs/eval_events.rs (kind_rgb, kind_name), indexed by EvalEvent.Kind.
+EVENT_KINDS = {
+    0: ("match", (40, 170, 70)),
+    1: ("id switch", (220, 0, 220)),
+    2: ("fragmentation", (255, 140, 0)),
+    3: ("false positive", (220, 30, 30)),
+    4: ("miss", (30, 90, 230)),
+}
+
+
+def log_events(
+    rec: rr.RecordingStream,
+    path: str,
+    frame_of: dict[int, int],
+    topic: str = "/eval/events",
+    prefix: str = "world",
+) -> int:
+    """Log the evaluation's errors of `topic` (probmot.EvalEvents, written by `probmot eval
+    --events`) when the file has it: `{prefix}/events` boxes per frame, and a `events` text log
+    entry (level WARN) per identity switch and fragmentation. Returns the number of entries."""
+    entries = 0
+    with open(path, "rb") as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        for _, _, message, ev in reader.iter_decoded_messages(topics=[topic]):
+            t = message.log_time
+            if t in frame_of:
+                rec.set_time("frame", sequence=frame_of[t])
+            rec.set_time("log_time", timestamp=np.datetime64(t, "ns"))
+            errors = [e for e in ev.events if e.kind != 0]
+            rec.log(
+                f"{prefix}/events",
+                rr.Boxes3D(
+                    centers=[(e.center.x, e.center.y, e.center.z) for e in errors],
+                    half_sizes=[
+                        (e.size.length / 2 + 0.2, e.size.width / 2 + 0.2, e.size.height / 2 + 0.2)
+                        for e in errors
+                    ],
+                    rotation_axis_angles=[
+                        rr.RotationAxisAngle(axis=(0.0, 0.0, 1.0), radians=e.yaw) for e in errors
+                    ],
+                    colors=[EVENT_KINDS[e.kind][1] for e in errors],
+                    labels=[f"{EVENT_KINDS[e.kind][0]} gt {e.truth_id}" for e in errors],
+                    radii=-2.0,
+                ),
+            )
+            for e in errors:
+                if e.kind in (1, 2):
+                    what = "trk {}->{}".format(e.previous_track_id, e.track_id)
+                    if e.kind == 2:
+                        what = f"lost trk {e.previous_track_id}"
+                    text = f"{EVENT_KINDS[e.kind][0]} {e.label} gt {e.truth_id} {what}"
+                    rec.log("events", rr.TextLog(text, level="WARN"))
+                    entries += 1
+    return entries
+
+
 def add_common_args(parser: argparse.ArgumentParser) -> None:
     """Options shared with compare_runs.py."""
     parser.add_argument("-o", "--output", required=True, metavar="OUT.rrd", help="output file")
@@ -572,6 +632,7 @@ def main(argv: list[str] | None = None) -> int:
         def log(rec: rr.RecordingStream) -> None:
             rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
             log_run(rec, run, frame_of, "world", args.trail)
+            log_events(rec, args.file, frame_of)
 
         save_atomically(args.output, blueprint, args.recording_id, log)
     except UsageError as e:

@@ -315,6 +315,8 @@ fn plot_draws_ros2_and_foxglove_detections_like_probmot_ones() {
             "detections,tracks",
             "--title",
             "city",
+            // The fixtures have no ground truth to take the tracks' colours from.
+            "--own-colors",
         ]);
         pictures.push(Picture::read(&png));
     }
@@ -331,4 +333,172 @@ fn plot_draws_ros2_and_foxglove_detections_like_probmot_ones() {
             "same picture as the probmot log's"
         );
     }
+}
+
+/// The pedestrians sample tracked and evaluated with `--events`: `(tracked, events)`.
+fn pedestrians_with_events(dir: &Path) -> (PathBuf, PathBuf) {
+    let tracked = dir.join("ped.tracked.mcap");
+    let events = dir.join("ped.events.mcap");
+    let input = repo("sample_logs/pedestrians.mcap");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    probmot_ok(&["track", &s(&input), "-o", &s(&tracked), "--quiet"]);
+    probmot_ok(&["eval", "--truth", &s(&tracked), "--events", &s(&events)]);
+    (tracked, events)
+}
+
+#[test]
+fn plot_marks_events_and_gives_tracks_the_colour_of_their_ground_truth() {
+    use probmot::msgs::eval_event::Kind;
+    use probmot::msgs::eval_events::kind_rgb;
+    let dir = tempfile::tempdir().unwrap();
+    let (tracked, events) = pedestrians_with_events(dir.path());
+    // 10.5 to 12.5 s: two pairs of pedestrians cross; the tracker swaps ids (eval reports the
+    // switches at 11.5 and 12 s, tests/eval_events.rs).
+    let plot = |name: &str, extra: &[&str]| {
+        let png = dir.path().join(name);
+        let mut args = vec![
+            "plot",
+            tracked.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--class",
+            "pedestrian",
+            "--from",
+            "10.5",
+            "--to",
+            "12.5",
+            "--layers",
+            "tracks",
+            "--width",
+            "800",
+            "--height",
+            "600",
+        ];
+        args.extend(extra);
+        let out = probmot_ok(&args);
+        (
+            Picture::read(&png),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    };
+    let (with, said) = plot("with.png", &["--events", events.to_str().unwrap()]);
+    let (without, _) = plot("without.png", &[]);
+    assert!(said.contains("events marked"), "{said}");
+    let all_with = with.colours(0, 800, 0, 600);
+    let all_without = without.colours(0, 800, 0, 600);
+    let switch = kind_rgb(Kind::Switch);
+    assert!(all_with.contains(&switch), "switches are marked");
+    assert!(!all_without.contains(&switch), "no marks without --events");
+    // Track boxes take the colours of the ground-truth ids (1..=7 in the window) they follow,
+    // with or without the evaluation's pairs.
+    for pic in [&with, &without] {
+        let c = pic.colours(0, 800, 0, 600);
+        let gt_colours = (1..=7u64).filter(|id| c.contains(&id_color(*id))).count();
+        assert!(
+            gt_colours >= 5,
+            "{gt_colours} ground-truth colours in the tracks panel"
+        );
+    }
+    // An events file without the channel is a clear error.
+    let out = probmot(&[
+        "plot",
+        tracked.to_str().unwrap(),
+        "-o",
+        dir.path().join("x.png").to_str().unwrap(),
+        "--events",
+        tracked.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("no topic /eval/events"),
+        "{}",
+        stderr(&out)
+    );
+}
+
+#[test]
+fn plot_extent_sets_the_region() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracked = tracked_turning_car(dir.path());
+    let t = tracked.to_str().unwrap();
+    let png = dir.path().join("e.png");
+    let p = png.to_str().unwrap();
+    probmot_ok(&[
+        "plot",
+        t,
+        "-o",
+        p,
+        "--extent",
+        "-1000,1000,-1000,1000",
+        "--layers",
+        "tracks",
+    ]);
+    // Zoomed out 40x: the boxes shrink to a few pixels near the centre, the rest is blank.
+    let pic = Picture::read(&png);
+    let (w, h) = (pic.width, pic.height);
+    let coloured = |x0, x1, y0, y1| {
+        pic.colours(x0, x1, y0, y1)
+            .iter()
+            .filter(|c| PALETTE.contains(c))
+            .count()
+    };
+    assert!(coloured(w / 2 - 60, w / 2 + 60, h / 2 - 60, h / 2 + 60) > 0);
+    assert_eq!(coloured(w * 3 / 4, w - 10, 60, h / 3), 0);
+    for bad in ["1,0,0,1", "0,1,0", "0,1,a,1"] {
+        let out = probmot(&["plot", t, "-o", p, "--extent", bad]);
+        assert!(!out.status.success(), "{bad}");
+    }
+}
+
+#[test]
+fn windowed_read_gives_the_frames_of_a_full_read() {
+    use probmot::viz::window::read_window;
+    use probmot::viz::{read_layers, Layer, Selection};
+    // 1200 frames of 30 objects: several 1 MiB chunks.
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("city.mcap");
+    let s = log.to_str().unwrap();
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--frames",
+        "1200",
+        "--objects",
+        "30",
+        "-o",
+        s,
+    ]);
+    let wanted: Vec<(Layer, String)> = Layer::ALL
+        .iter()
+        .map(|l| (*l, l.default_topic().to_string()))
+        .collect();
+    let full = read_layers(&log, &wanted).unwrap();
+    let (from, to) = (300.0, 310.0);
+    let window = read_window(&log, &wanted, &[Layer::GroundTruth], Some(from), Some(to)).unwrap();
+    assert_eq!(window.first_stamp(), full.first_stamp());
+    assert_eq!(window.last_stamp(), full.last_stamp());
+    let t0 = full.first_stamp().unwrap();
+    let sel = Selection {
+        classes: vec![],
+        from_s: Some(from),
+        to_s: Some(to),
+    };
+    let a = sel.apply(&full.get(Layer::GroundTruth).unwrap().frames, t0);
+    let b = sel.apply(&window.get(Layer::GroundTruth).unwrap().frames, t0);
+    assert_eq!(a.len(), 21, "10 s at 2 Hz");
+    assert_eq!(a, b);
+    // Only the window (and its slack) was decoded, and only the layer drawn.
+    let read = window.get(Layer::GroundTruth).unwrap().frames.len();
+    assert!(read < 100, "{read} frames decoded");
+    assert!(window.get(Layer::Detections).unwrap().frames.is_empty());
+    assert_eq!(
+        window
+            .get(Layer::GroundTruth)
+            .unwrap()
+            .frame_ids
+            .iter()
+            .collect::<Vec<_>>(),
+        vec!["map"]
+    );
 }

@@ -18,6 +18,8 @@ use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
+use super::eval_events::{self, EventsInput::Kitti, EventsInput::Nuscenes};
+
 /// Evaluation protocols.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Protocol {
@@ -122,6 +124,13 @@ pub struct EvalArgs {
     /// Print every number as JSON.
     #[arg(long)]
     json: bool,
+    /// Also write the evaluation's decisions at each class's best-MOTA threshold (matches,
+    /// misses, false positives, identity switches, fragmentations) as channels /eval/events
+    /// (probmot.EvalEvents) and /eval/events_scene (foxglove.SceneUpdate) of a copy of the truth
+    /// log; with several logs OUT is a directory of copies. The report lists the worst moments.
+    /// Example: probmot eval --truth drive.tracked.mcap --events drive.events.mcap
+    #[arg(long, value_name = "OUT.mcap")]
+    events: Option<PathBuf>,
 }
 
 const COLUMNS: [&str; 14] = [
@@ -309,6 +318,9 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             params.classes.join(", ")
         );
     }
+    let events = (a.events.as_deref())
+        .map(|out| eval_events::write(out, Nuscenes(&params), &pairs, &scenes, &a.truth_topic))
+        .transpose()?;
     let (base_pairs, base_scenes) = load_baseline(&a, false)?;
     let baseline = base_scenes.map(|scenes| evaluate(&scenes, &params));
 
@@ -341,7 +353,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         } else {
             Vec::new()
         };
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "logs": paths(&pairs), "result": result, "per_log": per_log,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
@@ -355,6 +367,9 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             }),
             "filters": filters_json(&a, &removed),
         });
+        if let Some(e) = &events {
+            v["events"] = e.json();
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
@@ -385,6 +400,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         for n in result.notes.iter().chain(&hota_notes) {
             println!("note: {n}");
         }
+        print!("{}", events.as_ref().map(|e| e.text()).unwrap_or_default());
         let _ = fmt_value;
     }
     if !failures.is_empty() {
@@ -494,6 +510,9 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             params.classes.join(", ")
         );
     }
+    let events = (a.events.as_deref())
+        .map(|out| eval_events::write(out, Kitti(&params), &pairs, &scenes, &a.truth_topic))
+        .transpose()?;
     let (base_pairs, base_scenes) = load_baseline(&a, true)?;
     let baseline = base_scenes.map(|scenes| kitti::evaluate(&scenes, &params));
 
@@ -514,12 +533,15 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     };
 
     if a.json {
-        let v = serde_json::json!({
+        let mut v = serde_json::json!({
             "logs": paths(&pairs), "result": result,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
             "hota": {"image_2d": hota_2d, "iou_3d": hota_3d, "notes": hota_notes},
         });
+        if let Some(e) = &events {
+            v["events"] = e.json();
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
@@ -561,6 +583,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         for n in result.notes.iter().chain(&hota_notes) {
             println!("note: {n}");
         }
+        print!("{}", events.as_ref().map(|e| e.text()).unwrap_or_default());
     }
     if !failures.is_empty() {
         for f in &failures {

@@ -2,6 +2,7 @@
 
 mod config_cmd;
 mod eval_cmd;
+mod eval_events;
 mod fit_cmd;
 mod import_cmd;
 mod info_cmd;

@@ -7,19 +7,29 @@ use std::process::ExitCode;
 use anyhow::{bail, Result};
 use clap::Args;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
-use probmot::viz::plot::{render_png, Panel, PlotOptions};
-use probmot::viz::{read_layers, Layer, Selection};
+use probmot::msgs::eval_events::EVENTS_TOPIC;
+use probmot::viz::plot::{render_png, EventMark, Extent, Panel, PlotOptions};
+use probmot::viz::truth_colors::{marks, match_by_distance, match_from_events};
+use probmot::viz::window::{read_events, read_window};
+use probmot::viz::{FileLayers, Layer, Selection};
 
 use super::layer_topics::LayerTopics;
 
-/// Draw a bird's-eye-view PNG of a recording, one panel per layer, a colour per track id.
+/// Draw a bird's-eye-view PNG of a recording, one panel per layer, a colour per object.
 ///
 /// The panels (detections, tracks, ground truth) stand side by side, every box of the time
-/// window in place, detections grey, axes in metres with equal scale on x and y.
+/// window in place, detections grey, axes in metres with equal scale on x and y, each panel's
+/// coordinate frame in its title. The region is that of the tracks and ground truth (far
+/// detections do not zoom out; --extent sets it). With ground truth in the file, each track box
+/// takes the colour of the ground-truth object it matches (dark grey: none), so an identity
+/// switch shows as a colour change; --events marks the evaluation's errors. Only the chunks of
+/// the window are read (files with chunk indexes, as probmot writes them).
 ///
 /// Examples:
 ///   probmot plot city.tracked.mcap -o city.png --class car
 ///   probmot plot city.tracked.mcap -o first5s.png --from 0 --to 5 --layers tracks,ground_truth
+///   probmot plot ped.tracked.mcap -o sw.png --from 9.5 --to 13.5 --events ped.events.mcap
+///   probmot plot city.tracked.mcap -o near.png --extent -30,30,-20,20
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct PlotArgs {
@@ -50,6 +60,29 @@ pub struct PlotArgs {
     /// Title above the panels; default: file name, classes and time window.
     #[arg(long)]
     title: Option<String>,
+    /// Region shown, metres: X0,X1,Y0,Y1 (default: that of the tracks and ground truth of the
+    /// window). Example: --extent -30,30,-20,20
+    #[arg(
+        long,
+        value_name = "X0,X1,Y0,Y1",
+        value_delimiter = ',',
+        allow_hyphen_values = true
+    )]
+    extent: Vec<f64>,
+    /// Mark the evaluation's errors of the window (identity switches, fragmentations, false
+    /// positives, misses) from the /eval/events channel of this file (`probmot eval --events`),
+    /// and colour tracks by the ground truth the evaluation matched them with.
+    /// Example: --events drive.events.mcap
+    #[arg(long, value_name = "EVENTS.mcap")]
+    events: Option<PathBuf>,
+    /// With ground truth and no --events: how far (m, centre to centre) a track may be from the
+    /// ground truth whose colour it takes.
+    #[arg(long, value_name = "M", default_value_t = 2.0)]
+    match_distance: f64,
+    /// Give each track its own colour (by track id) instead of that of its ground truth.
+    /// Example: --own-colors
+    #[arg(long)]
+    own_colors: bool,
     #[command(flatten)]
     topics: LayerTopics,
     /// Print nothing on success.
@@ -64,8 +97,8 @@ fn secs(ns: u64, t0: u64) -> f64 {
     (ns as f64 - t0 as f64) / 1e9
 }
 
-pub fn run(a: PlotArgs) -> Result<ExitCode> {
-    let file = a.file.display().to_string();
+/// Checks the options that need no file.
+fn validate(a: &PlotArgs) -> Result<Option<Extent>> {
     let is_png = a
         .output
         .extension()
@@ -92,83 +125,94 @@ pub fn run(a: PlotArgs) -> Result<ExitCode> {
             bail!("{name} must be a number of seconds");
         }
     }
+    if !(a.match_distance > 0.0 && a.match_distance.is_finite()) {
+        bail!("--match-distance must be a positive number of metres");
+    }
+    match a.extent[..] {
+        [] => Ok(None),
+        [x0, x1, y0, y1] if x0 < x1 && y0 < y1 && a.extent.iter().all(|v| v.is_finite()) => {
+            Ok(Some((x0, x1, y0, y1)))
+        }
+        _ => bail!("--extent X0,X1,Y0,Y1 needs X0 < X1 and Y0 < Y1 (metres), e.g. -30,30,-20,20"),
+    }
+}
 
-    // Panels asked for, in order, without repeats.
-    let explicit = !a.layers.is_empty();
-    let mut wanted_layers: Vec<Layer> = Vec::new();
+/// The panels asked for, in order, without repeats (default: all three); whether explicit.
+fn asked_layers(a: &PlotArgs) -> Result<(Vec<Layer>, bool)> {
+    let mut out: Vec<Layer> = Vec::new();
     for s in &a.layers {
         let Some(l) = Layer::parse(s) else {
             bail!("unknown layer '{s}'; layers are detections, tracks and ground_truth");
         };
-        if !wanted_layers.contains(&l) {
-            wanted_layers.push(l);
+        if !out.contains(&l) {
+            out.push(l);
         }
     }
-    if !explicit {
-        wanted_layers = Layer::ALL.to_vec();
+    if out.is_empty() {
+        return Ok((Layer::ALL.to_vec(), false));
     }
-    let topic_of = |l: Layer| a.topics.of(l).to_string();
+    Ok((out, true))
+}
 
-    // Every layer's topic is read, so that "the first frame" does not depend on --layers.
-    let all: Vec<(Layer, String)> = Layer::ALL.iter().map(|&l| (l, topic_of(l))).collect();
-    let read = read_layers(&a.file, &all)?;
-    let topics = || {
-        if read.topics.is_empty() {
-            "none".to_string()
-        } else {
-            read.topics.iter().cloned().collect::<Vec<_>>().join(", ")
-        }
+/// Keeps the layers whose topic the file has (explicit layers must all be there).
+fn present_layers(
+    a: &PlotArgs,
+    read: &FileLayers,
+    mut wanted: Vec<Layer>,
+    explicit: bool,
+) -> Result<Vec<Layer>> {
+    let file = a.file.display();
+    let topics = || match read.topics.is_empty() {
+        true => "none".to_string(),
+        false => read.topics.iter().cloned().collect::<Vec<_>>().join(", "),
     };
     if explicit {
-        if let Some(l) = wanted_layers.iter().find(|l| read.get(**l).is_none()) {
+        if let Some(l) = wanted.iter().find(|l| read.get(**l).is_none()) {
             bail!(
                 "{file} has no topic {} for the {l} layer (topics: {}); run `probmot track` \
                  first for tracks, or choose other --layers",
-                topic_of(*l),
+                a.topics.of(*l),
                 topics()
             );
         }
-    } else {
-        wanted_layers.retain(|l| read.get(*l).is_some());
-        if wanted_layers.is_empty() {
-            bail!(
-                "{file} has none of the topics {}, {}, {} (topics: {})",
-                a.topics.detections_topic,
-                a.topics.tracks_topic,
-                a.topics.truth_topic,
-                topics()
-            );
-        }
+        return Ok(wanted);
     }
-    let (Some(t0), Some(t_end)) = (read.first_stamp(), read.last_stamp()) else {
+    wanted.retain(|l| read.get(*l).is_some());
+    if wanted.is_empty() {
         bail!(
-            "{file}: the topics of the layers ({}) have no messages",
-            wanted_layers
-                .iter()
-                .map(|l| topic_of(*l))
-                .collect::<Vec<_>>()
-                .join(", ")
+            "{file} has none of the topics {}, {}, {} (topics: {})",
+            a.topics.detections_topic,
+            a.topics.tracks_topic,
+            a.topics.truth_topic,
+            topics()
         );
-    };
-    let span = format!("{:.2} to {:.2} s", 0.0, secs(t_end, t0));
+    }
+    Ok(wanted)
+}
 
-    let sel = Selection {
-        classes: a.class.clone(),
-        from_s: a.from,
-        to_s: a.to,
-    };
+/// The panels of the window: `(panels, stamps of the window, boxes drawn)`.
+fn build_panels(
+    a: &PlotArgs,
+    read: &FileLayers,
+    layers: &[Layer],
+    sel: &Selection,
+    (t0, t_end): (u64, u64),
+) -> Result<(Vec<Panel>, BTreeSet<u64>, usize)> {
     let mut panels = Vec::new();
     let mut window_stamps = BTreeSet::new();
     let mut boxes_total = 0usize;
-    for &l in &wanted_layers {
+    for &l in layers {
         let lf = read.get(l).expect("checked above");
         let frames = sel.apply(&lf.frames, t0);
         if frames.is_empty() {
             bail!(
-                "{file}: topic {} has no frame in the window {} (the file's frames span {span} \
-                 after the first frame)",
+                "{}: topic {} has no frame in the window {} (the file's frames span {:.2} to \
+                 {:.2} s after the first frame)",
+                a.file.display(),
                 lf.topic,
-                window_text(&sel, t_end, t0)
+                window_text(sel, t_end, t0),
+                0.0,
+                secs(t_end, t0)
             );
         }
         window_stamps.extend(frames.iter().map(|f| f.0));
@@ -178,90 +222,190 @@ pub fn run(a: PlotArgs) -> Result<ExitCode> {
             .iter()
             .flat_map(|f| f.1.iter().map(|b| b.id))
             .collect();
-        let what = if l.has_ids() {
-            format!("{} ids, {n_boxes} boxes", ids.len())
-        } else {
-            format!("{n_boxes} boxes")
+        let what = match l.has_ids() {
+            true => format!("{} ids, {n_boxes} boxes", ids.len()),
+            false => format!("{n_boxes} boxes"),
+        };
+        let frame = match lf
+            .frame_ids
+            .iter()
+            .filter(|f| !f.is_empty())
+            .collect::<Vec<_>>()[..]
+        {
+            [] => String::new(),
+            ref f => format!(
+                " in {}",
+                f.iter().map(|s| s.as_str()).collect::<Vec<_>>().join("+")
+            ),
         };
         panels.push(Panel {
-            title: format!("{} ({}): {what}", l.title(), lf.topic),
+            title: format!("{} ({}{frame}): {what}", l.title(), lf.topic),
             layer: l,
             frames,
+            truth_of: None,
         });
     }
-    if boxes_total == 0 {
-        let present: BTreeSet<&str> = wanted_layers
-            .iter()
-            .filter_map(|l| read.get(*l))
-            .flat_map(|lf| lf.frames.iter().flat_map(|f| f.1.iter()))
-            .map(|b| b.label.as_str())
-            .collect();
-        bail!(
-            "{file}: no box{} in the window {} on {} (classes in the file: {})",
-            if sel.classes.is_empty() {
-                String::new()
-            } else {
-                format!(" of class {}", sel.classes.join(", "))
-            },
-            window_text(&sel, t_end, t0),
-            wanted_layers
-                .iter()
-                .map(|l| topic_of(*l))
-                .collect::<Vec<_>>()
-                .join(", "),
-            if present.is_empty() {
-                "none".to_string()
-            } else {
-                present.into_iter().collect::<Vec<_>>().join(", ")
-            }
-        );
-    }
+    Ok((panels, window_stamps, boxes_total))
+}
 
-    let w0 = *window_stamps.first().expect("non-empty");
-    let w1 = *window_stamps.last().expect("non-empty");
-    let title = a.title.clone().unwrap_or_else(|| {
-        let name = a
-            .file
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_else(|| file.clone());
-        let classes = if sel.classes.is_empty() {
-            "all classes".to_string()
-        } else {
-            sel.classes.join(", ")
+/// The error when the window holds no box of the classes asked for.
+fn no_boxes(
+    a: &PlotArgs,
+    read: &FileLayers,
+    layers: &[Layer],
+    sel: &Selection,
+    (t0, t_end): (u64, u64),
+) -> anyhow::Error {
+    let present: BTreeSet<&str> = layers
+        .iter()
+        .filter_map(|l| read.get(*l))
+        .flat_map(|lf| lf.frames.iter().flat_map(|f| f.1.iter()))
+        .map(|b| b.label.as_str())
+        .collect();
+    let join = |v: Vec<String>| v.join(", ");
+    anyhow::anyhow!(
+        "{}: no box{} in the window {} on {} (classes in the file: {})",
+        a.file.display(),
+        match sel.classes.is_empty() {
+            true => String::new(),
+            false => format!(" of class {}", sel.classes.join(", ")),
+        },
+        window_text(sel, t_end, t0),
+        join(layers.iter().map(|l| a.topics.of(*l).to_string()).collect()),
+        match present.is_empty() {
+            true => "none".to_string(),
+            false => join(present.into_iter().map(String::from).collect()),
+        }
+    )
+}
+
+/// Ties the tracks' colours to the ground truth (the evaluation's pairs with `--events`, else
+/// nearest centres) and returns the event marks of the window.
+fn colour_and_marks(
+    a: &PlotArgs,
+    read: &FileLayers,
+    panels: &mut [Panel],
+    sel: &Selection,
+    stamps: &BTreeSet<u64>,
+) -> Result<Vec<EventMark>> {
+    let (Some(&w0), Some(&w1)) = (stamps.first(), stamps.last()) else {
+        return Ok(Vec::new());
+    };
+    let events = match &a.events {
+        Some(path) => Some(read_events(path, EVENTS_TOPIC, w0, w1)?),
+        None => None,
+    };
+    let truth = read.get(Layer::GroundTruth).map(|lf| &lf.frames);
+    for p in panels
+        .iter_mut()
+        .filter(|p| p.layer == Layer::Tracks && !a.own_colors)
+    {
+        p.truth_of = match (&events, truth) {
+            (Some(ev), _) => Some(match_from_events(ev)),
+            (None, Some(gt)) if !gt.is_empty() => {
+                Some(match_by_distance(&p.frames, gt, a.match_distance))
+            }
+            _ => None,
         };
-        format!(
-            "{name}  |  {classes}  |  {:.2} to {:.2} s, {} frames",
-            secs(w0, t0),
-            secs(w1, t0),
-            window_stamps.len()
-        )
-    });
+    }
+    Ok(events.map_or_else(Vec::new, |ev| marks(&ev, |c| sel.keeps_class(c))))
+}
+
+pub fn run(a: PlotArgs) -> Result<ExitCode> {
+    let extent = validate(&a)?;
+    let (asked, explicit) = asked_layers(&a)?;
+    // Every layer's topic is looked at, so that "the first frame" does not depend on --layers;
+    // the ground truth is read with the tracks, whose colours follow it.
+    let all: Vec<(Layer, String)> = Layer::ALL
+        .iter()
+        .map(|&l| (l, a.topics.of(l).to_string()))
+        .collect();
+    let mut drawn = asked.clone();
+    if drawn.contains(&Layer::Tracks) {
+        drawn.push(Layer::GroundTruth);
+    }
+    let read = read_window(&a.file, &all, &drawn, a.from, a.to)?;
+    let layers = present_layers(&a, &read, asked, explicit)?;
+    let (Some(t0), Some(t_end)) = (read.first_stamp(), read.last_stamp()) else {
+        bail!(
+            "{}: the topics of the layers ({}) have no messages",
+            a.file.display(),
+            layers
+                .iter()
+                .map(|l| a.topics.of(*l))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+    };
+    let sel = Selection {
+        classes: a.class.clone(),
+        from_s: a.from,
+        to_s: a.to,
+    };
+    let (mut panels, stamps, boxes_total) = build_panels(&a, &read, &layers, &sel, (t0, t_end))?;
+    if boxes_total == 0 {
+        return Err(no_boxes(&a, &read, &layers, &sel, (t0, t_end)));
+    }
+    let marks = colour_and_marks(&a, &read, &mut panels, &sel, &stamps)?;
+    let (w0, w1) = (
+        *stamps.first().expect("non-empty"),
+        *stamps.last().expect("non-empty"),
+    );
+    let title = a
+        .title
+        .clone()
+        .unwrap_or_else(|| default_title(&a, &sel, (w0, w1), t0, stamps.len()));
     let opts = PlotOptions {
         width: a.width,
         height: a.height,
         title: Some(title),
+        extent,
+        marks,
     };
     let png = render_png(&panels, &opts)?;
     write_file_atomic(&a.output, &png)?;
     if !a.quiet {
         println!(
-            "{}: {}x{} px, {} panel(s) ({}), {} frames from {:.2} to {:.2} s, {boxes_total} boxes",
+            "{}: {}x{} px, {} panel(s) ({}), {} frames from {:.2} to {:.2} s, {boxes_total} boxes{}",
             a.output.display(),
             a.width,
             a.height,
             panels.len(),
-            wanted_layers
-                .iter()
-                .map(|l| l.name())
-                .collect::<Vec<_>>()
-                .join(", "),
-            window_stamps.len(),
+            layers.iter().map(|l| l.name()).collect::<Vec<_>>().join(", "),
+            stamps.len(),
             secs(w0, t0),
             secs(w1, t0),
+            match a.events {
+                Some(_) => format!(", {} events marked", opts.marks.len()),
+                None => String::new(),
+            }
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// File name, classes and window.
+fn default_title(
+    a: &PlotArgs,
+    sel: &Selection,
+    (w0, w1): (u64, u64),
+    t0: u64,
+    frames: usize,
+) -> String {
+    let name = a
+        .file
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| a.file.display().to_string());
+    let classes = match sel.classes.is_empty() {
+        true => "all classes".to_string(),
+        false => sel.classes.join(", "),
+    };
+    format!(
+        "{name}  |  {classes}  |  {:.2} to {:.2} s, {frames} frames",
+        secs(w0, t0),
+        secs(w1, t0),
+    )
 }
 
 fn window_text(sel: &Selection, t_end: u64, t0: u64) -> String {

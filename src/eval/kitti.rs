@@ -44,6 +44,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 
 use serde::Serialize;
 
+use super::events::{Collector, MarkKind};
 use super::nan_as_null;
 use super::scene::{EvalBox, Scene};
 use crate::tracker::geometry::iou3d;
@@ -750,6 +751,8 @@ struct ClassEval<'a> {
     p: &'a KittiParams,
     seqs: Vec<Seq>,
     n_gt_trajectories: u64,
+    /// Where the decisions of a pass are recorded (`eval --events`), when set.
+    log: Option<Collector>,
 }
 
 impl ClassEval<'_> {
@@ -764,7 +767,7 @@ impl ClassEval<'_> {
         let mut n_ignored_traj = 0u64;
         let cls = self.cls.clone();
         let p = self.p;
-        for seq in &mut self.seqs {
+        for (si, seq) in self.seqs.iter_mut().enumerate() {
             n_frames += seq.frames.len();
             // Mean score per track over its rows, summed in file order; every row takes it.
             let mut sums: HashMap<i64, (f64, usize)> = HashMap::new();
@@ -787,7 +790,7 @@ impl ClassEval<'_> {
             // Per ground-truth trajectory: matched track id (or -1) and ignored flag per frame.
             let mut traj_index: HashMap<i64, usize> = HashMap::new();
             let mut trajs: Vec<(Vec<i64>, Vec<bool>)> = Vec::new();
-            for f in &mut seq.frames {
+            for (fi, f) in seq.frames.iter_mut().enumerate() {
                 let kept: Vec<usize> = (0..f.tr.len())
                     .filter(|&k| f.tr[k].score.partial_cmp(&threshold) != Some(Ordering::Less))
                     .collect();
@@ -880,6 +883,12 @@ impl ClassEval<'_> {
                         }
                     }
                 }
+                if let Some(log) = self.log.as_mut() {
+                    let ignored = |gi: usize| trajs[slots[gi]].1.last() == Some(&true);
+                    let tr_id = |col: usize| f.tr[kept[col]].id;
+                    let gt_ids = f.gt.iter().map(|g| g.id);
+                    log.record_kitti_frame(si, fi, gt_ids, &matched, ignored, &tr_ignored, tr_id);
+                }
                 tmptp -= ignored_tp;
                 r.itp += ignored_tp;
                 r.n_gt -= ignored_fn + ignored_tp;
@@ -894,7 +903,16 @@ impl ClassEval<'_> {
                 modp_sum += if tmptp != 0 { tmpc / tmptp as f64 } else { 1.0 };
             }
             // Identity switches, fragmentations and coverage along each trajectory.
-            for (g, ign) in &trajs {
+            let mut slot_ids = vec![0i64; trajs.len()];
+            for (id, slot) in &traj_index {
+                slot_ids[*slot] = *id;
+            }
+            for (slot, (g, ign)) in trajs.iter().enumerate() {
+                let mut mark = |kind, f: usize, previous: i64| {
+                    if let Some(log) = self.log.as_mut() {
+                        log.record_mark(si, slot_ids[slot], f, kind, g[f], previous);
+                    }
+                };
                 if ign.iter().all(|&i| i) {
                     n_ignored_traj += 1;
                     continue;
@@ -913,6 +931,7 @@ impl ClassEval<'_> {
                     }
                     if last_id != g[f] && last_id != -1 && g[f] != -1 && g[f - 1] != -1 {
                         r.ids += 1;
+                        mark(MarkKind::Switch, f, last_id);
                     }
                     if f < n - 1
                         && g[f - 1] != g[f]
@@ -921,6 +940,7 @@ impl ClassEval<'_> {
                         && g[f + 1] != -1
                     {
                         r.frag += 1;
+                        mark(MarkKind::Fragmentation, f, last_id);
                     }
                     if g[f] != -1 {
                         tracked += 1;
@@ -931,6 +951,7 @@ impl ClassEval<'_> {
                     let f = n - 1;
                     if g[f - 1] != g[f] && last_id != -1 && g[f] != -1 && !ign[f] {
                         r.frag += 1;
+                        mark(MarkKind::Fragmentation, f, last_id);
                     }
                 }
                 let considered = n - ign.iter().filter(|&&i| i).count();
@@ -1030,6 +1051,7 @@ fn evaluate_class(
     cls: &str,
     p: &KittiParams,
     notes: &mut Vec<String>,
+    log: Option<&mut Collector>,
 ) -> Option<KittiMetrics> {
     let (seqs, n_gt_trajectories, n_tr_trajectories) = match prepare(scenes, cls) {
         Ok(v) => v,
@@ -1054,6 +1076,7 @@ fn evaluate_class(
         p,
         seqs,
         n_gt_trajectories,
+        log: None,
     };
     let first = e.pass(-10000.0, 1.0);
     let num_gt = first.tp + first.fn_;
@@ -1089,7 +1112,11 @@ fn evaluate_class(
             fn_: r.fn_,
         });
     }
+    e.log = log.is_some().then(Collector::default);
     let best = e.pass(best_threshold, 1.0);
+    if let (Some(out), Some(recorded)) = (log, e.log.take()) {
+        *out = recorded;
+    }
     if best.n_gt == 0 {
         notes.push(format!(
             "{cls}: no ground truth that counts (all ignored or none): MOTA is -inf (null), as \
@@ -1131,6 +1158,20 @@ fn evaluate_class(
     })
 }
 
+/// Per evaluated class, the decisions of the pass at its best-MOTA threshold (the pass the counts
+/// of [`evaluate`] come from), for `eval --events`.
+pub fn best_threshold_decisions(scenes: &[Scene], p: &KittiParams) -> Vec<(String, Collector)> {
+    let mut out = Vec::new();
+    for c in &p.classes {
+        let c = c.to_lowercase();
+        let mut log = Collector::default();
+        if evaluate_class(scenes, &c, p, &mut Vec::new(), Some(&mut log)).is_some() {
+            out.push((c, log));
+        }
+    }
+    out
+}
+
 /// Evaluates scenes (one KITTI sequence each) with the KITTI 3D MOT protocol of AB3DMOT.
 ///
 /// Truth boxes carry the KITTI fields as attributes (`kitti_type`, `kitti_truncated`,
@@ -1142,7 +1183,7 @@ pub fn evaluate(scenes: &[Scene], p: &KittiParams) -> KittiResult {
     let mut classes = BTreeMap::new();
     for c in &p.classes {
         let c = c.to_lowercase();
-        if let Some(m) = evaluate_class(scenes, &c, p, &mut notes) {
+        if let Some(m) = evaluate_class(scenes, &c, p, &mut notes, None) {
             classes.insert(c, m);
         }
     }

@@ -9,6 +9,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::events::Collector;
 use super::mot_accumulator::{EventKind, MotAccumulator};
 use super::nan_as_null;
 use super::numpy_compat::{linspace_round12, np_interp, np_mean, np_sum};
@@ -322,6 +323,16 @@ fn euclidean(ax: f64, ay: f64, bx: f64, by: f64) -> f64 {
 }
 
 fn run_pass(scenes: &[ClassScene], threshold: Option<f64>, p: &NuscenesParams) -> Pass {
+    run_pass_with(scenes, threshold, p, None)
+}
+
+/// [`run_pass`], recording every association decision into `log` when given (`eval --events`).
+fn run_pass_with(
+    scenes: &[ClassScene],
+    threshold: Option<f64>,
+    p: &NuscenesParams,
+    mut log: Option<&mut Collector>,
+) -> Pass {
     let mut pass = Pass::default();
     let mut events = Vec::new();
     let mut dist = Vec::new();
@@ -329,10 +340,10 @@ fn run_pass(scenes: &[ClassScene], threshold: Option<f64>, p: &NuscenesParams) -
     let mut hids: Vec<u64> = Vec::new();
     let mut hpos: Vec<(f64, f64, f64)> = Vec::new();
     let mut matched_hids: Vec<u64> = Vec::new();
-    for scene in scenes {
+    for (si, scene) in scenes.iter().enumerate() {
         let mut acc = MotAccumulator::new();
         let mut object_index: HashMap<u64, usize> = HashMap::new();
-        for (g, h) in scene.gt.iter().zip(&scene.pred) {
+        for (fi, (g, h)) in scene.gt.iter().zip(&scene.pred).enumerate() {
             hids.clear();
             hpos.clear();
             for &(id, x, y, score) in h {
@@ -359,6 +370,11 @@ fn run_pass(scenes: &[ClassScene], threshold: Option<f64>, p: &NuscenesParams) -
             pass.frames += 1;
             matched_hids.clear();
             for e in &events {
+                if let Some(log) = log.as_deref_mut() {
+                    let truth = e.object.map(|i| g[i]);
+                    let track = e.hypothesis.map(|j| (hids[j], hpos[j]));
+                    log.record_association(si, fi, e.kind, truth, track);
+                }
                 match e.kind {
                     EventKind::Match => {
                         pass.matches += 1;
@@ -492,6 +508,17 @@ fn evaluate_class(
     p: &NuscenesParams,
     notes: &mut Vec<String>,
 ) -> Metrics {
+    evaluate_class_with(scenes, class, p, notes, None)
+}
+
+/// [`evaluate_class`], recording the decisions of the best-MOTA threshold into `log` when given.
+fn evaluate_class_with(
+    scenes: &[Prepared],
+    class: &str,
+    p: &NuscenesParams,
+    notes: &mut Vec<String>,
+    log: Option<&mut Collector>,
+) -> Metrics {
     let scenes: Vec<ClassScene> = scenes.iter().map(|s| class_view(s, class)).collect();
     // Ids restart in every log (KITTI label files, `simulate`, per-drive counters): a ground-truth
     // object is the pair (log, id). The devkit's instance tokens are unique across scenes.
@@ -582,7 +609,11 @@ fn evaluate_class(
             best = Some(i);
         }
     }
-    let mut out = per_threshold[best.expect("an achieved threshold exists")];
+    let best = best.expect("an achieved threshold exists");
+    if let Some(log) = log {
+        run_pass_with(&scenes, Some(thresholds[best]), p, Some(log));
+    }
+    let mut out = per_threshold[best];
     let motar: Vec<f64> = per_threshold
         .iter()
         .map(|m| if m.motar.is_nan() { 0.0 } else { m.motar })
@@ -594,6 +625,21 @@ fn evaluate_class(
     out.amota = np_mean(&motar);
     out.amotp = np_mean(&motp);
     out
+}
+
+/// Per class with ground truth, the association decisions at its best-MOTA threshold (the one
+/// the counts of [`evaluate`] come from), for `eval --events`. Empty for a class whose recall
+/// reaches no threshold.
+pub fn best_threshold_decisions(scenes: &[Scene], p: &NuscenesParams) -> Vec<(String, Collector)> {
+    let prepared: Vec<Prepared> = scenes.iter().map(prepare).collect();
+    p.classes
+        .par_iter()
+        .filter_map(|c| {
+            let mut log = Collector::default();
+            let m = evaluate_class_with(&prepared, c, p, &mut Vec::new(), Some(&mut log));
+            (!m.gt.is_nan()).then(|| (c.clone(), log))
+        })
+        .collect()
 }
 
 /// Evaluates scenes (one log each) with the nuScenes protocol.

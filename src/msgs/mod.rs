@@ -12,6 +12,7 @@ pub mod cdr_cursor;
 pub mod colors;
 pub mod detection_frame;
 pub mod detection_source;
+pub mod eval_events;
 pub mod foxglove_scene;
 pub mod ros2_common;
 pub mod ros2_tf;

@@ -3,10 +3,15 @@
 //! This module reads the layers (detections, tracks, ground truth) of an MCAP file into plain
 //! per-frame box lists and selects a class and a time window; [`plot`] draws them, with no I/O.
 
+pub mod labels;
 pub mod plot;
+mod plot_panel;
+pub mod plot_types;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;
+pub mod truth_colors;
+pub mod window;
 
 use std::collections::BTreeSet;
 use std::fmt;
@@ -169,6 +174,8 @@ pub struct LayerFrames {
     pub frames: Vec<Frame>,
     /// The MCAP log time of each frame's message, ns (`log_times[i]` belongs to `frames[i]`).
     pub log_times: Vec<u64>,
+    /// The `frame_id`s of the messages read (empty when the reader does not keep them).
+    pub frame_ids: BTreeSet<String>,
 }
 
 /// The layers of one file, read in a single pass.
@@ -178,6 +185,9 @@ pub struct FileLayers {
     pub layers: Vec<LayerFrames>,
     /// Every topic of the file (for error messages).
     pub topics: BTreeSet<String>,
+    /// First and last frame stamp over the layers' topics, when known without the frames (a
+    /// windowed read holds only the window's frames).
+    pub span: Option<(u64, u64)>,
 }
 
 impl FileLayers {
@@ -188,6 +198,9 @@ impl FileLayers {
 
     /// Earliest frame stamp over all layers read, ns.
     pub fn first_stamp(&self) -> Option<u64> {
+        if let Some((first, _)) = self.span {
+            return Some(first);
+        }
         self.layers
             .iter()
             .flat_map(|l| l.frames.iter().map(|f| f.0))
@@ -196,6 +209,9 @@ impl FileLayers {
 
     /// Latest frame stamp over all layers read, ns.
     pub fn last_stamp(&self) -> Option<u64> {
+        if let Some((_, last)) = self.span {
+            return Some(last);
+        }
         self.layers
             .iter()
             .flat_map(|l| l.frames.iter().map(|f| f.0))
@@ -243,12 +259,14 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
                 topic: topic.clone(),
                 frames,
                 log_times,
+                frame_ids: BTreeSet::new(),
             })
         })
         .collect();
     Ok(FileLayers {
         layers,
         topics: read.topics,
+        span: None,
     })
 }
 

@@ -1,32 +1,26 @@
 //! Static bird's-eye-view pictures: one panel per layer side by side, every box of the chosen
 //! frames drawn in place as an oriented rectangle with a heading tick, a colour per id (grey for
-//! detections), each id's centre path, and the id's label beside its last box. Axes are in metres
-//! with the same metres per pixel on x and y, and every panel shows the same region.
+//! detections), each id's centre path, and the id's label beside its last box (labels placed so
+//! that they do not overlap). Track boxes can take the colour of the ground truth they match, so
+//! a track that follows one object keeps one colour and an identity switch shows as a colour
+//! change; the evaluation's errors can be marked. Axes are in metres with the same metres per
+//! pixel on x and y, and every panel shows the same region: that of the tracks and ground truth
+//! (detections far away do not zoom the scene out) unless given.
 //!
 //! Pure drawing: frames in, PNG bytes out. Text is drawn with a TTF embedded in the binary (Hack,
 //! from the `epaint_default_fonts` crate), so no system font is needed.
 
-use std::collections::BTreeMap;
 use std::sync::OnceLock;
 
-use anyhow::{anyhow, bail, Context, Result};
-use plotters::coord::Shift;
+use anyhow::{bail, Context, Result};
 use plotters::prelude::*;
-use plotters::style::text_anchor::{HPos, Pos, VPos};
 use plotters::style::{register_font, FontStyle};
 
-use super::{BevBox, Frame, Layer};
-
-/// One panel: a titled BEV view of one layer's frames.
-#[derive(Debug, Clone)]
-pub struct Panel {
-    /// Title drawn above the panel.
-    pub title: String,
-    /// The layer, which decides the colouring (grey detections, a colour per id otherwise).
-    pub layer: Layer,
-    /// The frames to draw, all in place.
-    pub frames: Vec<Frame>,
-}
+use super::plot_panel::draw_panel;
+use super::plot_types::{draw_err, rgb, FONT};
+pub use super::plot_types::{
+    equal_aspect, EventMark, Extent, Panel, BACKGROUND, DETECTION_GREY, UNMATCHED,
+};
 
 /// Size and title of the picture.
 #[derive(Debug, Clone)]
@@ -37,6 +31,10 @@ pub struct PlotOptions {
     pub height: u32,
     /// Title above all panels, if any.
     pub title: Option<String>,
+    /// Region shown; default [`world_extent`].
+    pub extent: Option<Extent>,
+    /// Evaluation events to mark.
+    pub marks: Vec<EventMark>,
 }
 
 impl Default for PlotOptions {
@@ -45,25 +43,13 @@ impl Default for PlotOptions {
             width: 1800,
             height: 700,
             title: None,
+            extent: None,
+            marks: Vec::new(),
         }
     }
 }
 
 pub use crate::msgs::colors::{id_color, mix64, PALETTE};
-
-/// Colour of detections, which have no id.
-pub const DETECTION_GREY: (u8, u8, u8) = (0x8c, 0x8c, 0x8c);
-
-/// Picture background.
-pub const BACKGROUND: (u8, u8, u8) = (0xff, 0xff, 0xff);
-
-fn rgb(c: (u8, u8, u8)) -> RGBColor {
-    RGBColor(c.0, c.1, c.2)
-}
-
-/// Font family name under which the embedded font is registered (also as `sans-serif`, the
-/// family plotters uses for its default text).
-const FONT: &str = "sans-serif";
 
 /// Registers the embedded font with plotters, once per process.
 pub fn register_fonts() -> Result<()> {
@@ -81,14 +67,19 @@ pub fn register_fonts() -> Result<()> {
     }
 }
 
-/// World region `[x0, x1] x [y0, y1]` covering every box corner of every panel, with a margin;
-/// `None` when there is no box.
-pub fn world_extent(panels: &[Panel]) -> Option<(f64, f64, f64, f64)> {
-    let mut ext: Option<(f64, f64, f64, f64)> = None;
-    for b in panels
-        .iter()
-        .flat_map(|p| p.frames.iter().flat_map(|f| f.1.iter()))
-    {
+/// World region `[x0, x1] x [y0, y1]` covering every box corner of the panels with ids (tracks,
+/// ground truth), or of every panel when those have no box, with a margin; `None` when there is
+/// no box.
+pub fn world_extent(panels: &[Panel]) -> Option<Extent> {
+    let boxes = |ids_only: bool| {
+        panels
+            .iter()
+            .filter(move |p| !ids_only || p.layer.has_ids())
+            .flat_map(|p| p.frames.iter().flat_map(|f| f.1.iter()))
+    };
+    let ids_only = boxes(true).next().is_some();
+    let mut ext: Option<Extent> = None;
+    for b in boxes(ids_only) {
         for (x, y) in b.corners() {
             if !(x.is_finite() && y.is_finite()) {
                 continue;
@@ -107,21 +98,6 @@ pub fn world_extent(panels: &[Panel]) -> Option<(f64, f64, f64, f64)> {
     Some((cx - hx - m, cx + hx + m, cy - hy - m, cy + hy + m))
 }
 
-/// Widens `ext` along x or y so that a `pw` x `ph` pixel area shows it with equal metres per
-/// pixel on both axes, keeping its centre. Returns the new region.
-pub fn equal_aspect(ext: (f64, f64, f64, f64), pw: u32, ph: u32) -> (f64, f64, f64, f64) {
-    let (x0, x1, y0, y1) = ext;
-    let (pw, ph) = (f64::from(pw.max(1)), f64::from(ph.max(1)));
-    let scale = ((x1 - x0) / pw).max((y1 - y0) / ph);
-    let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-    let (hx, hy) = (scale * pw / 2.0, scale * ph / 2.0);
-    (cx - hx, cx + hx, cy - hy, cy + hy)
-}
-
-fn draw_err<E: std::fmt::Display>(e: E) -> anyhow::Error {
-    anyhow!("drawing failed: {e}")
-}
-
 /// Renders the panels side by side into an RGB buffer of `width * height * 3` bytes.
 pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
     if panels.is_empty() {
@@ -136,7 +112,7 @@ pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
             100 * panels.len()
         );
     }
-    let Some(ext) = world_extent(panels) else {
+    let Some(ext) = opts.extent.or_else(|| world_extent(panels)) else {
         bail!("nothing to plot: no box in any panel");
     };
     register_fonts()?;
@@ -156,7 +132,7 @@ pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
         };
         let areas = root.split_evenly((1, panels.len()));
         for (area, panel) in areas.iter().zip(panels) {
-            draw_panel(area, panel, ext, k)?;
+            draw_panel(area, panel, ext, k, &opts.marks)?;
         }
         root.present().map_err(draw_err)?;
     }
@@ -184,200 +160,10 @@ pub fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// Per id, in time order: its boxes (id 0 — detections — is one group).
-fn by_id(frames: &[Frame]) -> BTreeMap<u64, Vec<&BevBox>> {
-    let mut m: BTreeMap<u64, Vec<&BevBox>> = BTreeMap::new();
-    let mut order: Vec<&Frame> = frames.iter().collect();
-    order.sort_by_key(|f| f.0);
-    for (_, boxes) in order {
-        for b in boxes {
-            m.entry(b.id).or_default().push(b);
-        }
-    }
-    m
-}
-
-fn outline(b: &BevBox) -> Vec<(f64, f64)> {
-    let c = b.corners();
-    vec![c[0], c[1], c[2], c[3], c[0]]
-}
-
-/// Heading tick: from the middle of the front edge, outward by a third of the length (at most
-/// 1.5 m, at least 0.5 m).
-fn heading_tick(b: &BevBox) -> Vec<(f64, f64)> {
-    let (s, c) = b.yaw.sin_cos();
-    let hl = b.size[0] / 2.0;
-    let len = (b.size[0] / 3.0).clamp(0.5, 1.5);
-    let (x, y) = (b.center[0], b.center[1]);
-    vec![
-        (x + hl * c, y + hl * s),
-        (x + (hl + len) * c, y + (hl + len) * s),
-    ]
-}
-
-fn finite(b: &BevBox) -> bool {
-    b.center[0].is_finite()
-        && b.center[1].is_finite()
-        && b.size[0].is_finite()
-        && b.size[1].is_finite()
-        && b.yaw.is_finite()
-}
-
-fn draw_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
-    panel: &Panel,
-    ext: (f64, f64, f64, f64),
-    k: f64,
-) -> Result<()>
-where
-    DB::ErrorType: 'static,
-{
-    let px = |s: f64| (s * k).round();
-    let pxu = |s: f64| (s * k).round().max(1.0) as u32;
-    let area = area
-        .titled(&panel.title, (FONT, px(16.0)).into_font().color(&BLACK))
-        .map_err(draw_err)?;
-    let builder = || {
-        let mut b = ChartBuilder::on(&area);
-        b.margin(pxu(8.0))
-            .margin_right(pxu(14.0))
-            .x_label_area_size(pxu(42.0))
-            .y_label_area_size(pxu(52.0));
-        b
-    };
-    // First build on a dummy range to learn the plotting area's size, then the real one with
-    // equal metres per pixel on both axes (building draws nothing).
-    let (pw, ph) = builder()
-        .build_cartesian_2d(0f64..1f64, 0f64..1f64)
-        .map_err(draw_err)?
-        .plotting_area()
-        .dim_in_pixel();
-    let (x0, x1, y0, y1) = equal_aspect(ext, pw, ph);
-    let mut chart = builder()
-        .build_cartesian_2d(x0..x1, y0..y1)
-        .map_err(draw_err)?;
-    let fmt = |v: &f64| format!("{v:.0}");
-    chart
-        .configure_mesh()
-        .x_desc("x (m)")
-        .y_desc("y (m)")
-        .x_labels(8)
-        .y_labels(8)
-        .x_label_formatter(&fmt)
-        .y_label_formatter(&fmt)
-        .label_style((FONT, px(12.0)).into_font().color(&BLACK))
-        .axis_desc_style((FONT, px(13.0)).into_font().color(&BLACK))
-        .bold_line_style(RGBColor(0xdd, 0xdd, 0xdd))
-        .light_line_style(RGBColor(0xf2, 0xf2, 0xf2))
-        .draw()
-        .map_err(draw_err)?;
-
-    let groups = by_id(&panel.frames);
-    if groups.values().all(|v| v.is_empty()) {
-        let (cx, cy) = ((x0 + x1) / 2.0, (y0 + y1) / 2.0);
-        chart
-            .draw_series(std::iter::once(Text::new(
-                "no boxes in this window".to_string(),
-                (cx, cy),
-                (FONT, px(14.0))
-                    .into_font()
-                    .color(&RGBColor(0x80, 0x80, 0x80))
-                    .pos(Pos::new(HPos::Center, VPos::Center)),
-            )))
-            .map_err(draw_err)?;
-        return Ok(());
-    }
-
-    let thin = pxu(1.0);
-    // Labels are drawn after every box, so that no box covers one.
-    let mut labels: Vec<(String, (f64, f64), Pos, RGBColor)> = Vec::new();
-    let label_px = px(13.0);
-    let m_per_px = (x1 - x0) / f64::from(pw.max(1));
-    for (&id, boxes) in &groups {
-        let boxes: Vec<&BevBox> = boxes.iter().copied().filter(|b| finite(b)).collect();
-        if boxes.is_empty() {
-            continue;
-        }
-        let color = if panel.layer.has_ids() {
-            rgb(id_color(id))
-        } else {
-            rgb(DETECTION_GREY)
-        };
-        let style = color.stroke_width(thin);
-        chart
-            .draw_series(
-                boxes
-                    .iter()
-                    .flat_map(|b| [outline(b), heading_tick(b)])
-                    .map(|pts| PathElement::new(pts, style)),
-            )
-            .map_err(draw_err)?;
-        if !panel.layer.has_ids() {
-            continue;
-        }
-        // The id's path through its box centres, and its last box drawn bold and labelled.
-        if boxes.len() > 1 {
-            chart
-                .draw_series(LineSeries::new(
-                    boxes.iter().map(|b| (b.center[0], b.center[1])),
-                    color.mix(0.6).stroke_width(thin),
-                ))
-                .map_err(draw_err)?;
-        }
-        let last = boxes[boxes.len() - 1];
-        chart
-            .draw_series(std::iter::once(PathElement::new(
-                outline(last),
-                color.stroke_width(pxu(2.5)),
-            )))
-            .map_err(draw_err)?;
-        let label = if last.label.is_empty() {
-            format!("{id}")
-        } else {
-            format!("{} {id}", last.label)
-        };
-        // Above the last box (below it when it heads down, so the label is ahead of it and off
-        // its path), starting at its left edge, or ending at its right edge when the text
-        // would leave the panel.
-        let c = last.corners();
-        let fold = |f: fn(&(f64, f64)) -> f64, init: f64, pick: fn(f64, f64) -> f64| {
-            c.iter().map(f).fold(init, pick)
-        };
-        let (xl, xr) = (
-            fold(|p| p.0, f64::MAX, f64::min),
-            fold(|p| p.0, f64::MIN, f64::max),
-        );
-        let (yb, yt) = (
-            fold(|p| p.1, f64::MAX, f64::min),
-            fold(|p| p.1, f64::MIN, f64::max),
-        );
-        let gap = 3.0 * m_per_px;
-        // Hack is monospaced: every advance is 0.6 em.
-        let text_w = label.chars().count() as f64 * 0.6 * label_px * m_per_px;
-        let (x, h) = if xl + text_w <= x1 {
-            (xl, HPos::Left)
-        } else {
-            (xr, HPos::Right)
-        };
-        let (y, v) = if last.yaw.sin() < -0.5 {
-            (yb - gap, VPos::Top)
-        } else {
-            (yt + gap, VPos::Bottom)
-        };
-        labels.push((label, (x, y), Pos::new(h, v), color));
-    }
-    chart
-        .draw_series(labels.into_iter().map(|(text, at, pos, color)| {
-            let style = (FONT, label_px).into_font().color(&color).pos(pos);
-            Text::new(text, at, style)
-        }))
-        .map_err(draw_err)?;
-    Ok(())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::viz::{BevBox, Frame, Layer};
 
     fn bx(id: u64, x: f64, y: f64, yaw: f64) -> BevBox {
         BevBox {
@@ -416,6 +202,7 @@ mod tests {
             title: "t".into(),
             layer: Layer::Tracks,
             frames: vec![(0, vec![bx(1, 0.0, 0.0, 0.0), bx(1, 50.0, 20.0, 1.0)])],
+            truth_of: None,
         };
         let (x0, x1, y0, y1) = world_extent(std::slice::from_ref(&p)).unwrap();
         for b in &p.frames[0].1 {
@@ -425,9 +212,20 @@ mod tests {
         }
         let empty = Panel {
             frames: vec![(0, vec![])],
-            ..p
+            ..p.clone()
         };
         assert!(world_extent(&[empty]).is_none());
+        // A far detection does not widen the region of the tracks.
+        let far = Panel {
+            title: "d".into(),
+            layer: Layer::Detections,
+            frames: vec![(0, vec![bx(0, 900.0, -400.0, 0.0)])],
+            truth_of: None,
+        };
+        let with_far = world_extent(&[far.clone(), p.clone()]).unwrap();
+        assert_eq!(with_far, (x0, x1, y0, y1));
+        // Detections alone still give a region.
+        assert!(world_extent(&[far]).unwrap().1 > 900.0);
     }
 
     #[test]
@@ -446,17 +244,20 @@ mod tests {
                 title: "detections".into(),
                 layer: Layer::Detections,
                 frames: frames.clone(),
+                truth_of: None,
             },
             Panel {
                 title: "tracks".into(),
                 layer: Layer::Tracks,
                 frames,
+                truth_of: None,
             },
         ];
         let opts = PlotOptions {
             width: 640,
             height: 300,
             title: Some("test".into()),
+            ..PlotOptions::default()
         };
         let rgb = render_rgb(&panels, &opts).unwrap();
         assert_eq!(rgb.len(), 640 * 300 * 3);
@@ -477,6 +278,7 @@ mod tests {
             title: "x".into(),
             layer: Layer::Tracks,
             frames: vec![(0, vec![])],
+            truth_of: None,
         }];
         assert!(render_rgb(&empty, &opts).is_err());
     }

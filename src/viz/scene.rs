@@ -182,6 +182,7 @@ mod tests {
             log_times: msgs.iter().map(|m| m.0).collect(),
             // The message stamps differ from the log times: frames follow the log time.
             frames: msgs.into_iter().map(|(t, b)| (t + 7, b)).collect(),
+            frame_ids: BTreeSet::new(),
         }
     }
 
@@ -189,6 +190,7 @@ mod tests {
         FileLayers {
             layers,
             topics: BTreeSet::new(),
+            span: None,
         }
     }
 

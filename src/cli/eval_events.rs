@@ -1,0 +1,200 @@
+//! `probmot eval --events OUT.mcap`: the decisions behind the numbers, written as channels of a
+//! copy of the truth log, with the worst moments (identity switches, then fragmentations) listed
+//! in the report, each with a `--from/--to` window for `probmot plot`.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Result};
+use probmot::eval::events::{resolve, ClassEvents, Counts, Protocol};
+use probmot::eval::events_log::{write_events_log, LogEvents};
+use probmot::eval::kitti::{self, KittiParams};
+use probmot::eval::nuscenes::{self, NuscenesParams};
+use probmot::eval::scene::Scene;
+use probmot::mcapio::writer::check_output_path;
+use probmot::msgs::eval_event::Kind;
+use probmot::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
+use probmot::msgs::EvalEvents;
+
+/// Worst moments listed in the report.
+const WORST: usize = 10;
+
+/// Seconds of context on each side of a moment in the suggested plot window.
+const CONTEXT_S: f64 = 2.0;
+
+/// Which protocol, with its parameters.
+pub enum EventsInput<'a> {
+    /// nuScenes.
+    Nuscenes(&'a NuscenesParams),
+    /// KITTI.
+    Kitti(&'a KittiParams),
+}
+
+/// One listed moment.
+#[derive(Debug, Clone, serde::Serialize)]
+struct Moment {
+    log: String,
+    time_s: f64,
+    stamp_ns: u64,
+    class: String,
+    event: String,
+    truth_id: u64,
+    track_id: u64,
+    previous_track_id: u64,
+    from_s: f64,
+    to_s: f64,
+}
+
+/// What `--events` wrote and found, for the report.
+pub struct EventsReport {
+    outputs: Vec<PathBuf>,
+    counts: BTreeMap<String, Counts>,
+    worst: Vec<Moment>,
+    total_switches: u64,
+    total_frags: u64,
+}
+
+impl EventsReport {
+    /// The `events` member of `--json`.
+    pub fn json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "outputs": self.outputs, "topics": [EVENTS_TOPIC, EVENTS_SCENE_TOPIC],
+            "counts": self.counts, "worst_moments": self.worst,
+        })
+    }
+
+    /// The lines of the terminal report.
+    pub fn text(&self) -> String {
+        let mut s = format!(
+            "\nevents ({} identity switches, {} fragmentations) written to {}",
+            self.total_switches,
+            self.total_frags,
+            self.outputs
+                .iter()
+                .map(|p| p.display().to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        s.push_str(&format!(" ({EVENTS_TOPIC}, {EVENTS_SCENE_TOPIC})\n"));
+        if !self.worst.is_empty() {
+            s.push_str("worst moments (time after the log's first frame; plot window):\n");
+        }
+        for m in &self.worst {
+            s.push_str(&format!(
+                "  {:>8.2} s  {:<10}  {:<40}  {}  --from {:.1} --to {:.1}\n",
+                m.time_s, m.class, m.event, m.log, m.from_s, m.to_s
+            ));
+        }
+        s
+    }
+}
+
+/// Where each log's events go: `out` itself for one log, `out/<truth file name>` for several
+/// (`out` is then a directory, created if missing).
+fn output_paths(out: &Path, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<PathBuf>> {
+    if let [(truth, _)] = pairs {
+        check_output_path(Some(truth), out)?;
+        return Ok(vec![out.to_path_buf()]);
+    }
+    if out.exists() && !out.is_dir() {
+        bail!(
+            "--events {}: several logs are evaluated, so --events names a directory (one copy \
+             per log, named as the truth file)",
+            out.display()
+        );
+    }
+    std::fs::create_dir_all(out)?;
+    pairs
+        .iter()
+        .map(|(truth, _)| {
+            let dest = out.join(truth.file_name().unwrap_or_default());
+            check_output_path(Some(truth), &dest)?;
+            Ok(dest)
+        })
+        .collect()
+}
+
+/// Computes the events of every class at its best-MOTA threshold, writes one copy of each truth
+/// log with the events channels and returns the report.
+pub fn write(
+    out: &Path,
+    input: EventsInput<'_>,
+    pairs: &[(PathBuf, PathBuf)],
+    scenes: &[Scene],
+    truth_topic: &str,
+) -> Result<EventsReport> {
+    let dests = output_paths(out, pairs)?;
+    let (protocol, name, logs) = match input {
+        EventsInput::Nuscenes(p) => (
+            Protocol::Nuscenes,
+            "nuscenes",
+            nuscenes::best_threshold_decisions(scenes, p),
+        ),
+        EventsInput::Kitti(p) => (
+            Protocol::Kitti,
+            "kitti",
+            kitti::best_threshold_decisions(scenes, p),
+        ),
+    };
+    let classes: Vec<ClassEvents> = logs
+        .iter()
+        .map(|(c, log)| resolve(scenes, c, log, protocol))
+        .collect();
+    let mut per_log: Vec<LogEvents> = vec![LogEvents::new(); scenes.len()];
+    for ce in &classes {
+        for e in &ce.events {
+            let stamp = scenes[e.scene].frames[e.frame].0;
+            let frame = per_log[e.scene].entry(stamp).or_insert_with(|| EvalEvents {
+                stamp,
+                protocol: name.to_string(),
+                ..Default::default()
+            });
+            frame.events.push(e.event.clone());
+        }
+    }
+    for (((truth, _), dest), events) in pairs.iter().zip(&dests).zip(&per_log) {
+        write_events_log(truth, dest, truth_topic, events, false)?;
+    }
+    Ok(report(dests, &classes, scenes))
+}
+
+fn report(outputs: Vec<PathBuf>, classes: &[ClassEvents], scenes: &[Scene]) -> EventsReport {
+    let mut worst = Vec::new();
+    for kind in [Kind::Switch, Kind::Fragmentation] {
+        let start = worst.len();
+        for ce in classes {
+            for e in ce.events.iter().filter(|e| e.event.kind() == kind) {
+                let frames = &scenes[e.scene].frames;
+                let stamp = frames[e.frame].0;
+                let time_s = (stamp - frames[0].0) as f64 / 1e9;
+                worst.push(Moment {
+                    log: scenes[e.scene].name.clone(),
+                    time_s,
+                    stamp_ns: stamp,
+                    class: ce.class.clone(),
+                    event: event_text(&e.event),
+                    truth_id: e.event.truth_id,
+                    track_id: e.event.track_id,
+                    previous_track_id: e.event.previous_track_id,
+                    from_s: (time_s - CONTEXT_S).max(0.0),
+                    to_s: time_s + CONTEXT_S,
+                });
+            }
+        }
+        // Switches first, then fragmentations, each in time order (log, time, class).
+        worst[start..].sort_by(|a: &Moment, b: &Moment| {
+            (&a.log, a.stamp_ns, &a.class).cmp(&(&b.log, b.stamp_ns, &b.class))
+        });
+    }
+    worst.truncate(WORST);
+    EventsReport {
+        outputs,
+        counts: classes
+            .iter()
+            .map(|c| (c.class.clone(), c.counts))
+            .collect(),
+        total_switches: classes.iter().map(|c| c.counts.ids).sum(),
+        total_frags: classes.iter().map(|c| c.counts.frag).sum(),
+        worst,
+    }
+}
