@@ -151,3 +151,31 @@ fn ab3dmot_kitti_classes() -> BTreeMap<String, ClassConfig> {
     .map(|(l, c)| (l.to_string(), c))
     .collect()
 }
+
+impl TrackerConfig {
+    /// A built-in preset by name (see [`Preset`]).
+    pub fn preset(name: &str) -> Result<TrackerConfig, ConfigError> {
+        match Preset::from_name(name) {
+            Some(p) => p.config(),
+            None => Err(ConfigError(format!(
+                "unknown preset '{name}'; known presets: {}",
+                Preset::ALL.map(Preset::name).join(", ")
+            ))),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_validate_and_round_trip() {
+        for p in Preset::ALL {
+            let cfg = TrackerConfig::preset(p.name()).unwrap();
+            cfg.validate().unwrap();
+            let back = TrackerConfig::from_json(&cfg.to_json()).unwrap();
+            assert_eq!(back, cfg);
+        }
+    }
+}
