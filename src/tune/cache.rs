@@ -14,13 +14,16 @@ use super::space::key;
 use crate::eval::scene::EvalBox;
 use crate::tracker::{ClassConfig, TrackerConfig};
 
+/// Per log, per frame: the truth boxes one class's evaluation reads.
+type ClassTruth = std::sync::Arc<Vec<Vec<Vec<EvalBox>>>>;
+
 /// Scores of one tune's logs, by class and config key.
 pub struct ScoreCache<'a> {
     logs: &'a [&'a TuneLog],
     cfg: &'a TrackerConfig,
     scoring: Scoring,
     /// Per class: per log, per frame, the truth its evaluation reads.
-    truth: Mutex<HashMap<String, std::sync::Arc<Vec<Vec<Vec<EvalBox>>>>>>,
+    truth: Mutex<HashMap<String, ClassTruth>>,
     map: Mutex<HashMap<(String, String), f64>>,
 }
 
@@ -65,7 +68,7 @@ impl<'a> ScoreCache<'a> {
     }
 
     /// The truth the evaluation of `label` reads, prepared once.
-    fn truth_of(&self, label: &str) -> std::sync::Arc<Vec<Vec<Vec<EvalBox>>>> {
+    fn truth_of(&self, label: &str) -> ClassTruth {
         let mut m = self.truth.lock().expect("cache lock");
         m.entry(label.to_string())
             .or_insert_with(|| {

@@ -6,6 +6,8 @@ use crate::tracker::{ClassConfig, DistanceKind, MatcherKind};
 
 /// One candidate value of a dimension.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// The noise variant is large, but a search holds only about a hundred values, built once.
+#[allow(clippy::large_enum_variant)]
 pub enum Value {
     /// Keep the base config's value.
     Keep,
