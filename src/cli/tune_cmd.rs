@@ -248,7 +248,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     pb.set_message("tuning on all logs");
     let t = tune::tune(base, &all, &o, &pb)?;
     pb.finish_and_clear();
-    let mut cfg = t.tuned;
+    let mut cfg = t.tuned.clone();
     cfg.name = format!(
         "tune of {} log(s) on {} ({}, {} per class, budget {})",
         logs.len(),
@@ -268,6 +268,12 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
             write_file_atomic(&p, format!("{}\n", c.to_json()).as_bytes())?;
         }
     }
+    report(a, &o, cv.as_ref(), &t)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Prints the cross-validation table and the final tune's per-class summary (or all as JSON).
+fn report(a: &TuneArgs, o: &TuneOptions, cv: Option<&CvReport>, t: &tune::Tuned) -> Result<()> {
     if a.json {
         let v = serde_json::json!({
             "output": a.output.display().to_string(),
@@ -277,26 +283,28 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        if let Some(cv) = &cv {
-            print!("{}", table(cv, scoring.metric()));
+        if let Some(cv) = cv {
+            print!("{}", table(cv, o.scoring.metric()));
         }
         for c in &t.classes {
             println!(
                 "{}: {} trajectories, training {} base {} -> shared {} -> {} ({})",
                 c.label,
                 c.trajectories,
-                scoring.metric(),
+                o.scoring.metric(),
                 pct(c.base_score),
                 pct(c.shared_score),
                 pct(c.score),
                 if c.refined {
-                    "refined"
-                } else {
+                    "searched"
+                } else if o.limits.shared {
                     "too few trajectories: shared settings"
+                } else {
+                    "too few trajectories: the base's own settings"
                 }
             );
         }
         println!("wrote {}", a.output.display());
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }
