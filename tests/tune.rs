@@ -318,8 +318,9 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
         classes: vec!["car".into()],
     };
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
-    // Scoring a class on only the truth its evaluation reads gives the score of the full truth.
-    let refs: Vec<&TuneLog> = logs.iter().collect();
+    // Scoring a class on only the truth its evaluation reads gives the score of the full truth
+    // (on three logs, which hold all three classes, vans and DontCare regions, to stay fast).
+    let refs: Vec<&TuneLog> = logs[..3].iter().collect();
     for label in ["car", "pedestrian", "cyclist"] {
         let full: Vec<_> = refs.iter().map(|l| track_log(l, &base).unwrap()).collect();
         let want = o.scoring.evaluate(&full, &[label.to_string()])[label];
