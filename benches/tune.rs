@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use probmot::pipeline::kitti_io::{import_kitti, resolve_detection_files};
 use probmot::tracker::TrackerConfig;
-use probmot::tune::score::{score_class, single_class};
+use probmot::tune::score::{class_truth, score_class_with, single_class};
 use probmot::tune::{fit_noise, Protocol, Scoring, SearchLimits, TuneLog, TuneOptions};
 
 const SEQS: [&str; 10] = [
@@ -47,6 +47,7 @@ fn bench(c: &mut Criterion) {
         limits: SearchLimits {
             budget: 1,
             rounds: 1,
+            ..SearchLimits::default()
         },
         dt_nominal: None,
         min_samples: 50,
@@ -59,8 +60,13 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(1));
     for label in ["car", "pedestrian", "cyclist"] {
         let cfg = single_class(&fitted, label, fitted.classes[label].clone());
+        // As the tune does: each log's truth for the class is prepared once.
+        let truth: Vec<_> = refs
+            .iter()
+            .map(|l| class_truth(l, label, &scoring))
+            .collect();
         g.bench_function(format!("one_config_{label}_10_logs"), |b| {
-            b.iter(|| score_class(&refs, &cfg, label, &scoring).unwrap())
+            b.iter(|| score_class_with(&refs, &truth, &cfg, label, &scoring).unwrap())
         });
     }
     g.finish();

@@ -25,18 +25,25 @@ use rayon::prelude::*;
 /// held-out logs together. Then the noise is fitted and the settings tuned on all logs, and that
 /// config is written to -o.
 ///
-/// Search: coordinate descent per class (classes are tracked and scored independently). From the
-/// base settings, each round tries every candidate value of one option at a time -- gate and
-/// distance, matcher, min_hits, max_age, yaw rate, Q and R factors, score floor, two-stage birth
-/// score, NMS, reported score and its refinement, life cycle by confidence -- and keeps the best
-/// when it raises the training score (sAMOTA for kitti, AMOTA for nuscenes). Bound the work with
-/// --budget (configurations per class and search; about 80 make one round) and --rounds; the
-/// total is at most (folds + 1) x classes x budget evaluations. Deterministic for the same inputs
-/// and options, whatever --jobs.
+/// Search: coordinate descent (classes are tracked and scored independently). Each round tries
+/// every candidate value of one option at a time and keeps the best when it raises the training
+/// score (sAMOTA for kitti, AMOTA for nuscenes) by more than --margin. Options: fitted or the
+/// base config's own noise, gate and distance, matcher, min_hits, max_age, yaw rate, Q and R
+/// factors, NMS, reported score and its refinement, score floor, two-stage birth score, life
+/// cycle by confidence. Only classes with at least --min-tracks ground-truth trajectories in the
+/// training logs are searched (from the base with fitted noise); the others keep the base
+/// config's own settings, as a handful of trajectories supports no data-driven choice. With
+/// --shared, a first stage chooses the class-agnostic options jointly for every class (on the
+/// mean score of the searched classes), and the other classes keep those instead.
+/// Bound the work with --budget (configurations per search; about 80 make one round) and
+/// --rounds; the total is at most (folds + 1) x (classes + 1) x budget configurations, and a
+/// configuration seen before is not scored again. Deterministic for the same inputs and
+/// options, whatever --jobs.
 ///
 /// Examples:
 ///   probmot tune logs/*.mcap -o tuned.json
 ///   probmot tune logs/*.mcap -o tuned.json --folds 2 --budget 100 --jobs 2 --json
+///   probmot tune logs/*.mcap -o tuned.json --min-tracks 20 --margin 0.01
 ///   probmot track drive.mcap -o out.mcap --config tuned.json
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -71,6 +78,17 @@ pub struct TuneArgs {
     /// Largest number of coordinate-descent rounds per search.
     #[arg(long, default_value_t = 3, value_name = "N")]
     rounds: usize,
+    /// A move must raise the training score by more than this (fraction, 0.005 = half a point).
+    #[arg(long, default_value_t = 0.005, value_name = "M")]
+    margin: f64,
+    /// Ground-truth trajectories a class needs in the training logs to be tuned on its own;
+    /// classes with fewer keep the shared settings.
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    min_tracks: usize,
+    /// Run the shared stage first (class-agnostic options chosen jointly for every class on the
+    /// mean score of the classes with enough trajectories; classes with too few keep them).
+    #[arg(long)]
+    shared: bool,
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
@@ -156,6 +174,11 @@ fn table(cv: &CvReport, metric: &str) -> String {
 pub fn run(a: TuneArgs) -> Result<ExitCode> {
     ensure!(a.budget >= 1, "--budget must be at least 1");
     ensure!(
+        a.margin.is_finite() && a.margin >= 0.0,
+        "--margin must be a finite number >= 0, got {}",
+        a.margin
+    );
+    ensure!(
         a.iou > 0.0 && a.iou <= 1.0,
         "--iou must lie in (0, 1], got {}",
         a.iou
@@ -188,6 +211,9 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         limits: SearchLimits {
             budget: a.budget,
             rounds: a.rounds,
+            margin: a.margin,
+            min_tracks: a.min_tracks,
+            shared: a.shared,
         },
         dt_nominal: a.dt_nominal,
         min_samples: a.min_samples,
@@ -203,7 +229,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     }
     let cv_folds = if a.folds >= 2 { a.folds } else { 0 };
     let pb = if super::show_progress(a.quiet) {
-        let total = (cv_folds + 1) * n_classes * a.budget;
+        let total = (cv_folds + 1) * (n_classes + 1) * a.budget;
         ProgressBar::new(total as u64).with_style(
             ProgressStyle::with_template(
                 "{spinner} [{bar:30}] {pos}/~{len} configs {msg} ETA {eta}",
@@ -222,7 +248,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     pb.set_message("tuning on all logs");
     let t = tune::tune(base, &all, &o, &pb)?;
     pb.finish_and_clear();
-    let mut cfg = t.tuned;
+    let mut cfg = t.tuned.clone();
     cfg.name = format!(
         "tune of {} log(s) on {} ({}, {} per class, budget {})",
         logs.len(),
@@ -242,29 +268,43 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
             write_file_atomic(&p, format!("{}\n", c.to_json()).as_bytes())?;
         }
     }
+    report(a, &o, cv.as_ref(), &t)?;
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Prints the cross-validation table and the final tune's per-class summary (or all as JSON).
+fn report(a: &TuneArgs, o: &TuneOptions, cv: Option<&CvReport>, t: &tune::Tuned) -> Result<()> {
     if a.json {
         let v = serde_json::json!({
             "output": a.output.display().to_string(),
             "options": o,
             "cross_validation": cv,
-            "final": t.classes,
+            "final": { "shared": t.shared, "classes": t.classes, "scored": t.scored },
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        if let Some(cv) = &cv {
-            print!("{}", table(cv, scoring.metric()));
+        if let Some(cv) = cv {
+            print!("{}", table(cv, o.scoring.metric()));
         }
         for c in &t.classes {
             println!(
-                "{}: training {} {} -> {} in {} configs",
+                "{}: {} trajectories, training {} base {} -> shared {} -> {} ({})",
                 c.label,
-                scoring.metric(),
+                c.trajectories,
+                o.scoring.metric(),
                 pct(c.base_score),
+                pct(c.shared_score),
                 pct(c.score),
-                c.evaluations
+                if c.refined {
+                    "searched"
+                } else if o.limits.shared {
+                    "too few trajectories: shared settings"
+                } else {
+                    "too few trajectories: the base's own settings"
+                }
             );
         }
         println!("wrote {}", a.output.display());
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(())
 }

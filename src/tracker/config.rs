@@ -4,8 +4,8 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+pub use super::error::ConfigError;
 pub use super::levers::{Levers, ScoreMode};
-pub use super::presets::Preset;
 
 /// How a detection is compared with a track's predicted box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -121,11 +121,6 @@ pub struct TrackerConfig {
     /// skipped (and counted by the caller).
     pub default: Option<ClassConfig>,
 }
-
-/// A configuration that cannot be used, with the reason.
-#[derive(Debug, thiserror::Error, PartialEq)]
-#[error("invalid tracker config: {0}")]
-pub struct ConfigError(pub String);
 
 /// The seven nuScenes tracking classes, in the order of the benchmark.
 pub const NUSCENES_CLASSES: [&str; 7] = [
@@ -306,17 +301,6 @@ pub(crate) fn chiu2019_classes() -> BTreeMap<String, ClassConfig> {
 }
 
 impl TrackerConfig {
-    /// A built-in preset by name (see [`Preset`]).
-    pub fn preset(name: &str) -> Result<TrackerConfig, ConfigError> {
-        match Preset::from_name(name) {
-            Some(p) => p.config(),
-            None => Err(ConfigError(format!(
-                "unknown preset '{name}'; known presets: {}",
-                Preset::ALL.map(Preset::name).join(", ")
-            ))),
-        }
-    }
-
     /// Parses and validates a JSON config.
     pub fn from_json(text: &str) -> Result<TrackerConfig, ConfigError> {
         let cfg: TrackerConfig =
@@ -436,16 +420,6 @@ impl ClassConfig {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn presets_validate_and_round_trip() {
-        for p in Preset::ALL {
-            let cfg = TrackerConfig::preset(p.name()).unwrap();
-            cfg.validate().unwrap();
-            let back = TrackerConfig::from_json(&cfg.to_json()).unwrap();
-            assert_eq!(back, cfg);
-        }
-    }
 
     #[test]
     fn chiu_preset_has_published_numbers() {

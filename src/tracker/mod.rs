@@ -8,6 +8,7 @@ pub mod angle;
 pub mod boxes;
 pub mod confidence;
 pub mod config;
+pub mod error;
 pub mod geometry;
 pub mod kalman;
 pub mod levers;
@@ -20,8 +21,7 @@ pub mod tracker;
 pub mod two_stage;
 
 pub use boxes::{Box3, ClassId, Detection};
-pub use config::{
-    BoxOrigin, ClassConfig, ConfigError, DistanceKind, MatcherKind, Preset, TrackerConfig,
-};
+pub use config::{BoxOrigin, ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
+pub use presets::Preset;
 pub use track::TrackReport;
 pub use tracker::{StepError, Tracker, TrackerStats};

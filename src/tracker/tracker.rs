@@ -277,6 +277,8 @@ impl Tracker {
     }
 }
 
+/// One frame of one class: predict, associate (NMS and two-stage rounds as configured), update,
+/// birth, report, delete.
 #[allow(clippy::too_many_arguments)]
 fn step_class(
     c: &mut ClassState,
@@ -319,8 +321,14 @@ fn step_class(
             associate(c, all_dets, s, n_high, n_det);
         }
     }
+    update_matched(c, all_dets, s);
+    birth(c, all_dets, s, n_high, next_id, stats);
+    report_and_delete(c, frame_count, dt_nominal, s, reports, deleted, stats);
+}
 
-    // Update matched tracks.
+/// Kalman update of every matched track with its detection.
+fn update_matched(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) {
+    let (n_det, n_trk) = (c.dets.len(), c.tracks.len());
     s.matched_det.clear();
     s.matched_det.resize(n_det, false);
     s.track_match.clear();
@@ -336,8 +344,17 @@ fn step_class(
         s.matched_det[d as usize] = true;
         s.track_match[t as usize] = Some(c.dets[d as usize]);
     }
+}
 
-    // Birth: every unmatched detection starts a track.
+/// Birth: every unmatched detection of the first round (index under `n_high`) starts a track.
+fn birth(
+    c: &mut ClassState,
+    all_dets: &[Detection],
+    s: &mut Scratch,
+    n_high: usize,
+    next_id: &mut u64,
+    stats: &mut TrackerStats,
+) {
     for (d, &det_index) in c.dets.iter().enumerate() {
         if s.matched_det[d] || d >= n_high {
             continue;
@@ -360,8 +377,19 @@ fn step_class(
         *next_id += 1;
         stats.born += 1;
     }
+}
 
-    // Report, then delete.
+/// Report the tracks the life cycle shows, then delete the ones past `max_age` (unless kept
+/// alive by their confidence).
+fn report_and_delete(
+    c: &mut ClassState,
+    frame_count: u64,
+    dt_nominal: f64,
+    s: &Scratch,
+    reports: &mut Vec<TrackReport>,
+    deleted: &mut Vec<u64>,
+    stats: &mut TrackerStats,
+) {
     let min_hits = c.cfg.min_hits;
     let max_age = c.cfg.max_age;
     let levers = &c.cfg.levers;

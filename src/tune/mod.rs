@@ -3,9 +3,11 @@
 //! scores measured on the held-out fold). Everything runs in memory: the logs are read once,
 //! tracked and evaluated with the library.
 
+pub mod cache;
 pub mod data;
 pub mod score;
 pub mod search;
+pub mod shared;
 pub mod space;
 
 use std::collections::BTreeMap;
@@ -15,11 +17,12 @@ use indicatif::ProgressBar;
 
 pub use data::TuneLog;
 pub use score::{Protocol, Scoring};
-pub use search::{ClassTune, SearchLimits};
+pub use search::{ClassTune, SearchLimits, Step};
 
 use crate::eval::scene::Scene;
 use crate::fit::{fit, fitted_config, timing::frame_period, FitOptions, YawMode};
-use crate::tracker::TrackerConfig;
+use crate::tracker::{ClassConfig, TrackerConfig};
+use cache::ScoreCache;
 use space::{dims, ScoreStats};
 
 /// Settings of a tune.
@@ -37,15 +40,34 @@ pub struct TuneOptions {
     pub classes: Vec<String>,
 }
 
-/// A config fitted and tuned on some logs, with the per-class search outcomes.
+/// The shared stage of a tune (see [`shared`]).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SharedTune {
+    /// Classes whose mean training score the stage maximised (enough ground truth).
+    pub classes: Vec<String>,
+    /// Mean training score of those classes with the base settings.
+    pub base_score: f64,
+    /// The same with the shared settings.
+    pub score: f64,
+    /// Configurations tried.
+    pub evaluations: usize,
+    /// Accepted moves in order.
+    pub steps: Vec<Step>,
+}
+
+/// A config fitted and tuned on some logs, with the search outcomes.
 #[derive(Debug, Clone)]
 pub struct Tuned {
     /// The base config with noise fitted on the logs (the starting point).
     pub fitted: TrackerConfig,
     /// The fitted config with the tuned settings of every tuned class.
     pub tuned: TrackerConfig,
+    /// The shared stage.
+    pub shared: SharedTune,
     /// Per class.
     pub classes: Vec<ClassTune>,
+    /// Distinct class configs tracked and scored.
+    pub scored: usize,
 }
 
 /// The base config with the noise fitted on `logs` (yaw residuals folded, as
@@ -86,7 +108,27 @@ pub fn classes(logs: &[&TuneLog], o: &TuneOptions) -> Vec<String> {
         .collect()
 }
 
-/// Fits the noise on `logs`, then tunes every class on them.
+/// Ground-truth trajectories (distinct ids per log) labelled `label` in `logs`.
+pub fn trajectories(logs: &[&TuneLog], label: &str) -> usize {
+    logs.iter()
+        .map(|l| {
+            let ids: std::collections::BTreeSet<u64> = l
+                .frames
+                .iter()
+                .flat_map(|f| f.truth.iter())
+                .filter(|b| b.label == label && b.id != 0)
+                .map(|b| b.id)
+                .collect();
+            ids.len()
+        })
+        .sum()
+}
+
+/// Fits the noise on `logs`, then tunes on them: optionally first the shared settings of every
+/// class (`limits.shared`, on the classes with at least `min_tracks` ground-truth trajectories),
+/// then each of those classes on its own from there. Classes with fewer trajectories keep the
+/// base config's own settings (noise not fitted), or the shared ones with `limits.shared`: too
+/// few trajectories support no data-driven choice.
 pub fn tune(
     base: &TrackerConfig,
     logs: &[&TuneLog],
@@ -94,24 +136,67 @@ pub fn tune(
     progress: &ProgressBar,
 ) -> Result<Tuned> {
     let fitted = fit_noise(base, logs, o)?;
+    let starts: BTreeMap<String, ClassConfig> = classes(logs, o)
+        .into_iter()
+        .filter_map(|l| fitted.class(&l).cloned().map(|c| (l, c)))
+        .collect();
+    let traj: BTreeMap<&str, usize> = starts
+        .keys()
+        .map(|l| (l.as_str(), trajectories(logs, l)))
+        .collect();
+    let signal: Vec<String> = starts
+        .keys()
+        .filter(|l| traj[l.as_str()] >= o.limits.min_tracks)
+        .cloned()
+        .collect();
+    let cache = ScoreCache::new(logs, &fitted, o.scoring);
+    let (sd, shared) = shared::tune_shared(&cache, &starts, &signal, o.limits, progress)?;
     let mut tuned = fitted.clone();
     let mut out = Vec::new();
-    for label in classes(logs, o) {
-        if fitted.class(&label).is_none() {
-            continue;
-        }
-        let stats = ScoreStats::of(logs.iter().flat_map(|l| l.scores(&label)).collect());
-        let space = dims(stats);
-        let r = search::tune_class(
-            logs, &fitted, &label, &space, &o.scoring, o.limits, progress,
-        )?;
-        tuned.classes.insert(label.clone(), r.config.clone());
-        out.push(r);
+    for (label, start) in &starts {
+        let refined = signal.contains(label);
+        let (d, config) = if refined {
+            let stats = ScoreStats::of(logs.iter().flat_map(|l| l.scores(label)).collect());
+            let space = dims(stats, &shared[label], base.class(label));
+            let (d, cc) =
+                search::tune_class(&cache, label, &shared[label], &space, o.limits, progress)?;
+            (Some(d), cc)
+        } else if o.limits.shared {
+            (None, shared[label].clone())
+        } else {
+            (None, base.class(label).unwrap_or(start).clone())
+        };
+        let shared_score = cache.score(label, &shared[label])?;
+        tuned.classes.insert(label.clone(), config.clone());
+        out.push(ClassTune {
+            label: label.clone(),
+            trajectories: traj[label.as_str()],
+            base_score: cache.score(label, start)?,
+            shared_score,
+            refined,
+            score: match &d {
+                Some(d) => d.score,
+                None => cache.score(label, &config)?,
+            },
+            evaluations: d.as_ref().map_or(0, |d| d.evaluations),
+            steps: d.map(|d| d.steps).unwrap_or_default(),
+            config,
+        });
     }
+    let scored = cache.len();
+    drop(cache);
     Ok(Tuned {
         fitted,
         tuned,
+        shared: SharedTune {
+            classes: signal,
+            base_score: sd.start,
+            score: sd.score,
+            evaluations: sd.evaluations,
+            steps: sd.steps,
+        },
         classes: out,
+        scored,
     })
 }
 
@@ -141,7 +226,9 @@ pub struct FoldReport {
     pub base: BTreeMap<String, f64>,
     /// Held-out score per class with the config tuned on the training folds.
     pub tuned: BTreeMap<String, f64>,
-    /// The search on the training folds.
+    /// The shared stage on the training folds.
+    pub shared: SharedTune,
+    /// The per-class search on the training folds.
     pub search: Vec<ClassTune>,
 }
 
@@ -208,6 +295,7 @@ pub fn cross_validate(
             held_out: held.iter().map(|l| l.name.clone()).collect(),
             base: o.scoring.evaluate(&b, &classes),
             tuned: o.scoring.evaluate(&u, &classes),
+            shared: t.shared,
             search: t.classes,
         });
         base_scenes.extend(b);

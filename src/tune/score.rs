@@ -99,6 +99,55 @@ pub fn single_class(cfg: &TrackerConfig, label: &str, cc: ClassConfig) -> Tracke
 /// each track carrying the 2D box of its last matched detection. Returns the scene (truth and
 /// tracks) for the evaluation.
 pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
+    track_frames(log, cfg, |i| log.frames[i].truth.clone())
+}
+
+/// The KITTI attribute holding a truth box's type (as `probmot import kitti` writes it).
+const KITTI_TYPE: &str = "kitti_type";
+
+/// Whether the KITTI evaluation of class `label` reads truth box `b`: its type (the `kitti_type`
+/// attribute, else the label, lower-cased) contains the class, its neighbouring class (`van` for
+/// `car`, `person_sitting` for `pedestrian`) or `dontcare` (the rule of `eval::kitti`, repeated
+/// here so that each candidate only copies the truth its class needs).
+fn kitti_reads(label: &str, b: &EvalBox) -> bool {
+    let kind = b
+        .attributes
+        .get(KITTI_TYPE)
+        .unwrap_or(&b.label)
+        .to_lowercase();
+    let neighbour = if label.contains("car") {
+        "van"
+    } else if label.contains("pedestrian") {
+        "person_sitting"
+    } else {
+        label
+    };
+    kind.contains(label) || kind.contains(neighbour) || kind.contains("dontcare")
+}
+
+/// The truth of each frame of `log` that the evaluation of `label` reads (KITTI: the class, its
+/// neighbour and DontCare regions; nuScenes: all of it).
+pub fn class_truth(log: &TuneLog, label: &str, scoring: &Scoring) -> Vec<Vec<EvalBox>> {
+    log.frames
+        .iter()
+        .map(|f| match scoring.protocol {
+            Protocol::Kitti => f
+                .truth
+                .iter()
+                .filter(|b| kitti_reads(label, b))
+                .cloned()
+                .collect(),
+            Protocol::Nuscenes => f.truth.clone(),
+        })
+        .collect()
+}
+
+/// [`track_log`] with the truth of frame `i` given by `truth(i)`.
+pub fn track_frames(
+    log: &TuneLog,
+    cfg: &TrackerConfig,
+    truth: impl Fn(usize) -> Vec<EvalBox>,
+) -> Result<Scene> {
     let mut tracker = Tracker::new(cfg.clone()).map_err(|e| anyhow!("{e}"))?;
     let mut dets: Vec<Detection> = Vec::new();
     let mut src: Vec<usize> = Vec::new();
@@ -106,7 +155,7 @@ pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
     // Image box of each track's last matched detection, by track id.
     let mut image: Vec<Option<[f64; 4]>> = Vec::new();
     let mut frames = Vec::with_capacity(log.frames.len());
-    for f in &log.frames {
+    for (fi, f) in log.frames.iter().enumerate() {
         let mut tracks = Vec::new();
         if f.has_detections {
             dets.clear();
@@ -146,7 +195,7 @@ pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
                 });
             }
         }
-        frames.push((f.stamp, f.truth.clone(), tracks));
+        frames.push((f.stamp, truth(fi), tracks));
     }
     Ok(Scene {
         name: log.name.clone(),
@@ -161,9 +210,25 @@ pub fn score_class(
     label: &str,
     scoring: &Scoring,
 ) -> Result<f64> {
+    let truth: Vec<_> = logs
+        .iter()
+        .map(|l| class_truth(l, label, scoring))
+        .collect();
+    score_class_with(logs, &truth, cfg, label, scoring)
+}
+
+/// [`score_class`] with each log's per-frame truth prepared by [`class_truth`] (once per tune).
+pub fn score_class_with(
+    logs: &[&TuneLog],
+    truth: &[Vec<Vec<EvalBox>>],
+    cfg: &TrackerConfig,
+    label: &str,
+    scoring: &Scoring,
+) -> Result<f64> {
     let scenes = logs
         .iter()
-        .map(|l| track_log(l, cfg))
+        .zip(truth)
+        .map(|(l, t)| track_frames(l, cfg, |i| t[i].clone()))
         .collect::<Result<Vec<_>>>()?;
     let classes = [label.to_string()];
     Ok(scoring.evaluate(&scenes, &classes)[label])

@@ -1,23 +1,43 @@
-//! Coordinate descent over one class's search space: starting at the base config, each round
-//! tries every candidate of one dimension at a time (in parallel) and moves to the best when it
-//! beats the current score; rounds repeat until none improves or the budget is spent.
+//! Coordinate descent over a search space: starting at candidate 0 of every dimension, each
+//! round tries every candidate of one dimension at a time (in parallel) and moves to the best
+//! when it beats the current score by more than the margin; rounds repeat until none improves or
+//! the budget is spent. [`tune_class`] runs it on one class's settings.
 
 use anyhow::Result;
 use indicatif::ProgressBar;
 use rayon::prelude::*;
 
-use super::data::TuneLog;
-use super::score::{score_class, single_class, Scoring};
+use super::cache::ScoreCache;
 use super::space::{at, describe, Dim};
-use crate::tracker::{ClassConfig, TrackerConfig};
+use crate::tracker::ClassConfig;
 
-/// Bounds of a search.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+/// Bounds of a search and the rules that keep it from fitting noise.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct SearchLimits {
-    /// Largest number of configurations evaluated per class.
+    /// Largest number of configurations tried per search (the shared stage, then each class).
     pub budget: usize,
     /// Largest number of coordinate-descent rounds.
     pub rounds: usize,
+    /// A move must raise the training score by more than this (sAMOTA/AMOTA as a fraction).
+    pub margin: f64,
+    /// A class is refined on its own only with at least this many ground-truth trajectories in
+    /// the training logs; with fewer it keeps the base config's own settings (or the shared
+    /// ones with `shared`).
+    pub min_tracks: usize,
+    /// Run the shared stage (class-agnostic settings chosen jointly) before the per-class search.
+    pub shared: bool,
+}
+
+impl Default for SearchLimits {
+    fn default() -> Self {
+        SearchLimits {
+            budget: 100,
+            rounds: 3,
+            margin: 0.005,
+            min_tracks: 10,
+            shared: false,
+        }
+    }
 }
 
 /// One accepted move of the search.
@@ -31,69 +51,52 @@ pub struct Step {
     pub score: f64,
 }
 
-/// The outcome of tuning one class.
-#[derive(Debug, Clone, PartialEq, serde::Serialize)]
-pub struct ClassTune {
-    /// Class label.
-    pub label: String,
-    /// Training score of the base settings.
-    pub base_score: f64,
-    /// Training score of the tuned settings.
+/// The outcome of a coordinate descent.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Descent {
+    /// Candidate index per dimension.
+    pub point: Vec<usize>,
+    /// Score at the start.
+    pub start: f64,
+    /// Score at `point`.
     pub score: f64,
-    /// Configurations evaluated.
+    /// Candidates tried (cached ones included).
     pub evaluations: usize,
     /// Accepted moves in order.
     pub steps: Vec<Step>,
-    /// Tuned settings.
-    #[serde(skip)]
-    pub config: ClassConfig,
 }
 
-fn finite_or_min(v: f64) -> f64 {
-    if v.is_nan() {
-        f64::NEG_INFINITY
-    } else {
-        v
-    }
-}
-
-/// Tunes the settings of `label` on `logs`. `cfg` holds the starting settings (the fitted
-/// noise); `dims` is the class's search space. Deterministic: candidates are evaluated in
-/// parallel but compared in a fixed order, and a move needs a strictly better score.
-pub fn tune_class(
-    logs: &[&TuneLog],
-    cfg: &TrackerConfig,
-    label: &str,
+/// Coordinate descent from the origin of `dims`. `valid` filters candidates, `eval` scores them
+/// (called in parallel). Deterministic: candidates are compared in a fixed order and a move needs
+/// a score above the current one plus `limits.margin`. A start that cannot be scored (`-inf`)
+/// is kept as it is.
+pub fn descend<V, E>(
     dims: &[Dim],
-    scoring: &Scoring,
     limits: SearchLimits,
+    valid: V,
+    eval: E,
     progress: &ProgressBar,
-) -> Result<ClassTune> {
-    let base = cfg
-        .class(label)
-        .cloned()
-        .ok_or_else(|| anyhow::anyhow!("the base config has no settings for class '{label}'"))?;
-    let eval = |cc: ClassConfig| -> Result<f64> {
-        let r = score_class(logs, &single_class(cfg, label, cc), label, scoring);
-        progress.inc(1);
-        r.map(finite_or_min)
-    };
+) -> Result<Descent>
+where
+    V: Fn(&[usize]) -> bool,
+    E: Fn(&[usize]) -> Result<f64> + Sync,
+{
     let mut point = vec![0usize; dims.len()];
-    let base_score = eval(base.clone())?;
-    let mut best = base_score;
-    let mut evaluations = 1;
-    let mut steps = Vec::new();
-    'rounds: for _ in 0..limits.rounds {
+    let start = eval(&point)?;
+    progress.inc(1);
+    let (mut best, mut evaluations, mut steps) = (start, 1, Vec::new());
+    let rounds = if start.is_finite() { limits.rounds } else { 0 };
+    'rounds: for _ in 0..rounds {
         let mut improved = false;
         for (di, dim) in dims.iter().enumerate() {
-            let mut cands: Vec<(usize, ClassConfig)> = (0..dim.values.len())
+            let mut cands: Vec<Vec<usize>> = (0..dim.values.len())
                 .filter(|&j| j != point[di])
-                .filter_map(|j| {
+                .map(|j| {
                     let mut p = point.clone();
                     p[di] = j;
-                    let cc = at(&base, dims, &p);
-                    cc.validate().is_ok().then_some((j, cc))
+                    p
                 })
+                .filter(|p| valid(p))
                 .collect();
             let left = limits.budget.saturating_sub(evaluations);
             if left == 0 {
@@ -103,7 +106,11 @@ pub fn tune_class(
             evaluations += cands.len();
             let scores = cands
                 .par_iter()
-                .map(|(_, cc)| eval(cc.clone()))
+                .map(|p| {
+                    let s = eval(p);
+                    progress.inc(1);
+                    s
+                })
                 .collect::<Result<Vec<f64>>>()?;
             let mut pick: Option<(usize, f64)> = None;
             for (k, s) in scores.iter().enumerate() {
@@ -111,8 +118,8 @@ pub fn tune_class(
                     pick = Some((k, *s));
                 }
             }
-            if let Some((k, s)) = pick.filter(|(_, s)| *s > best + 1e-9) {
-                point[di] = cands[k].0;
+            if let Some((k, s)) = pick.filter(|(_, s)| *s > best + limits.margin.max(1e-9)) {
+                point = cands[k].clone();
                 best = s;
                 improved = true;
                 steps.push(Step {
@@ -126,12 +133,55 @@ pub fn tune_class(
             break;
         }
     }
-    Ok(ClassTune {
-        label: label.to_string(),
-        base_score,
+    Ok(Descent {
+        point,
+        start,
         score: best,
         evaluations,
         steps,
-        config: at(&base, dims, &point),
     })
+}
+
+/// The outcome of tuning one class.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ClassTune {
+    /// Class label.
+    pub label: String,
+    /// Ground-truth trajectories of the class in the training logs.
+    pub trajectories: usize,
+    /// Training score of the base settings (fitted noise).
+    pub base_score: f64,
+    /// Training score after the shared stage.
+    pub shared_score: f64,
+    /// Whether the class had enough trajectories to be refined on its own.
+    pub refined: bool,
+    /// Training score of the tuned settings.
+    pub score: f64,
+    /// Configurations tried in the class's own search.
+    pub evaluations: usize,
+    /// Accepted moves of the class's own search, in order.
+    pub steps: Vec<Step>,
+    /// Tuned settings.
+    #[serde(skip)]
+    pub config: ClassConfig,
+}
+
+/// Refines the settings of `label` from `start` (the shared stage's settings) over `dims`.
+pub fn tune_class(
+    cache: &ScoreCache,
+    label: &str,
+    start: &ClassConfig,
+    dims: &[Dim],
+    limits: SearchLimits,
+    progress: &ProgressBar,
+) -> Result<(Descent, ClassConfig)> {
+    let d = descend(
+        dims,
+        limits,
+        |p| at(start, dims, p).validate().is_ok(),
+        |p| cache.score(label, &at(start, dims, p)),
+        progress,
+    )?;
+    let cc = at(start, dims, &d.point);
+    Ok((d, cc))
 }

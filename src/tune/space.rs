@@ -6,6 +6,8 @@ use crate::tracker::{ClassConfig, DistanceKind, MatcherKind};
 
 /// One candidate value of a dimension.
 #[derive(Debug, Clone, Copy, PartialEq)]
+// The noise variant is large, but a search holds only about a hundred values, built once.
+#[allow(clippy::large_enum_variant)]
 pub enum Value {
     /// Keep the base config's value.
     Keep,
@@ -19,9 +21,11 @@ pub enum Value {
     MaxAge(u32),
     /// Constant yaw rate in the state.
     AngularVelocity(bool),
-    /// Factor on the fitted process noise `Q`.
+    /// The base config's own noise (`q`, `r`, `p0`) instead of the fitted one.
+    Noise([f64; 11], [f64; 7], [f64; 11]),
+    /// Factor on the process noise `Q` (fitted, or the base's after [`Value::Noise`]).
     QFactor(f64),
-    /// Factor on the fitted measurement noise `R`.
+    /// Factor on the measurement noise `R`.
     RFactor(f64),
     /// Score floor (a quantile of the training detections' scores).
     ScoreFloor(Option<f64>),
@@ -77,8 +81,31 @@ impl ScoreStats {
     }
 }
 
-/// The search space of one class.
-pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
+/// The search space of one class: the choice between the fitted noise and the base config's own
+/// (`own`, when it differs), the class-agnostic dimensions, then the score thresholds and
+/// refinement steps placed by the class's detection scores (none without scores).
+pub fn dims(
+    stats: Option<ScoreStats>,
+    fitted: &ClassConfig,
+    own: Option<&ClassConfig>,
+) -> Vec<Dim> {
+    let mut d = Vec::new();
+    if let Some(o) = own.filter(|o| (o.q, o.r, o.p0) != (fitted.q, fitted.r, fitted.p0)) {
+        d.push(Dim {
+            name: "noise",
+            values: vec![Value::Keep, Value::Noise(o.q, o.r, o.p0)],
+        });
+    }
+    d.extend(shared_dims());
+    if let Some(s) = stats {
+        d.extend(score_dims(s));
+    }
+    d
+}
+
+/// The dimensions whose candidates mean the same for every class (gates in units of the fitted
+/// noise, factors on it, counts, modes), which the shared stage applies to all classes at once.
+pub fn shared_dims() -> Vec<Dim> {
     use DistanceKind::*;
     use Value::*;
     let mut gate = vec![Keep];
@@ -86,7 +113,7 @@ pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
     gate.extend([-0.6, -0.4, -0.2, 0.0, 0.2].map(|t| Gate(Giou3d, t)));
     gate.extend([0.01, 0.1, 0.25].map(|t| Gate(Iou3d, t)));
     gate.extend([1.0, 2.0, 4.0].map(|t| Gate(Center, t)));
-    let mut d = vec![
+    let d = vec![
         Dim {
             name: "gate",
             values: gate,
@@ -164,69 +191,76 @@ pub fn dims(stats: Option<ScoreStats>) -> Vec<Dim> {
             values: vec![Keep, Blend(0.1), Blend(0.3), Blend(0.5), Blend(1.0)],
         },
     ];
-    if let Some(s) = stats {
-        let q = |i: usize| Some(s.q[i]);
-        d.push(Dim {
-            name: "score_floor",
-            values: vec![
-                Keep,
-                ScoreFloor(None),
-                ScoreFloor(q(0)),
-                ScoreFloor(q(1)),
-                ScoreFloor(q(2)),
-                ScoreFloor(q(3)),
-            ],
-        });
-        d.push(Dim {
-            name: "birth_score",
-            values: vec![
-                Keep,
-                BirthScore(None),
-                BirthScore(q(1)),
-                BirthScore(q(2)),
-                BirthScore(q(3)),
-                BirthScore(q(4)),
-            ],
-        });
-        let sd = s.std;
-        d.push(Dim {
-            name: "boost",
-            values: vec![
-                Keep,
-                Boost(0.0),
-                Boost(0.02 * sd),
-                Boost(0.1 * sd),
-                Boost(0.3 * sd),
-                Boost(1.0 * sd),
-            ],
-        });
-        d.push(Dim {
-            name: "decay",
-            values: vec![
-                Keep,
-                Decay(0.0),
-                Decay(0.05 * sd),
-                Decay(0.2 * sd),
-                Decay(0.5 * sd),
-                Decay(1.0 * sd),
-            ],
-        });
-        d.push(Dim {
-            name: "keep_score",
-            values: vec![
-                Keep,
-                KeepScore(None),
-                KeepScore(q(4)),
-                KeepScore(q(5)),
-                KeepScore(q(6)),
-            ],
-        });
-    }
     d
 }
 
-/// Applies a candidate to `cc`; `base` holds the fitted noise the factors apply to.
-pub fn apply(cc: &mut ClassConfig, base: &ClassConfig, v: Value) {
+/// The dimensions placed by one class's detection scores: thresholds at quantiles, refinement
+/// steps in units of the scores' standard deviation.
+fn score_dims(s: ScoreStats) -> Vec<Dim> {
+    use Value::*;
+    let q = |i: usize| Some(s.q[i]);
+    let mut d = Vec::new();
+    d.push(Dim {
+        name: "score_floor",
+        values: vec![
+            Keep,
+            ScoreFloor(None),
+            ScoreFloor(q(0)),
+            ScoreFloor(q(1)),
+            ScoreFloor(q(2)),
+            ScoreFloor(q(3)),
+        ],
+    });
+    d.push(Dim {
+        name: "birth_score",
+        values: vec![
+            Keep,
+            BirthScore(None),
+            BirthScore(q(1)),
+            BirthScore(q(2)),
+            BirthScore(q(3)),
+            BirthScore(q(4)),
+        ],
+    });
+    let sd = s.std;
+    d.push(Dim {
+        name: "boost",
+        values: vec![
+            Keep,
+            Boost(0.0),
+            Boost(0.02 * sd),
+            Boost(0.1 * sd),
+            Boost(0.3 * sd),
+            Boost(1.0 * sd),
+        ],
+    });
+    d.push(Dim {
+        name: "decay",
+        values: vec![
+            Keep,
+            Decay(0.0),
+            Decay(0.05 * sd),
+            Decay(0.2 * sd),
+            Decay(0.5 * sd),
+            Decay(1.0 * sd),
+        ],
+    });
+    d.push(Dim {
+        name: "keep_score",
+        values: vec![
+            Keep,
+            KeepScore(None),
+            KeepScore(q(4)),
+            KeepScore(q(5)),
+            KeepScore(q(6)),
+        ],
+    });
+    d
+}
+
+/// Applies a candidate to `cc` (the factors apply to the noise `cc` holds, so the noise dimension
+/// comes first).
+pub fn apply(cc: &mut ClassConfig, v: Value) {
     use Value::*;
     let l = &mut cc.levers;
     match v {
@@ -239,8 +273,9 @@ pub fn apply(cc: &mut ClassConfig, base: &ClassConfig, v: Value) {
         MinHits(n) => cc.min_hits = n,
         MaxAge(n) => cc.max_age = n,
         AngularVelocity(b) => cc.angular_velocity = b,
-        QFactor(f) => cc.q = base.q.map(|x| x * f),
-        RFactor(f) => cc.r = base.r.map(|x| x * f),
+        Noise(q, r, p0) => (cc.q, cc.r, cc.p0) = (q, r, p0),
+        QFactor(f) => cc.q = cc.q.map(|x| x * f),
+        RFactor(f) => cc.r = cc.r.map(|x| x * f),
         ScoreFloor(f) => cc.score_floor = f,
         BirthScore(b) => l.birth_score = b,
         Nms(n) => l.nms_iou = n,
@@ -256,15 +291,80 @@ pub fn apply(cc: &mut ClassConfig, base: &ClassConfig, v: Value) {
 pub fn at(base: &ClassConfig, dims: &[Dim], point: &[usize]) -> ClassConfig {
     let mut cc = base.clone();
     for (d, &i) in dims.iter().zip(point) {
-        apply(&mut cc, base, d.values[i]);
+        apply(&mut cc, d.values[i]);
     }
     cc
+}
+
+/// A key of what a class config tracks like: the refinement steps are dropped when nothing reads
+/// the refined score (reported score not `refined`, no `keep_score`), so candidates that cannot
+/// change the tracks share one key and are scored once.
+pub fn key(cc: &ClassConfig) -> String {
+    let mut c = cc.clone();
+    let l = &mut c.levers;
+    if l.score != ScoreMode::Refined && l.keep_score.is_none() {
+        let off = crate::tracker::levers::Levers::default();
+        (l.blend, l.boost, l.decay) = (off.blend, off.boost, off.decay);
+    }
+    serde_json::to_string(&c).expect("config serializes")
 }
 
 /// Readable form of a value (for the search log).
 pub fn describe(v: Value) -> String {
     match v {
         Value::Keep => "base".into(),
+        Value::Noise(..) => "the base config's own noise".into(),
         other => format!("{other:?}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tracker::TrackerConfig;
+
+    #[test]
+    fn key_ignores_refinement_only_when_nothing_reads_it() {
+        let cc = TrackerConfig::preset("nuscenes-chiu2019").unwrap().classes["car"].clone();
+        let mut b = cc.clone();
+        b.levers.blend = 0.3;
+        b.levers.decay = 0.1;
+        assert_eq!(key(&cc), key(&b));
+        let (mut r1, mut r2) = (cc.clone(), b.clone());
+        r1.levers.score = ScoreMode::Refined;
+        r2.levers.score = ScoreMode::Refined;
+        assert_ne!(key(&r1), key(&r2));
+        let mut k = b.clone();
+        k.levers.keep_score = Some(0.5);
+        let mut k0 = cc.clone();
+        k0.levers.keep_score = Some(0.5);
+        assert_ne!(key(&k), key(&k0));
+        let mut g = cc.clone();
+        g.threshold += 1.0;
+        assert_ne!(key(&cc), key(&g));
+    }
+
+    #[test]
+    fn noise_dimension_comes_first_and_factors_scale_the_chosen_noise() {
+        let own = TrackerConfig::preset("nuscenes-chiu2019").unwrap().classes["car"].clone();
+        let mut fitted = own.clone();
+        fitted.q = own.q.map(|x| 2.0 * x);
+        let d = dims(None, &fitted, Some(&own));
+        assert_eq!(d[0].name, "noise");
+        assert!(dims(None, &own, Some(&own))
+            .iter()
+            .all(|d| d.name != "noise"));
+        let qi = d.iter().position(|d| d.name == "q_factor").unwrap();
+        let fi = d[qi]
+            .values
+            .iter()
+            .position(|v| *v == Value::QFactor(3.0))
+            .unwrap();
+        let mut p = vec![0; d.len()];
+        p[0] = 1;
+        p[qi] = fi;
+        assert_eq!(at(&fitted, &d, &p).q, own.q.map(|x| 3.0 * x));
+        p[0] = 0;
+        assert_eq!(at(&fitted, &d, &p).q, fitted.q.map(|x| 3.0 * x));
     }
 }
