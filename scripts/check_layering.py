@@ -31,7 +31,6 @@ UPPER = ["sim", "viz", "cli", "eval", "fit", "tune"]
 # Import cycles known and being removed (a note, not a failure). Each entry is the exact set of
 # files of the cycle; a cycle that changes (grows or shrinks) or a new one fails, and a known one
 # that is gone is reported, to be removed from the list.
-# - tracker config/levers/presets: issue #16 splits them; remove this entry when that is merged.
 KNOWN_CYCLES: list = []
 # Files importing an upper layer, reported as notes until their owners switch the import.
 ALLOWED_LAYERING: set = set()
