@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use crate::mcapio::recording::{self, Boxes, TopicKind, TopicRequest};
+use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::msgs::Track3D;
 
 /// One box as the evaluation sees it.
@@ -30,17 +30,17 @@ pub struct EvalBox {
 }
 
 impl EvalBox {
-    fn from_track(t: &Track3D) -> EvalBox {
+    fn from_track(t: Track3D) -> EvalBox {
         let c = t.center.unwrap_or_default();
         let s = t.size.unwrap_or_default();
         EvalBox {
             id: t.id,
-            label: t.label.clone(),
+            label: t.label,
             center: [c.x, c.y, c.z],
             size: [s.length, s.width, s.height],
             yaw: t.yaw,
             score: t.score,
-            attributes: t.attributes.clone(),
+            attributes: t.attributes,
             image_box: t.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
         }
     }
@@ -65,20 +65,25 @@ pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalB
         kind: TopicKind::Tracks,
         role: "tracks or ground truth".to_string(),
     };
-    let read = recording::frames(path, std::slice::from_ref(&req))?;
-    let Some(frames) = read.frames.into_iter().next().flatten() else {
+    let mut out = Vec::new();
+    let mut found = false;
+    recording::for_each_frame(path, std::slice::from_ref(&req), |event| {
+        match event {
+            FrameEvent::Channel(_) => found = true,
+            FrameEvent::Frame(_, f) => {
+                let boxes = match f.boxes {
+                    Boxes::Tracks(t) => t.into_iter().map(EvalBox::from_track).collect(),
+                    Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
+                };
+                out.push((f.stamp, boxes));
+            }
+        }
+        Ok(())
+    })?;
+    if !found {
         bail!("{}: no channel with topic {topic}", path.display());
-    };
-    Ok(frames
-        .into_iter()
-        .map(|f| {
-            let boxes = match f.boxes {
-                Boxes::Tracks(t) => t.iter().map(EvalBox::from_track).collect(),
-                Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
-            };
-            (f.stamp, boxes)
-        })
-        .collect())
+    }
+    Ok(out)
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes

@@ -154,15 +154,42 @@ fn decoder_for(
 
 /// Reads the requested topics of `path` in one pass. A topic the file lacks gives `None`; a
 /// channel of the wrong schema or an undecodable message is an error naming the file, topic and
-/// log time.
+/// log time. Holds every frame in memory: long logs are better read with [`for_each_frame`].
 pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
+    let mut frames: Vec<Option<Vec<Frame>>> = vec![None; wanted.len()];
+    let topics = for_each_frame(path, wanted, |event| {
+        match event {
+            FrameEvent::Channel(i) => {
+                frames[i].get_or_insert_with(Vec::new);
+            }
+            FrameEvent::Frame(i, frame) => frames[i].get_or_insert_with(Vec::new).push(frame),
+        }
+        Ok(())
+    })?;
+    Ok(RecordingFrames { frames, topics })
+}
+
+/// What [`for_each_frame`] hands its callback, in file order.
+#[derive(Debug)]
+pub enum FrameEvent {
+    /// The file has a channel of request `i` (given before that channel's first frame).
+    Channel(usize),
+    /// One decoded message of request `i`.
+    Frame(usize, Frame),
+}
+
+/// Streams the requested topics of `path` in one pass: each message is decoded and handed to
+/// `f` at once, so memory stays bounded by what the caller keeps. Errors as [`frames`]; an
+/// error of `f` ends the read. Returns every topic of the file.
+pub fn for_each_frame(
+    path: &Path,
+    wanted: &[TopicRequest],
+    mut f: impl FnMut(FrameEvent) -> Result<()>,
+) -> Result<BTreeSet<String>> {
     let file = path.display().to_string();
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (usize, Decoder)> = BTreeMap::new();
-    let mut out = RecordingFrames {
-        frames: vec![None; wanted.len()],
-        topics: BTreeSet::new(),
-    };
+    let mut topics = BTreeSet::new();
     read_records(path, |rec, _| {
         match rec {
             Record::Schema { header, data } => {
@@ -174,14 +201,14 @@ pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
                 schemas.insert(header.id, info);
             }
             Record::Channel(c) => {
-                out.topics.insert(c.topic.clone());
+                topics.insert(c.topic.clone());
                 let Some(i) = wanted.iter().position(|r| r.topic == c.topic) else {
                     return Ok(());
                 };
                 let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 let decoder = decoder_for(&file, &wanted[i], &schema, &c.message_encoding)?;
                 channels.insert(c.id, (i, decoder));
-                out.frames[i].get_or_insert_with(Vec::new);
+                f(FrameEvent::Channel(i))?;
             }
             Record::Message { header, data } => {
                 let Some((i, decoder)) = channels.get(&header.channel_id) else {
@@ -193,39 +220,44 @@ pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
                         wanted[*i].topic, header.log_time
                     )
                 };
-                let frame = match decoder {
-                    Decoder::Detections(source) => {
-                        let m = source.decode(&data).with_context(ctx)?;
-                        Frame {
-                            stamp: stamp_or_log_time(m.stamp, header.log_time),
-                            log_time: header.log_time,
-                            boxes: Boxes::Detections(m.detections),
-                        }
-                    }
-                    Decoder::Ros2Tracks(layout) => {
-                        let m = ros2_tracks::decode_tracks(&data, *layout).with_context(ctx)?;
-                        Frame {
-                            stamp: tracks_stamp(m.stamp, header.log_time),
-                            log_time: header.log_time,
-                            boxes: Boxes::Tracks(m.tracks),
-                        }
-                    }
-                    Decoder::Tracks(enc) => {
-                        let m: Tracks3D = msgs::decode(&data, *enc).with_context(ctx)?;
-                        Frame {
-                            stamp: tracks_stamp(m.stamp, header.log_time),
-                            log_time: header.log_time,
-                            boxes: Boxes::Tracks(m.tracks),
-                        }
-                    }
-                };
-                out.frames[*i].get_or_insert_with(Vec::new).push(frame);
+                let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
+                f(FrameEvent::Frame(*i, frame))?;
             }
             _ => {}
         }
         Ok(())
     })?;
-    Ok(out)
+    Ok(topics)
+}
+
+/// Decodes one message of a requested channel, with the stamp rule applied.
+fn decode_frame(decoder: &Decoder, data: &[u8], log_time: u64) -> Result<Frame> {
+    Ok(match decoder {
+        Decoder::Detections(source) => {
+            let m = source.decode(data)?;
+            Frame {
+                stamp: stamp_or_log_time(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Detections(m.detections),
+            }
+        }
+        Decoder::Ros2Tracks(layout) => {
+            let m = ros2_tracks::decode_tracks(data, *layout)?;
+            Frame {
+                stamp: tracks_stamp(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Tracks(m.tracks),
+            }
+        }
+        Decoder::Tracks(enc) => {
+            let m: Tracks3D = msgs::decode(data, *enc)?;
+            Frame {
+                stamp: tracks_stamp(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Tracks(m.tracks),
+            }
+        }
+    })
 }
 
 #[cfg(test)]
