@@ -14,9 +14,12 @@ use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
 use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
 use probmot::eval::report::{fmt_value, table};
-use probmot::eval::scene::{load_scene_with, Scene};
+use probmot::eval::scene::{load_scene_progress, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
+use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
+
+use super::show_progress;
 
 /// Evaluation protocols.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -122,6 +125,9 @@ pub struct EvalArgs {
     /// Print every number as JSON.
     #[arg(long)]
     json: bool,
+    /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 const COLUMNS: [&str; 14] = [
@@ -259,14 +265,21 @@ fn load_logs(
     pairs: &[(PathBuf, PathBuf)],
     kitti: bool,
 ) -> Result<(Vec<Scene>, FilterCounts)> {
+    let bar = reading_bar(a, pairs);
     let loaded: Vec<(Scene, FilterCounts)> = pairs
         .par_iter()
         .map(|(truth, tracks)| {
-            let mut scene = load_scene_with(truth, &a.truth_topic, tracks, &a.tracks_topic, kitti)?;
+            let mut scene = load_scene_progress(
+                (truth, &a.truth_topic),
+                (tracks, &a.tracks_topic),
+                kitti,
+                &|n| bar.inc(n),
+            )?;
             let counts = filter_log(a, truth, &mut scene)?;
             Ok((scene, counts))
         })
         .collect::<Result<_>>()?;
+    bar.finish_and_clear();
     let mut total = FilterCounts::default();
     let scenes = loaded
         .into_iter()
@@ -276,6 +289,32 @@ fn load_logs(
         })
         .collect();
     Ok((scenes, total))
+}
+
+/// The reading bar over the bytes of every file (a file holding both channels is read twice);
+/// hidden with --quiet, --json or off a terminal.
+fn reading_bar(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> ProgressBar {
+    if !show_progress(a.quiet || a.json) {
+        return ProgressBar::hidden();
+    }
+    let size = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
+    let total = pairs.iter().map(|(t, r)| size(t) + size(r)).sum();
+    ProgressBar::new(total).with_style(
+        ProgressStyle::with_template(
+            "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
+        )
+        .expect("valid template"),
+    )
+}
+
+/// A spinner while the metrics are computed (same visibility as [`reading_bar`]).
+fn scoring_spinner(a: &EvalArgs, what: &str) -> ProgressBar {
+    if !show_progress(a.quiet || a.json) {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner().with_message(format!("scoring ({what})"));
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar
 }
 
 /// `(truth, tracks)` file pairs, one per log.
@@ -373,10 +412,12 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
+    let spinner = scoring_spinner(&a, "nuScenes metrics and HOTA");
     let (result, (hota, hota_notes)) = rayon::join(
         || evaluate(&scenes, &params),
         || centre_hota(&scenes, &params.classes),
     );
+    spinner.finish_and_clear();
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",
@@ -558,7 +599,9 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, _) = load_logs(&a, &pairs, true)?;
+    let spinner = scoring_spinner(&a, "KITTI metrics");
     let result = kitti::evaluate(&scenes, &params);
+    spinner.finish_and_clear();
     let (hota_2d, mut hota_notes) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Image);
     let (hota_3d, _) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Box3d);
     hota_notes.dedup();

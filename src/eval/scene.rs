@@ -60,6 +60,15 @@ pub struct Scene {
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
 /// message (the stamp is the message's, or its `log_time` when that is 0).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+    read_tracks_topic_with(path, topic, &|_| {})
+}
+
+/// [`read_tracks_topic`], telling `progress` how many bytes of the file each step read.
+pub fn read_tracks_topic_with(
+    path: &Path,
+    topic: &str,
+    progress: &dyn Fn(u64),
+) -> Result<Vec<(u64, Vec<EvalBox>)>> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
@@ -67,7 +76,10 @@ pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalB
     };
     let mut out = Vec::new();
     let mut found = false;
-    recording::for_each_frame(path, std::slice::from_ref(&req), |event| {
+    let mut reported = 0u64;
+    recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
+        progress(stats.bytes_read.saturating_sub(reported));
+        reported = reported.max(stats.bytes_read);
         match event {
             FrameEvent::Channel(_) => found = true,
             FrameEvent::Frame(_, f) => {
@@ -83,6 +95,8 @@ pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalB
     if !found {
         bail!("{}: no channel with topic {topic}", path.display());
     }
+    let size = std::fs::metadata(path).map_or(reported, |m| m.len());
+    progress(size.saturating_sub(reported));
     Ok(out)
 }
 
@@ -106,8 +120,23 @@ pub fn load_scene_with(
     tracks_topic: &str,
     allow_unlabelled: bool,
 ) -> Result<Scene> {
-    let gt = read_tracks_topic(truth, truth_topic)?;
-    let tr = read_tracks_topic(tracks, tracks_topic)?;
+    load_scene_progress(
+        (truth, truth_topic),
+        (tracks, tracks_topic),
+        allow_unlabelled,
+        &|_| {},
+    )
+}
+
+/// [`load_scene_with`], telling `progress` the bytes read (both files, the shared file twice).
+pub fn load_scene_progress(
+    (truth, truth_topic): (&Path, &str),
+    (tracks, tracks_topic): (&Path, &str),
+    allow_unlabelled: bool,
+    progress: &dyn Fn(u64),
+) -> Result<Scene> {
+    let gt = read_tracks_topic_with(truth, truth_topic, progress)?;
+    let tr = read_tracks_topic_with(tracks, tracks_topic, progress)?;
     if gt.is_empty() {
         bail!("{}: topic {truth_topic} has no messages", truth.display());
     }

@@ -13,7 +13,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
-use super::reader::read_records;
+use super::reader::{read_records, ReadStats};
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::ros2_tracks;
@@ -157,7 +157,7 @@ fn decoder_for(
 /// log time. Holds every frame in memory: long logs are better read with [`for_each_frame`].
 pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
     let mut frames: Vec<Option<Vec<Frame>>> = vec![None; wanted.len()];
-    let topics = for_each_frame(path, wanted, |event| {
+    let topics = for_each_frame(path, wanted, |event, _| {
         match event {
             FrameEvent::Channel(i) => {
                 frames[i].get_or_insert_with(Vec::new);
@@ -179,18 +179,19 @@ pub enum FrameEvent {
 }
 
 /// Streams the requested topics of `path` in one pass: each message is decoded and handed to
-/// `f` at once, so memory stays bounded by what the caller keeps. Errors as [`frames`]; an
-/// error of `f` ends the read. Returns every topic of the file.
+/// `f` at once (with the bytes read so far, for progress), so memory stays bounded by what the
+/// caller keeps. Errors as [`frames`]; an error of `f` ends the read. Returns every topic of
+/// the file.
 pub fn for_each_frame(
     path: &Path,
     wanted: &[TopicRequest],
-    mut f: impl FnMut(FrameEvent) -> Result<()>,
+    mut f: impl FnMut(FrameEvent, ReadStats) -> Result<()>,
 ) -> Result<BTreeSet<String>> {
     let file = path.display().to_string();
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
     let mut channels: BTreeMap<u16, (usize, Decoder)> = BTreeMap::new();
     let mut topics = BTreeSet::new();
-    read_records(path, |rec, _| {
+    read_records(path, |rec, stats| {
         match rec {
             Record::Schema { header, data } => {
                 let info = SchemaInfo {
@@ -208,7 +209,7 @@ pub fn for_each_frame(
                 let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
                 let decoder = decoder_for(&file, &wanted[i], &schema, &c.message_encoding)?;
                 channels.insert(c.id, (i, decoder));
-                f(FrameEvent::Channel(i))?;
+                f(FrameEvent::Channel(i), stats)?;
             }
             Record::Message { header, data } => {
                 let Some((i, decoder)) = channels.get(&header.channel_id) else {
@@ -221,7 +222,7 @@ pub fn for_each_frame(
                     )
                 };
                 let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
-                f(FrameEvent::Frame(*i, frame))?;
+                f(FrameEvent::Frame(*i, frame), stats)?;
             }
             _ => {}
         }
