@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
 use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts};
 use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
@@ -16,7 +17,6 @@ use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, 
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_progress, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use super::show_progress;
@@ -294,11 +294,22 @@ fn load_logs(
 /// The reading bar over the bytes of every file (a file holding both channels is read twice);
 /// hidden with --quiet, --json or off a terminal.
 fn reading_bar(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> ProgressBar {
-    if !show_progress(a.quiet || a.json) {
+    let files: Vec<&Path> = pairs
+        .iter()
+        .flat_map(|(t, r)| [t.as_path(), r.as_path()])
+        .collect();
+    bytes_bar(&files, show_progress(a.quiet || a.json))
+}
+
+/// A bar over the total size of `files` (hidden unless `show`), for commands that read them.
+pub(super) fn bytes_bar(files: &[&Path], show: bool) -> ProgressBar {
+    if !show {
         return ProgressBar::hidden();
     }
-    let size = |p: &Path| std::fs::metadata(p).map_or(0, |m| m.len());
-    let total = pairs.iter().map(|(t, r)| size(t) + size(r)).sum();
+    let total = files
+        .iter()
+        .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+        .sum();
     ProgressBar::new(total).with_style(
         ProgressStyle::with_template(
             "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",

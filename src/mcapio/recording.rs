@@ -172,7 +172,8 @@ pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
 /// What [`for_each_frame`] hands its callback, in file order.
 #[derive(Debug)]
 pub enum FrameEvent {
-    /// The file has a channel of request `i` (given before that channel's first frame).
+    /// The file has a channel of request `i` (given before that channel's first frame, and
+    /// again for every further channel record, e.g. the summary section's copy).
     Channel(usize),
     /// One decoded message of request `i`.
     Frame(usize, Frame),
@@ -189,7 +190,8 @@ pub fn for_each_frame(
 ) -> Result<BTreeSet<String>> {
     let file = path.display().to_string();
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
-    let mut channels: BTreeMap<u16, (usize, Decoder)> = BTreeMap::new();
+    // Per channel, the requests it serves (a topic may be requested twice, as two kinds).
+    let mut channels: BTreeMap<u16, Vec<(usize, Decoder)>> = BTreeMap::new();
     let mut topics = BTreeSet::new();
     read_records(path, |rec, stats| {
         match rec {
@@ -203,26 +205,28 @@ pub fn for_each_frame(
             }
             Record::Channel(c) => {
                 topics.insert(c.topic.clone());
-                let Some(i) = wanted.iter().position(|r| r.topic == c.topic) else {
-                    return Ok(());
-                };
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let decoder = decoder_for(&file, &wanted[i], &schema, &c.message_encoding)?;
-                channels.insert(c.id, (i, decoder));
-                f(FrameEvent::Channel(i), stats)?;
+                for (i, req) in wanted
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, r)| r.topic == c.topic)
+                {
+                    let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                    let decoder = decoder_for(&file, req, &schema, &c.message_encoding)?;
+                    channels.entry(c.id).or_default().push((i, decoder));
+                    f(FrameEvent::Channel(i), stats)?;
+                }
             }
             Record::Message { header, data } => {
-                let Some((i, decoder)) = channels.get(&header.channel_id) else {
-                    return Ok(());
-                };
-                let ctx = || {
-                    format!(
-                        "{file}: topic {}, message at log_time {}: cannot decode",
-                        wanted[*i].topic, header.log_time
-                    )
-                };
-                let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
-                f(FrameEvent::Frame(*i, frame), stats)?;
+                for (i, decoder) in channels.get(&header.channel_id).into_iter().flatten() {
+                    let ctx = || {
+                        format!(
+                            "{file}: topic {}, message at log_time {}: cannot decode",
+                            wanted[*i].topic, header.log_time
+                        )
+                    };
+                    let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
+                    f(FrameEvent::Frame(*i, frame), stats)?;
+                }
             }
             _ => {}
         }
@@ -367,5 +371,57 @@ mod tests {
         let text = format!("{e:#}");
         assert!(text.contains("log.mcap: topic /detections has schema 'probmot.Detections3D'"));
         assert!(text.contains("for the test"), "{text}");
+    }
+
+    #[test]
+    fn for_each_frame_streams_in_file_order_and_stops_on_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let wanted = [
+            req("/detections", TopicKind::Detections),
+            req("/tracks", TopicKind::Tracks),
+            req("/tracks", TopicKind::Tracks),
+        ];
+        let mut seen = Vec::new();
+        let mut last_bytes = 0;
+        for_each_frame(&path, &wanted, |e, stats| {
+            assert!(stats.bytes_read >= last_bytes, "bytes read only grow");
+            last_bytes = stats.bytes_read;
+            seen.push(match e {
+                FrameEvent::Channel(i) => (i, None),
+                FrameEvent::Frame(i, f) => (i, Some(f.log_time)),
+            });
+            Ok(())
+        })
+        .unwrap();
+        let frames: Vec<(usize, Option<u64>)> =
+            seen.iter().copied().filter(|e| e.1.is_some()).collect();
+        assert_eq!(
+            frames,
+            [
+                (0, Some(10)),
+                (0, Some(20)),
+                (1, Some(30)),
+                (2, Some(30)),
+                (1, Some(40)),
+                (2, Some(40))
+            ],
+            "a topic requested twice serves both requests"
+        );
+        let channels: BTreeSet<usize> =
+            seen.iter().filter(|e| e.1.is_none()).map(|e| e.0).collect();
+        assert_eq!(channels.into_iter().collect::<Vec<_>>(), [0, 1, 2]);
+        let mut n = 0;
+        let e = for_each_frame(&path, &wanted, |e, _| {
+            if matches!(e, FrameEvent::Frame(..)) {
+                n += 1;
+                anyhow::bail!("enough");
+            }
+            Ok(())
+        })
+        .unwrap_err();
+        assert_eq!(n, 1);
+        assert!(format!("{e:#}").contains("enough"));
     }
 }
