@@ -69,6 +69,25 @@ pub fn read_tracks_topic_with(
     topic: &str,
     progress: &dyn Fn(u64),
 ) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+    read_boxes(path, topic, progress, false)
+}
+
+/// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
+/// ones (`nuscenes_*`: point counts, rack rotations). Others (e.g. `sim_truth_id`, which
+/// `track` copies from each detection to its track) are dropped by [`load_scene_progress`]: a
+/// map per box would be most of a long log's memory.
+pub fn is_evaluated_attribute(key: &str) -> bool {
+    key.starts_with("kitti_") || key.starts_with("nuscenes_")
+}
+
+/// The boxes of a tracks topic, message by message; `evaluated_only` keeps only the
+/// attributes [`is_evaluated_attribute`] names.
+fn read_boxes(
+    path: &Path,
+    topic: &str,
+    progress: &dyn Fn(u64),
+    evaluated_only: bool,
+) -> Result<Vec<(u64, Vec<EvalBox>)>> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
@@ -83,10 +102,18 @@ pub fn read_tracks_topic_with(
         match event {
             FrameEvent::Channel(_) => found = true,
             FrameEvent::Frame(_, f) => {
-                let boxes = match f.boxes {
+                let mut boxes: Vec<EvalBox> = match f.boxes {
                     Boxes::Tracks(t) => t.into_iter().map(EvalBox::from_track).collect(),
                     Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                 };
+                for b in boxes.iter_mut().filter(|_| evaluated_only) {
+                    if b.attributes.keys().any(|k| !is_evaluated_attribute(k)) {
+                        b.attributes = std::mem::take(&mut b.attributes)
+                            .into_iter()
+                            .filter(|(k, _)| is_evaluated_attribute(k))
+                            .collect();
+                    }
+                }
                 out.push((f.stamp, boxes));
             }
         }
@@ -128,15 +155,16 @@ pub fn load_scene_with(
     )
 }
 
-/// [`load_scene_with`], telling `progress` the bytes read (both files, the shared file twice).
+/// [`load_scene_with`], telling `progress` the bytes read (both files, the shared file twice),
+/// keeping only the attributes the evaluation reads ([`is_evaluated_attribute`]).
 pub fn load_scene_progress(
     (truth, truth_topic): (&Path, &str),
     (tracks, tracks_topic): (&Path, &str),
     allow_unlabelled: bool,
     progress: &dyn Fn(u64),
 ) -> Result<Scene> {
-    let gt = read_tracks_topic_with(truth, truth_topic, progress)?;
-    let tr = read_tracks_topic_with(tracks, tracks_topic, progress)?;
+    let gt = read_boxes(truth, truth_topic, progress, true)?;
+    let tr = read_boxes(tracks, tracks_topic, progress, true)?;
     if gt.is_empty() {
         bail!("{}: topic {truth_topic} has no messages", truth.display());
     }
