@@ -416,6 +416,25 @@ pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
     }
 }
 
+/// The per-log breakdown when several logs were scored together (empty for one log).
+fn per_log_json(
+    scenes: &[Scene],
+    pairs: &[(PathBuf, PathBuf)],
+    params: &NuscenesParams,
+) -> Vec<serde_json::Value> {
+    if scenes.len() < 2 {
+        return Vec::new();
+    }
+    scenes
+        .par_iter()
+        .zip(pairs)
+        .map(|(s, (t, r))| {
+            serde_json::json!({"truth": t, "tracks": r,
+                "result": evaluate(std::slice::from_ref(s), params)})
+        })
+        .collect()
+}
+
 fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let mut params = NuscenesParams::default();
     if !a.classes.is_empty() {
@@ -456,19 +475,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     };
 
     if a.json {
-        // Per-log breakdown when several logs were scored together.
-        let per_log: Vec<serde_json::Value> = if scenes.len() > 1 {
-            scenes
-                .par_iter()
-                .zip(&pairs)
-                .map(|(s, (t, r))| {
-                    serde_json::json!({"truth": t, "tracks": r,
-                        "result": evaluate(std::slice::from_ref(s), &params)})
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let per_log = per_log_json(&scenes, &pairs, &params);
         let v = serde_json::json!({
             "logs": paths(&pairs), "result": result, "per_log": per_log,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
@@ -515,13 +522,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         }
         let _ = fmt_value;
     }
-    if !failures.is_empty() {
-        for f in &failures {
-            eprintln!("gate failed: {f}");
-        }
-        return Ok(ExitCode::from(3));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(gate_exit(&failures))
 }
 
 /// The filters that ran, in the devkit's order, with what each removed (JSON).
@@ -597,7 +598,20 @@ fn kitti_rows(r: &KittiResult, classes: &[String]) -> Vec<(String, Vec<f64>)> {
     out
 }
 
-fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
+/// Exit status 3 when the regression gate failed (each failure on stderr), else success.
+fn gate_exit(failures: &[String]) -> ExitCode {
+    for f in failures {
+        eprintln!("gate failed: {f}");
+    }
+    if failures.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(3)
+    }
+}
+
+/// The KITTI protocol's parameters from --classes and --iou.
+fn kitti_params(a: &EvalArgs) -> Result<KittiParams> {
     let mut params = KittiParams::default();
     if !a.classes.is_empty() {
         params.classes = a.classes.iter().map(|c| c.to_lowercase()).collect();
@@ -608,6 +622,11 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         }
         params.min_overlap = iou;
     }
+    Ok(params)
+}
+
+fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
+    let params = kitti_params(&a)?;
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, _) = load_logs(&a, &pairs, true)?;
     let spinner = scoring_spinner(&a, "KITTI metrics");
@@ -692,11 +711,5 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             println!("note: {n}");
         }
     }
-    if !failures.is_empty() {
-        for f in &failures {
-            eprintln!("gate failed: {f}");
-        }
-        return Ok(ExitCode::from(3));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(gate_exit(&failures))
 }

@@ -512,6 +512,55 @@ fn metrics_of(pass: &Pass, p: &NuscenesParams) -> Metrics {
     }
 }
 
+/// The score thresholds of the `p.num_thresholds` recall levels from the scores of the matched
+/// predictions (NaN for a level the tracks never reach), in the devkit's order.
+fn recall_thresholds(mut scores: Vec<f64>, gt_boxes: u64, p: &NuscenesParams) -> Vec<f64> {
+    let n = p.num_thresholds;
+    let mut thresholds = vec![f64::NAN; n];
+    if !scores.is_empty() {
+        scores.sort_by(|a, b| b.total_cmp(a));
+        let rec: Vec<f64> = (1..=scores.len())
+            .map(|k| k as f64 / gt_boxes as f64)
+            .collect();
+        let max_rec = *rec.last().unwrap();
+        let levels = linspace_round12(p.min_recall, 1.0, n);
+        for (i, r) in levels.iter().enumerate() {
+            thresholds[i] = if *r > max_rec {
+                f64::NAN
+            } else {
+                np_interp(*r, &rec, &scores, 0.0)
+            };
+        }
+        thresholds.reverse();
+    }
+    thresholds
+}
+
+/// The metrics of a class whose tracks reach no recall level: worst values everywhere; FP, IDS
+/// and FRAG cannot be known.
+fn worst_metrics(gt_objects: usize, gt_boxes: u64) -> Metrics {
+    let mut m = Metrics::all(f64::NAN);
+    for (k, v) in [
+        ("amota", 0.0),
+        ("amotp", 2.0),
+        ("recall", 0.0),
+        ("motar", 0.0),
+        ("mota", 0.0),
+        ("motp", 2.0),
+        ("mt", 0.0),
+        ("ml", gt_objects as f64),
+        ("faf", 500.0),
+        ("tp", 0.0),
+        ("fn", gt_boxes as f64),
+        ("tid", 20.0),
+        ("lgd", 20.0),
+        ("gt", gt_boxes as f64),
+    ] {
+        m.set(k, v);
+    }
+    m
+}
+
 /// Evaluates one class. `None` when the class has no ground truth.
 fn evaluate_class(
     scenes: &[Prepared],
@@ -536,48 +585,10 @@ fn evaluate_class(
         return Metrics::all(f64::NAN);
     }
     // Recall thresholds from the scores of matched predictions.
-    let mut scores = run_pass(&scenes, None, p).match_scores;
-    let n = p.num_thresholds;
-    let mut thresholds = vec![f64::NAN; n];
-    if !scores.is_empty() {
-        scores.sort_by(|a, b| b.total_cmp(a));
-        let rec: Vec<f64> = (1..=scores.len())
-            .map(|k| k as f64 / gt_boxes as f64)
-            .collect();
-        let max_rec = *rec.last().unwrap();
-        let levels = linspace_round12(p.min_recall, 1.0, n);
-        for (i, r) in levels.iter().enumerate() {
-            thresholds[i] = if *r > max_rec {
-                f64::NAN
-            } else {
-                np_interp(*r, &rec, &scores, 0.0)
-            };
-        }
-        thresholds.reverse();
-    }
+    let thresholds = recall_thresholds(run_pass(&scenes, None, p).match_scores, gt_boxes, p);
     let achieved = thresholds.iter().filter(|t| !t.is_nan()).count();
     if achieved == 0 {
-        // Worst values everywhere; FP, IDS and FRAG cannot be known.
-        let mut m = Metrics::all(f64::NAN);
-        for (k, v) in [
-            ("amota", 0.0),
-            ("amotp", 2.0),
-            ("recall", 0.0),
-            ("motar", 0.0),
-            ("mota", 0.0),
-            ("motp", 2.0),
-            ("mt", 0.0),
-            ("ml", gt_ids.len() as f64),
-            ("faf", 500.0),
-            ("tp", 0.0),
-            ("fn", gt_boxes as f64),
-            ("tid", 20.0),
-            ("lgd", 20.0),
-            ("gt", gt_boxes as f64),
-        ] {
-            m.set(k, v);
-        }
-        return m;
+        return worst_metrics(gt_ids.len(), gt_boxes);
     }
     // The distinct reached thresholds, each scored once, in parallel.
     let mut distinct: Vec<f64> = Vec::new();
