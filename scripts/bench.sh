@@ -4,8 +4,17 @@
 # (`--no-track`) of the dense log of benches/pipeline.rs run alternately (on a machine whose speed
 # drifts, alternating keeps the drift out of the ratio). Prints the figures that go into
 # BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary directory)
+#
+# `scripts/bench.sh long [WORKDIR]` measures instead every command that reads a whole log
+# (track, eval, info, fit, plot) on long dense logs, side by side in one run: wall time and peak
+# RSS (/usr/bin/time), medians of BENCH_REPS runs (default 3) per log of BENCH_FRAMES frames
+# (default "2000 20000"; the issue's log is `simulate --scenario city --frames 20000 --objects
+# 200`), plus the boxes eval holds and its bytes per box. Logs are generated in WORKDIR and
+# deleted after their runs (BENCH_KEEP=1 keeps them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+mode=all
+if [ "${1:-}" = long ]; then mode=long; shift; fi
 work="${1:-$(mktemp -d)}"
 mkdir -p "$work"
 cargo build --release --quiet
@@ -17,6 +26,54 @@ wall() { local s e; s=$(date +%s.%N); "$@" >/dev/null 2>&1; e=$(date +%s.%N); aw
 peak_kb() { /usr/bin/time -v "$@" 2>&1 >/dev/null | awk -F: '/Maximum resident set size/ {gsub(/ /,"",$2); print $2}'; }
 
 echo "machine: $(nproc) cores, $(awk '/MemTotal/ {printf "%.0f GiB", $2/1048576}' /proc/meminfo), $(uname -m), $(rustc --version)"
+
+# --- long logs: every whole-log command next to track, wall time and peak RSS
+timed() { # timed NAME CMD...: appends "wall_s peak_kB" of one run to $work/NAME.tm
+  local name=$1; shift
+  /usr/bin/time -f "%e %M" -o "$work/time.tmp" "$@" >/dev/null 2>&1
+  cat "$work/time.tmp" >> "$work/$name.tm"
+}
+med() { awk -v c="$2" '{print $c}' "$work/$1.tm" | median; }
+boxes_of() { # truth + track boxes of a tracked log (what eval holds)
+  "$bin" info "$1" --json --quiet | python3 -c '
+import json, sys
+info = json.load(sys.stdin)
+print(sum(sum(c["per_label"].values()) for c in info["channels"]
+          if c["topic"] in ("/ground_truth", "/tracks")))'
+}
+long_logs() {
+  local reps=${BENCH_REPS:-3}
+  for n in ${BENCH_FRAMES:-2000 20000}; do
+    local log="$work/city$n.mcap" out="$work/city$n.tracked.mcap"
+    "$bin" simulate --scenario city --frames "$n" --objects 200 -o "$log" >/dev/null
+    "$bin" track "$log" -o "$out" --quiet
+    local boxes; boxes=$(boxes_of "$out")
+    for c in track eval info fit plot; do : > "$work/$n-$c.tm"; done
+    for _ in $(seq "$reps"); do
+      timed "$n-track" "$bin" track "$log" -o "$work/city$n.again.mcap" --quiet
+      timed "$n-eval" "$bin" eval --truth "$out" --quiet
+      timed "$n-info" "$bin" info "$out" --quiet
+      timed "$n-fit" "$bin" fit "$log" -o "$work/fit$n.json" --quiet
+      timed "$n-plot" "$bin" plot "$out" --class car --from 0 --to 30 -o "$work/plot$n.png"
+    done
+    echo "log of $n frames x 200 objects ($(du -h "$log" | cut -f1), tracked $(du -h "$out" | cut -f1), eval holds $boxes boxes), medians of $reps:"
+    for c in track eval info fit plot; do
+      echo "  $c: $(med "$n-$c" 1) s, peak RSS $(med "$n-$c" 2) kB ($(div "$(med "$n-$c" 1)" "$(med "$n-track" 1)")x track's time)"
+    done
+    echo "  eval: $(div "$(( $(med "$n-eval" 2) * 1024 ))" "$boxes") bytes of peak RSS per box"
+    echo "$n $boxes $(med "$n-eval" 2)" >> "$work/eval-rss.txt"
+    [ "${BENCH_KEEP:-0}" = 1 ] || rm -f "$log" "$out" "$work/city$n.again.mcap"
+  done
+  # The growth between the logs: peak RSS added per box added (what a longer log costs).
+  if [ "$(wc -l < "$work/eval-rss.txt")" -ge 2 ]; then
+    awk 'NR==1 {n0=$1; b0=$2; r0=$3} END {printf "eval: %.1f bytes of peak RSS per added box (%s -> %s frames)\n", ($3-r0)*1024/($2-b0), n0, $1}' "$work/eval-rss.txt"
+  fi
+}
+if [ "$mode" = long ]; then
+  : > "$work/eval-rss.txt"
+  long_logs
+  exit 0
+fi
 
 # --- peak memory: a log 10x as long must not need more than 1.2x the memory
 "$bin" simulate --scenario city --frames 1000 --objects 100 --rate 10 --seed 5 -o "$work/short.mcap" >/dev/null

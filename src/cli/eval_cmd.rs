@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
 use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts};
 use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
@@ -13,12 +14,13 @@ use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
 use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
 use probmot::eval::report::{fmt_value, table};
-use probmot::eval::scene::{load_scene_with, Scene};
+use probmot::eval::scene::{load_scene_progress, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
 use super::eval_events::{self, EventsInput::Kitti, EventsInput::Nuscenes};
+use super::show_progress;
 
 /// Evaluation protocols.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -131,6 +133,9 @@ pub struct EvalArgs {
     /// Example: probmot eval --truth drive.tracked.mcap --events drive.events.mcap
     #[arg(long, value_name = "OUT.mcap")]
     events: Option<PathBuf>,
+    /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 const COLUMNS: [&str; 14] = [
@@ -192,14 +197,21 @@ fn load_logs(
     pairs: &[(PathBuf, PathBuf)],
     kitti: bool,
 ) -> Result<(Vec<Scene>, FilterCounts)> {
+    let bar = reading_bar(a, pairs);
     let loaded: Vec<(Scene, FilterCounts)> = pairs
         .par_iter()
         .map(|(truth, tracks)| {
-            let mut scene = load_scene_with(truth, &a.truth_topic, tracks, &a.tracks_topic, kitti)?;
+            let mut scene = load_scene_progress(
+                (truth, &a.truth_topic),
+                (tracks, &a.tracks_topic),
+                kitti,
+                &|n| bar.inc(n),
+            )?;
             let counts = filter_log(a, truth, &mut scene)?;
             Ok((scene, counts))
         })
         .collect::<Result<_>>()?;
+    bar.finish_and_clear();
     let mut total = FilterCounts::default();
     let scenes = loaded
         .into_iter()
@@ -209,6 +221,43 @@ fn load_logs(
         })
         .collect();
     Ok((scenes, total))
+}
+
+/// The reading bar over the bytes of every file (a file holding both channels is read twice);
+/// hidden with --quiet, --json or off a terminal.
+fn reading_bar(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> ProgressBar {
+    let files: Vec<&Path> = pairs
+        .iter()
+        .flat_map(|(t, r)| [t.as_path(), r.as_path()])
+        .collect();
+    bytes_bar(&files, show_progress(a.quiet || a.json))
+}
+
+/// A bar over the total size of `files` (hidden unless `show`), for commands that read them.
+pub(super) fn bytes_bar(files: &[&Path], show: bool) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    let total = files
+        .iter()
+        .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+        .sum();
+    ProgressBar::new(total).with_style(
+        ProgressStyle::with_template(
+            "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
+        )
+        .expect("valid template"),
+    )
+}
+
+/// A spinner while the metrics are computed (same visibility as [`reading_bar`]).
+fn scoring_spinner(a: &EvalArgs, what: &str) -> ProgressBar {
+    if !show_progress(a.quiet || a.json) {
+        return ProgressBar::hidden();
+    }
+    let bar = ProgressBar::new_spinner().with_message(format!("scoring ({what})"));
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar
 }
 
 /// `(truth, tracks)` file pairs, one per log.
@@ -299,6 +348,25 @@ pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
     }
 }
 
+/// The per-log breakdown when several logs were scored together (empty for one log).
+fn per_log_json(
+    scenes: &[Scene],
+    pairs: &[(PathBuf, PathBuf)],
+    params: &NuscenesParams,
+) -> Vec<serde_json::Value> {
+    if scenes.len() < 2 {
+        return Vec::new();
+    }
+    scenes
+        .par_iter()
+        .zip(pairs)
+        .map(|(s, (t, r))| {
+            serde_json::json!({"truth": t, "tracks": r,
+                "result": evaluate(std::slice::from_ref(s), params)})
+        })
+        .collect()
+}
+
 fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let mut params = NuscenesParams::default();
     if !a.classes.is_empty() {
@@ -306,10 +374,12 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
+    let spinner = scoring_spinner(&a, "nuScenes metrics and HOTA");
     let (result, (hota, hota_notes)) = rayon::join(
         || evaluate(&scenes, &params),
         || centre_hota(&scenes, &params.classes),
     );
+    spinner.finish_and_clear();
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
             "{}: topic {} has no ground-truth box of the evaluated classes ({})",
@@ -340,19 +410,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     };
 
     if a.json {
-        // Per-log breakdown when several logs were scored together.
-        let per_log: Vec<serde_json::Value> = if scenes.len() > 1 {
-            scenes
-                .par_iter()
-                .zip(&pairs)
-                .map(|(s, (t, r))| {
-                    serde_json::json!({"truth": t, "tracks": r,
-                        "result": evaluate(std::slice::from_ref(s), &params)})
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+        let per_log = per_log_json(&scenes, &pairs, &params);
         let mut v = serde_json::json!({
             "logs": paths(&pairs), "result": result, "per_log": per_log,
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
@@ -403,13 +461,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         print!("{}", events.as_ref().map(|e| e.text()).unwrap_or_default());
         let _ = fmt_value;
     }
-    if !failures.is_empty() {
-        for f in &failures {
-            eprintln!("gate failed: {f}");
-        }
-        return Ok(ExitCode::from(3));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(gate_exit(&failures))
 }
 
 /// The filters that ran, in the devkit's order, with what each removed (JSON).
@@ -485,7 +537,20 @@ fn kitti_rows(r: &KittiResult, classes: &[String]) -> Vec<(String, Vec<f64>)> {
     out
 }
 
-fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
+/// Exit status 3 when the regression gate failed (each failure on stderr), else success.
+fn gate_exit(failures: &[String]) -> ExitCode {
+    for f in failures {
+        eprintln!("gate failed: {f}");
+    }
+    if failures.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(3)
+    }
+}
+
+/// The KITTI protocol's parameters from --classes and --iou.
+fn kitti_params(a: &EvalArgs) -> Result<KittiParams> {
     let mut params = KittiParams::default();
     if !a.classes.is_empty() {
         params.classes = a.classes.iter().map(|c| c.to_lowercase()).collect();
@@ -496,9 +561,16 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         }
         params.min_overlap = iou;
     }
+    Ok(params)
+}
+
+fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
+    let params = kitti_params(&a)?;
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, _) = load_logs(&a, &pairs, true)?;
+    let spinner = scoring_spinner(&a, "KITTI metrics");
     let result = kitti::evaluate(&scenes, &params);
+    spinner.finish_and_clear();
     let (hota_2d, mut hota_notes) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Image);
     let (hota_3d, _) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Box3d);
     hota_notes.dedup();
@@ -585,11 +657,5 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         }
         print!("{}", events.as_ref().map(|e| e.text()).unwrap_or_default());
     }
-    if !failures.is_empty() {
-        for f in &failures {
-            eprintln!("gate failed: {f}");
-        }
-        return Ok(ExitCode::from(3));
-    }
-    Ok(ExitCode::SUCCESS)
+    Ok(gate_exit(&failures))
 }

@@ -6,12 +6,14 @@ use std::process::ExitCode;
 
 use anyhow::{ensure, Context, Result};
 use clap::Args;
-use probmot::fit::load::load_log;
+use probmot::fit::load::load_log_progress;
 use probmot::fit::{fit, fitted_config, ClassFit, FitOptions, FitReport, YawMode};
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::tracker::{Preset, TrackerConfig};
 
 use super::config_cmd::PresetArg;
+use super::eval_cmd::bytes_bar;
+use super::show_progress;
 use rayon::prelude::*;
 
 /// Fit per-class noise (Q, R, P0) from logs with ground truth and detections, and write a
@@ -70,6 +72,9 @@ pub struct FitArgs {
     /// Print the report as JSON instead of the table.
     #[arg(long)]
     json: bool,
+    /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 fn base_config(a: &FitArgs) -> Result<TrackerConfig> {
@@ -172,11 +177,14 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
         dt_nominal.is_finite() && dt_nominal > 0.0,
         "--dt-nominal must be a positive number of seconds, got {dt_nominal}"
     );
+    let files: Vec<&std::path::Path> = a.inputs.iter().map(PathBuf::as_path).collect();
+    let bar = bytes_bar(&files, show_progress(a.quiet || a.json));
     let logs = a
         .inputs
         .par_iter()
-        .map(|p| load_log(p, &a.truth_topic, &a.detections_topic))
+        .map(|p| load_log_progress(p, &a.truth_topic, &a.detections_topic, &|n| bar.inc(n)))
         .collect::<Result<Vec<_>>>()?;
+    bar.finish_and_clear();
     let options = FitOptions {
         dt_nominal,
         yaw: if a.fold_yaw {

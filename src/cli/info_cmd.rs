@@ -6,7 +6,10 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
-use probmot::pipeline::info::{duration, file_info, iso8601};
+use probmot::pipeline::info::{duration, file_info_progress, iso8601};
+
+use super::eval_cmd::bytes_bar;
+use super::show_progress;
 use probmot::transforms::buffer::EdgeSummary;
 
 /// Show what an MCAP file holds: channels, schemas, message counts, times, boxes per class.
@@ -27,6 +30,9 @@ pub struct InfoArgs {
     /// Print as JSON.
     #[arg(long)]
     json: bool,
+    /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
+    #[arg(long, short)]
+    quiet: bool,
 }
 
 /// A time as ISO 8601 UTC and, in parentheses, seconds since the epoch (as `mcap info`).
@@ -45,7 +51,9 @@ fn rel(ns: u64, start: u64) -> String {
 }
 
 pub fn run(a: InfoArgs) -> Result<ExitCode> {
-    let info = file_info(&a.file)?;
+    let bar = bytes_bar(&[a.file.as_path()], show_progress(a.quiet || a.json));
+    let info = file_info_progress(&a.file, &|n| bar.inc(n))?;
+    bar.finish_and_clear();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&info)?);
         return Ok(ExitCode::SUCCESS);

@@ -173,15 +173,18 @@ pub struct NuscenesResult {
     pub notes: Vec<String>,
 }
 
-/// A box after preprocessing.
-#[derive(Debug, Clone)]
+/// A box after preprocessing; `label` indexes the evaluated classes ([`NO_CLASS`]: another).
+#[derive(Debug, Clone, Copy)]
 struct PBox {
     id: u64,
-    label: String,
+    label: u16,
     x: f64,
     y: f64,
     score: f64,
 }
+
+/// The label id of a box of no evaluated class.
+const NO_CLASS: u16 = u16::MAX;
 
 /// One scene after score averaging and interpolation.
 struct Prepared {
@@ -189,10 +192,13 @@ struct Prepared {
     pred: Vec<Vec<PBox>>,
 }
 
-fn to_pbox(b: &super::scene::EvalBox) -> PBox {
+fn to_pbox(b: &super::scene::EvalBox, classes: &[String]) -> PBox {
     PBox {
         id: b.id,
-        label: b.label.clone(),
+        label: classes
+            .iter()
+            .position(|c| *c == b.label)
+            .map_or(NO_CLASS, |i| i as u16),
         x: b.center[0],
         y: b.center[1],
         score: b.score,
@@ -201,52 +207,72 @@ fn to_pbox(b: &super::scene::EvalBox) -> PBox {
 
 /// Fills the gaps of every track (by id, across classes) at the scene's timestamps, as the
 /// devkit's `interpolate_tracks` does: weight `r = (t_right - t) / (t_right - t_left)` on the
-/// *right* box, class and id of the right box, appended after the frame's own boxes.
+/// *right* box, class and id of the right box, appended after the frame's own boxes (in the
+/// order the tracks first appear). Each track visits only the frames of its own time span.
 fn interpolate(ts: &[i64], frames: &mut [Vec<PBox>]) {
-    let mut order: Vec<u64> = Vec::new();
-    let mut by_id: HashMap<u64, (Vec<i64>, Vec<PBox>)> = HashMap::new();
-    for (t, boxes) in ts.iter().zip(frames.iter()) {
-        for b in boxes {
-            let e = by_id.entry(b.id).or_insert_with(|| {
-                order.push(b.id);
-                (Vec::new(), Vec::new())
+    // Per track in order of first appearance: its (frame, box) positions in frame order.
+    let mut index: HashMap<u64, usize> = HashMap::new();
+    let mut tracks: Vec<Vec<(u32, u32)>> = Vec::new();
+    for (fi, boxes) in frames.iter().enumerate() {
+        for (k, b) in boxes.iter().enumerate() {
+            let slot = *index.entry(b.id).or_insert_with(|| {
+                tracks.push(Vec::new());
+                tracks.len() - 1
             });
-            e.0.push(*t);
-            e.1.push(b.clone());
+            tracks[slot].push((fi as u32, k as u32));
         }
     }
-    for (fi, &t) in ts.iter().enumerate() {
-        for id in &order {
-            let (times, boxes) = &by_id[id];
-            if times[0] <= t && t <= *times.last().unwrap() && !times.contains(&t) {
-                let right = times.partition_point(|v| *v <= t);
-                let left = right - 1;
-                let r = (times[right] - t) as f64 / (times[right] - times[left]) as f64;
-                let (lb, rb) = (&boxes[left], &boxes[right]);
-                frames[fi].push(PBox {
-                    id: *id,
-                    label: rb.label.clone(),
-                    x: (1.0 - r) * lb.x + r * rb.x,
-                    y: (1.0 - r) * lb.y + r * rb.y,
-                    score: (1.0 - r) * lb.score + r * rb.score,
-                });
+    let sorted = ts.windows(2).all(|w| w[0] <= w[1]);
+    let mut extra: Vec<Vec<PBox>> = vec![Vec::new(); frames.len()];
+    for track in &tracks {
+        let time = |i: usize| ts[track[i].0 as usize];
+        let boxed = |i: usize| frames[track[i].0 as usize][track[i].1 as usize];
+        let (first, last) = (time(0), time(track.len() - 1));
+        let span = if sorted {
+            ts.partition_point(|v| *v < first)..ts.partition_point(|v| *v <= last)
+        } else {
+            0..ts.len()
+        };
+        for fi in span {
+            let t = ts[fi];
+            let right = track.partition_point(|p| ts[p.0 as usize] <= t);
+            let present = if sorted {
+                right > 0 && time(right - 1) == t
+            } else {
+                track.iter().any(|p| ts[p.0 as usize] == t)
+            };
+            if t < first || t > last || present {
+                continue;
             }
+            let left = right - 1;
+            let r = (time(right) - t) as f64 / (time(right) - time(left)) as f64;
+            let (lb, rb) = (boxed(left), boxed(right));
+            extra[fi].push(PBox {
+                id: rb.id,
+                label: rb.label,
+                x: (1.0 - r) * lb.x + r * rb.x,
+                y: (1.0 - r) * lb.y + r * rb.y,
+                score: (1.0 - r) * lb.score + r * rb.score,
+            });
         }
+    }
+    for (f, e) in frames.iter_mut().zip(extra) {
+        f.extend(e);
     }
 }
 
-fn prepare(scene: &Scene) -> Prepared {
+fn prepare(scene: &Scene, classes: &[String]) -> Prepared {
     // The devkit's timestamps are microseconds.
     let ts: Vec<i64> = scene.frames.iter().map(|f| (f.0 / 1000) as i64).collect();
     let mut gt: Vec<Vec<PBox>> = scene
         .frames
         .iter()
-        .map(|f| f.1.iter().map(to_pbox).collect())
+        .map(|f| f.1.iter().map(|b| to_pbox(b, classes)).collect())
         .collect();
     let mut pred: Vec<Vec<PBox>> = scene
         .frames
         .iter()
-        .map(|f| f.2.iter().map(to_pbox).collect())
+        .map(|f| f.2.iter().map(|b| to_pbox(b, classes)).collect())
         .collect();
     // Each track's boxes get the track's mean score (np.mean, before interpolation).
     let mut scores: HashMap<u64, Vec<f64>> = HashMap::new();
@@ -256,6 +282,7 @@ fn prepare(scene: &Scene) -> Prepared {
         }
     }
     let means: HashMap<u64, f64> = scores.iter().map(|(k, v)| (*k, np_mean(v))).collect();
+    drop(scores);
     for frame in &mut pred {
         for b in frame {
             b.score = means[&b.id];
@@ -273,7 +300,7 @@ struct ClassScene {
     pred: Vec<Vec<(u64, f64, f64, f64)>>,
 }
 
-fn class_view(scene: &Prepared, class: &str) -> ClassScene {
+fn class_view(scene: &Prepared, class: u16) -> ClassScene {
     ClassScene {
         gt: scene
             .gt
@@ -501,42 +528,9 @@ fn metrics_of(pass: &Pass, p: &NuscenesParams) -> Metrics {
     }
 }
 
-/// Evaluates one class. `None` when the class has no ground truth.
-fn evaluate_class(
-    scenes: &[Prepared],
-    class: &str,
-    p: &NuscenesParams,
-    notes: &mut Vec<String>,
-) -> Metrics {
-    evaluate_class_with(scenes, class, p, notes, None)
-}
-
-/// [`evaluate_class`], recording the decisions of the best-MOTA threshold into `log` when given.
-fn evaluate_class_with(
-    scenes: &[Prepared],
-    class: &str,
-    p: &NuscenesParams,
-    notes: &mut Vec<String>,
-    log: Option<&mut Collector>,
-) -> Metrics {
-    let scenes: Vec<ClassScene> = scenes.iter().map(|s| class_view(s, class)).collect();
-    // Ids restart in every log (KITTI label files, `simulate`, per-drive counters): a ground-truth
-    // object is the pair (log, id). The devkit's instance tokens are unique across scenes.
-    let mut gt_boxes = 0u64;
-    let mut gt_ids: HashSet<(usize, u64)> = HashSet::new();
-    for (si, s) in scenes.iter().enumerate() {
-        for f in &s.gt {
-            for b in f {
-                gt_boxes += 1;
-                gt_ids.insert((si, b.0));
-            }
-        }
-    }
-    if gt_boxes == 0 {
-        return Metrics::all(f64::NAN);
-    }
-    // Recall thresholds from the scores of matched predictions.
-    let mut scores = run_pass(&scenes, None, p).match_scores;
+/// The score thresholds of the `p.num_thresholds` recall levels from the scores of the matched
+/// predictions (NaN for a level the tracks never reach), in the devkit's order.
+fn recall_thresholds(mut scores: Vec<f64>, gt_boxes: u64, p: &NuscenesParams) -> Vec<f64> {
     let n = p.num_thresholds;
     let mut thresholds = vec![f64::NAN; n];
     if !scores.is_empty() {
@@ -555,47 +549,92 @@ fn evaluate_class_with(
         }
         thresholds.reverse();
     }
+    thresholds
+}
+
+/// The metrics of a class whose tracks reach no recall level: worst values everywhere; FP, IDS
+/// and FRAG cannot be known.
+fn worst_metrics(gt_objects: usize, gt_boxes: u64) -> Metrics {
+    let mut m = Metrics::all(f64::NAN);
+    for (k, v) in [
+        ("amota", 0.0),
+        ("amotp", 2.0),
+        ("recall", 0.0),
+        ("motar", 0.0),
+        ("mota", 0.0),
+        ("motp", 2.0),
+        ("mt", 0.0),
+        ("ml", gt_objects as f64),
+        ("faf", 500.0),
+        ("tp", 0.0),
+        ("fn", gt_boxes as f64),
+        ("tid", 20.0),
+        ("lgd", 20.0),
+        ("gt", gt_boxes as f64),
+    ] {
+        m.set(k, v);
+    }
+    m
+}
+
+/// Evaluates one class. `None` when the class has no ground truth.
+fn evaluate_class(
+    scenes: &[Prepared],
+    class: (u16, &str),
+    p: &NuscenesParams,
+    notes: &mut Vec<String>,
+) -> Metrics {
+    evaluate_class_with(scenes, class, p, notes, None)
+}
+
+/// [`evaluate_class`], recording the decisions of the best-MOTA threshold into `log` when given.
+fn evaluate_class_with(
+    scenes: &[Prepared],
+    (class_id, class): (u16, &str),
+    p: &NuscenesParams,
+    notes: &mut Vec<String>,
+    log: Option<&mut Collector>,
+) -> Metrics {
+    let scenes: Vec<ClassScene> = scenes.iter().map(|s| class_view(s, class_id)).collect();
+    // Ids restart in every log (KITTI label files, `simulate`, per-drive counters): a ground-truth
+    // object is the pair (log, id). The devkit's instance tokens are unique across scenes.
+    let mut gt_boxes = 0u64;
+    let mut gt_ids: HashSet<(usize, u64)> = HashSet::new();
+    for (si, s) in scenes.iter().enumerate() {
+        for f in &s.gt {
+            for b in f {
+                gt_boxes += 1;
+                gt_ids.insert((si, b.0));
+            }
+        }
+    }
+    if gt_boxes == 0 {
+        return Metrics::all(f64::NAN);
+    }
+    // Recall thresholds from the scores of matched predictions.
+    let thresholds = recall_thresholds(run_pass(&scenes, None, p).match_scores, gt_boxes, p);
     let achieved = thresholds.iter().filter(|t| !t.is_nan()).count();
     if achieved == 0 {
-        // Worst values everywhere; FP, IDS and FRAG cannot be known.
-        let mut m = Metrics::all(f64::NAN);
-        for (k, v) in [
-            ("amota", 0.0),
-            ("amotp", 2.0),
-            ("recall", 0.0),
-            ("motar", 0.0),
-            ("mota", 0.0),
-            ("motp", 2.0),
-            ("mt", 0.0),
-            ("ml", gt_ids.len() as f64),
-            ("faf", 500.0),
-            ("tp", 0.0),
-            ("fn", gt_boxes as f64),
-            ("tid", 20.0),
-            ("lgd", 20.0),
-            ("gt", gt_boxes as f64),
-        ] {
-            m.set(k, v);
-        }
-        return m;
+        return worst_metrics(gt_ids.len(), gt_boxes);
     }
-    let mut per_threshold: Vec<Metrics> = Vec::with_capacity(n);
-    let mut computed: Vec<(f64, Metrics)> = Vec::new();
-    for &t in &thresholds {
-        if t.is_nan() {
-            per_threshold.push(Metrics::all(f64::NAN));
-            continue;
+    // The distinct reached thresholds, each scored once, in parallel.
+    let mut distinct: Vec<f64> = Vec::new();
+    for &t in thresholds.iter().filter(|t| !t.is_nan()) {
+        if !distinct.contains(&t) {
+            distinct.push(t);
         }
-        let m = match computed.iter().find(|(v, _)| *v == t) {
+    }
+    let computed: Vec<(f64, Metrics)> = distinct
+        .par_iter()
+        .map(|&t| (t, metrics_of(&run_pass(&scenes, Some(t), p), p)))
+        .collect();
+    let per_threshold: Vec<Metrics> = thresholds
+        .iter()
+        .map(|&t| match computed.iter().find(|(v, _)| *v == t) {
             Some((_, m)) => *m,
-            None => {
-                let m = metrics_of(&run_pass(&scenes, Some(t), p), p);
-                computed.push((t, m));
-                m
-            }
-        };
-        per_threshold.push(m);
-    }
+            None => Metrics::all(f64::NAN),
+        })
+        .collect();
     if computed.len() == 1 && achieved > 1 {
         notes.push(format!(
             "{class}: every matched track has the same score, so all {achieved} reached recall \
@@ -631,12 +670,14 @@ fn evaluate_class_with(
 /// the counts of [`evaluate`] come from), for `eval --events`. Empty for a class whose recall
 /// reaches no threshold.
 pub fn best_threshold_decisions(scenes: &[Scene], p: &NuscenesParams) -> Vec<(String, Collector)> {
-    let prepared: Vec<Prepared> = scenes.iter().map(prepare).collect();
+    let prepared: Vec<Prepared> = scenes.par_iter().map(|s| prepare(s, &p.classes)).collect();
     p.classes
         .par_iter()
-        .filter_map(|c| {
+        .enumerate()
+        .filter_map(|(i, c)| {
             let mut log = Collector::default();
-            let m = evaluate_class_with(&prepared, c, p, &mut Vec::new(), Some(&mut log));
+            let m =
+                evaluate_class_with(&prepared, (i as u16, c), p, &mut Vec::new(), Some(&mut log));
             (!m.gt.is_nan()).then(|| (c.clone(), log))
         })
         .collect()
@@ -644,14 +685,15 @@ pub fn best_threshold_decisions(scenes: &[Scene], p: &NuscenesParams) -> Vec<(St
 
 /// Evaluates scenes (one log each) with the nuScenes protocol.
 pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
-    let prepared: Vec<Prepared> = scenes.iter().map(prepare).collect();
+    let prepared: Vec<Prepared> = scenes.par_iter().map(|s| prepare(s, &p.classes)).collect();
     // Classes are independent: evaluate them in parallel.
     let per_class: Vec<(Metrics, Vec<String>)> = p
         .classes
         .par_iter()
-        .map(|c| {
+        .enumerate()
+        .map(|(i, c)| {
             let mut notes = Vec::new();
-            let m = evaluate_class(&prepared, c, p, &mut notes);
+            let m = evaluate_class(&prepared, (i as u16, c), p, &mut notes);
             (m, notes)
         })
         .collect();

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use crate::mcapio::recording::{self, Boxes, TopicKind, TopicRequest};
+use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::msgs::Track3D;
 
 /// One box as the evaluation sees it.
@@ -30,17 +30,17 @@ pub struct EvalBox {
 }
 
 impl EvalBox {
-    fn from_track(t: &Track3D) -> EvalBox {
+    fn from_track(t: Track3D) -> EvalBox {
         let c = t.center.unwrap_or_default();
         let s = t.size.unwrap_or_default();
         EvalBox {
             id: t.id,
-            label: t.label.clone(),
+            label: t.label,
             center: [c.x, c.y, c.z],
             size: [s.length, s.width, s.height],
             yaw: t.yaw,
             score: t.score,
-            attributes: t.attributes.clone(),
+            attributes: t.attributes,
             image_box: t.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
         }
     }
@@ -60,25 +60,71 @@ pub struct Scene {
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
 /// message (the stamp is the message's, or its `log_time` when that is 0).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+    read_tracks_topic_with(path, topic, &|_| {})
+}
+
+/// [`read_tracks_topic`], telling `progress` how many bytes of the file each step read.
+pub fn read_tracks_topic_with(
+    path: &Path,
+    topic: &str,
+    progress: &dyn Fn(u64),
+) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+    read_boxes(path, topic, progress, false)
+}
+
+/// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
+/// ones (`nuscenes_*`: point counts, rack rotations). Others (e.g. `sim_truth_id`, which
+/// `track` copies from each detection to its track) are dropped by [`load_scene_progress`]: a
+/// map per box would be most of a long log's memory.
+pub fn is_evaluated_attribute(key: &str) -> bool {
+    key.starts_with("kitti_") || key.starts_with("nuscenes_")
+}
+
+/// The boxes of a tracks topic, message by message; `evaluated_only` keeps only the
+/// attributes [`is_evaluated_attribute`] names.
+fn read_boxes(
+    path: &Path,
+    topic: &str,
+    progress: &dyn Fn(u64),
+    evaluated_only: bool,
+) -> Result<Vec<(u64, Vec<EvalBox>)>> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
         role: "tracks or ground truth".to_string(),
     };
-    let read = recording::frames(path, std::slice::from_ref(&req))?;
-    let Some(frames) = read.frames.into_iter().next().flatten() else {
+    let mut out = Vec::new();
+    let mut found = false;
+    let mut reported = 0u64;
+    recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
+        progress(stats.bytes_read.saturating_sub(reported));
+        reported = reported.max(stats.bytes_read);
+        match event {
+            FrameEvent::Channel(_) => found = true,
+            FrameEvent::Frame(_, f) => {
+                let mut boxes: Vec<EvalBox> = match f.boxes {
+                    Boxes::Tracks(t) => t.into_iter().map(EvalBox::from_track).collect(),
+                    Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
+                };
+                for b in boxes.iter_mut().filter(|_| evaluated_only) {
+                    if b.attributes.keys().any(|k| !is_evaluated_attribute(k)) {
+                        b.attributes = std::mem::take(&mut b.attributes)
+                            .into_iter()
+                            .filter(|(k, _)| is_evaluated_attribute(k))
+                            .collect();
+                    }
+                }
+                out.push((f.stamp, boxes));
+            }
+        }
+        Ok(())
+    })?;
+    if !found {
         bail!("{}: no channel with topic {topic}", path.display());
-    };
-    Ok(frames
-        .into_iter()
-        .map(|f| {
-            let boxes = match f.boxes {
-                Boxes::Tracks(t) => t.iter().map(EvalBox::from_track).collect(),
-                Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
-            };
-            (f.stamp, boxes)
-        })
-        .collect())
+    }
+    let size = std::fs::metadata(path).map_or(reported, |m| m.len());
+    progress(size.saturating_sub(reported));
+    Ok(out)
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes
@@ -101,8 +147,24 @@ pub fn load_scene_with(
     tracks_topic: &str,
     allow_unlabelled: bool,
 ) -> Result<Scene> {
-    let gt = read_tracks_topic(truth, truth_topic)?;
-    let tr = read_tracks_topic(tracks, tracks_topic)?;
+    load_scene_progress(
+        (truth, truth_topic),
+        (tracks, tracks_topic),
+        allow_unlabelled,
+        &|_| {},
+    )
+}
+
+/// [`load_scene_with`], telling `progress` the bytes read (both files, the shared file twice),
+/// keeping only the attributes the evaluation reads ([`is_evaluated_attribute`]).
+pub fn load_scene_progress(
+    (truth, truth_topic): (&Path, &str),
+    (tracks, tracks_topic): (&Path, &str),
+    allow_unlabelled: bool,
+    progress: &dyn Fn(u64),
+) -> Result<Scene> {
+    let gt = read_boxes(truth, truth_topic, progress, true)?;
+    let tr = read_boxes(tracks, tracks_topic, progress, true)?;
     if gt.is_empty() {
         bail!("{}: topic {truth_topic} has no messages", truth.display());
     }

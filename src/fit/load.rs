@@ -7,56 +7,64 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 
 use super::data::{assemble_frames, FitBox, FitLog};
-use crate::mcapio::recording::{self, Boxes, Frame, TopicKind, TopicRequest};
+use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::msgs::{Detection3D, Track3D};
 
-/// Reads the frames of one topic of `path` ([`recording::frames`]): `(stamp, message's boxes)`
-/// per message, the stamp being the message's own else its MCAP `log_time` (as `probmot track`
-/// does). A missing topic, another schema or an undecodable message is an error naming them.
-fn read_topic(path: &Path, topic: &str, kind: TopicKind, role: &str) -> Result<Vec<Frame>> {
-    let req = TopicRequest {
+/// `(stamp, boxes)` per message of one topic.
+type TopicBoxes = Vec<(u64, Vec<FitBox>)>;
+
+/// Reads topics of `path` in one pass ([`recording::for_each_frame`]), each message turned into
+/// fit boxes as soon as it is decoded: `(stamp, boxes)` per message and request, the stamp being
+/// the message's own else its MCAP `log_time` (as `probmot track` does). A missing topic,
+/// another schema or an undecodable message is an error naming them. `progress` gets the bytes
+/// read at each step.
+fn read_topics(
+    path: &Path,
+    wanted: &[TopicRequest],
+    progress: &dyn Fn(u64),
+) -> Result<Vec<TopicBoxes>> {
+    let mut out: Vec<Option<TopicBoxes>> = vec![None; wanted.len()];
+    let mut reported = 0u64;
+    recording::for_each_frame(path, wanted, |event, stats| {
+        progress(stats.bytes_read.saturating_sub(reported));
+        reported = reported.max(stats.bytes_read);
+        match event {
+            FrameEvent::Channel(i) => {
+                out[i].get_or_insert_with(Vec::new);
+            }
+            FrameEvent::Frame(i, f) => {
+                let boxes = match f.boxes {
+                    Boxes::Detections(d) => d.iter().filter_map(detection_box).collect(),
+                    Boxes::Tracks(t) => t.into_iter().map(truth_box).collect(),
+                };
+                out[i].get_or_insert_with(Vec::new).push((f.stamp, boxes));
+            }
+        }
+        Ok(())
+    })?;
+    out.into_iter()
+        .zip(wanted)
+        .map(|(o, r)| {
+            o.with_context(|| format!("{}: no channel with topic {}", path.display(), r.topic))
+        })
+        .collect()
+}
+
+fn request(topic: &str, kind: TopicKind, role: &str) -> TopicRequest {
+    TopicRequest {
         topic: topic.to_string(),
         kind,
         role: role.to_string(),
-    };
-    let read = recording::frames(path, std::slice::from_ref(&req))?;
-    read.frames
-        .into_iter()
-        .next()
-        .flatten()
-        .with_context(|| format!("{}: no channel with topic {topic}", path.display()))
+    }
 }
 
 /// Reads the detection messages of one topic (any input `track` reads): `(stamp, boxes)` per
 /// message. Boxes without a centre or size are left out. Errors name the file and topic.
 pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<FitBox>)>> {
-    let frames = read_topic(path, topic, TopicKind::Detections, "detections")
+    let req = request(topic, TopicKind::Detections, "detections");
+    let mut v = read_topics(path, &[req], &|_| {})
         .with_context(|| format!("reading detections from {}", path.display()))?;
-    Ok(frames
-        .into_iter()
-        .map(|f| {
-            let boxes = match &f.boxes {
-                Boxes::Detections(d) => d.iter().filter_map(detection_box).collect(),
-                Boxes::Tracks(_) => unreachable!("a detections request yields detections"),
-            };
-            (f.stamp, boxes)
-        })
-        .collect())
-}
-
-/// Reads the `Tracks3D` messages of one topic: `(stamp, boxes)` per message.
-fn read_truth_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<FitBox>)>> {
-    let frames = read_topic(path, topic, TopicKind::Tracks, "ground truth")?;
-    Ok(frames
-        .into_iter()
-        .map(|f| {
-            let boxes = match f.boxes {
-                Boxes::Tracks(t) => t.into_iter().map(truth_box).collect(),
-                Boxes::Detections(_) => unreachable!("a tracks request yields tracks"),
-            };
-            (f.stamp, boxes)
-        })
-        .collect())
+    Ok(v.remove(0))
 }
 
 /// A ground-truth track as a fit box (missing centre or size read as zeros, as eval does).
@@ -87,12 +95,27 @@ fn detection_box(d: &Detection3D) -> Option<FitBox> {
 /// carry instance ids: a box with id 0 (except `dontcare` regions, which are skipped), or two boxes with the same label and id at one stamp,
 /// is an error.
 pub fn load_log(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<FitLog> {
+    load_log_progress(path, truth_topic, detections_topic, &|_| {})
+}
+
+/// [`load_log`] in one pass over the file, telling `progress` the bytes read at each step.
+pub fn load_log_progress(
+    path: &Path,
+    truth_topic: &str,
+    detections_topic: &str,
+    progress: &dyn Fn(u64),
+) -> Result<FitLog> {
     let file = path.display().to_string();
-    let truth = read_truth_topic(path, truth_topic)?;
+    let wanted = [
+        request(truth_topic, TopicKind::Tracks, "ground truth"),
+        request(detections_topic, TopicKind::Detections, "detections"),
+    ];
+    let mut read = read_topics(path, &wanted, progress)?;
+    let detections = read.pop().expect("two requests");
+    let truth = read.pop().expect("two requests");
     if truth.is_empty() {
         bail!("{file}: topic {truth_topic} (ground truth) has no messages");
     }
-    let detections = read_detections_topic(path, detections_topic)?;
     let mut by_stamp: BTreeMap<u64, HashSet<(String, u64)>> = BTreeMap::new();
     let mut truth_boxes = Vec::with_capacity(truth.len());
     for (stamp, boxes) in truth {

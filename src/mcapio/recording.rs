@@ -13,7 +13,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
-use super::reader::read_records;
+use super::reader::{read_records, ReadStats};
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::ros2_tracks;
@@ -154,16 +154,46 @@ fn decoder_for(
 
 /// Reads the requested topics of `path` in one pass. A topic the file lacks gives `None`; a
 /// channel of the wrong schema or an undecodable message is an error naming the file, topic and
-/// log time.
+/// log time. Holds every frame in memory: long logs are better read with [`for_each_frame`].
 pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
+    let mut frames: Vec<Option<Vec<Frame>>> = vec![None; wanted.len()];
+    let topics = for_each_frame(path, wanted, |event, _| {
+        match event {
+            FrameEvent::Channel(i) => {
+                frames[i].get_or_insert_with(Vec::new);
+            }
+            FrameEvent::Frame(i, frame) => frames[i].get_or_insert_with(Vec::new).push(frame),
+        }
+        Ok(())
+    })?;
+    Ok(RecordingFrames { frames, topics })
+}
+
+/// What [`for_each_frame`] hands its callback, in file order.
+#[derive(Debug)]
+pub enum FrameEvent {
+    /// The file has a channel of request `i` (given before that channel's first frame, and
+    /// again for every further channel record, e.g. the summary section's copy).
+    Channel(usize),
+    /// One decoded message of request `i`.
+    Frame(usize, Frame),
+}
+
+/// Streams the requested topics of `path` in one pass: each message is decoded and handed to
+/// `f` at once (with the bytes read so far, for progress), so memory stays bounded by what the
+/// caller keeps. Errors as [`frames`]; an error of `f` ends the read. Returns every topic of
+/// the file.
+pub fn for_each_frame(
+    path: &Path,
+    wanted: &[TopicRequest],
+    mut f: impl FnMut(FrameEvent, ReadStats) -> Result<()>,
+) -> Result<BTreeSet<String>> {
     let file = path.display().to_string();
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
-    let mut channels: BTreeMap<u16, (usize, Decoder)> = BTreeMap::new();
-    let mut out = RecordingFrames {
-        frames: vec![None; wanted.len()],
-        topics: BTreeSet::new(),
-    };
-    read_records(path, |rec, _| {
+    // Per channel, the requests it serves (a topic may be requested twice, as two kinds).
+    let mut channels: BTreeMap<u16, Vec<(usize, Decoder)>> = BTreeMap::new();
+    let mut topics = BTreeSet::new();
+    read_records(path, |rec, stats| {
         match rec {
             Record::Schema { header, data } => {
                 let info = SchemaInfo {
@@ -174,58 +204,65 @@ pub fn frames(path: &Path, wanted: &[TopicRequest]) -> Result<RecordingFrames> {
                 schemas.insert(header.id, info);
             }
             Record::Channel(c) => {
-                out.topics.insert(c.topic.clone());
-                let Some(i) = wanted.iter().position(|r| r.topic == c.topic) else {
-                    return Ok(());
-                };
-                let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let decoder = decoder_for(&file, &wanted[i], &schema, &c.message_encoding)?;
-                channels.insert(c.id, (i, decoder));
-                out.frames[i].get_or_insert_with(Vec::new);
+                topics.insert(c.topic.clone());
+                for (i, req) in wanted
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, r)| r.topic == c.topic)
+                {
+                    let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
+                    let decoder = decoder_for(&file, req, &schema, &c.message_encoding)?;
+                    channels.entry(c.id).or_default().push((i, decoder));
+                    f(FrameEvent::Channel(i), stats)?;
+                }
             }
             Record::Message { header, data } => {
-                let Some((i, decoder)) = channels.get(&header.channel_id) else {
-                    return Ok(());
-                };
-                let ctx = || {
-                    format!(
-                        "{file}: topic {}, message at log_time {}: cannot decode",
-                        wanted[*i].topic, header.log_time
-                    )
-                };
-                let frame = match decoder {
-                    Decoder::Detections(source) => {
-                        let m = source.decode(&data).with_context(ctx)?;
-                        Frame {
-                            stamp: stamp_or_log_time(m.stamp, header.log_time),
-                            log_time: header.log_time,
-                            boxes: Boxes::Detections(m.detections),
-                        }
-                    }
-                    Decoder::Ros2Tracks(layout) => {
-                        let m = ros2_tracks::decode_tracks(&data, *layout).with_context(ctx)?;
-                        Frame {
-                            stamp: tracks_stamp(m.stamp, header.log_time),
-                            log_time: header.log_time,
-                            boxes: Boxes::Tracks(m.tracks),
-                        }
-                    }
-                    Decoder::Tracks(enc) => {
-                        let m: Tracks3D = msgs::decode(&data, *enc).with_context(ctx)?;
-                        Frame {
-                            stamp: tracks_stamp(m.stamp, header.log_time),
-                            log_time: header.log_time,
-                            boxes: Boxes::Tracks(m.tracks),
-                        }
-                    }
-                };
-                out.frames[*i].get_or_insert_with(Vec::new).push(frame);
+                for (i, decoder) in channels.get(&header.channel_id).into_iter().flatten() {
+                    let ctx = || {
+                        format!(
+                            "{file}: topic {}, message at log_time {}: cannot decode",
+                            wanted[*i].topic, header.log_time
+                        )
+                    };
+                    let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
+                    f(FrameEvent::Frame(*i, frame), stats)?;
+                }
             }
             _ => {}
         }
         Ok(())
     })?;
-    Ok(out)
+    Ok(topics)
+}
+
+/// Decodes one message of a requested channel, with the stamp rule applied.
+fn decode_frame(decoder: &Decoder, data: &[u8], log_time: u64) -> Result<Frame> {
+    Ok(match decoder {
+        Decoder::Detections(source) => {
+            let m = source.decode(data)?;
+            Frame {
+                stamp: stamp_or_log_time(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Detections(m.detections),
+            }
+        }
+        Decoder::Ros2Tracks(layout) => {
+            let m = ros2_tracks::decode_tracks(data, *layout)?;
+            Frame {
+                stamp: tracks_stamp(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Tracks(m.tracks),
+            }
+        }
+        Decoder::Tracks(enc) => {
+            let m: Tracks3D = msgs::decode(data, *enc)?;
+            Frame {
+                stamp: tracks_stamp(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Tracks(m.tracks),
+            }
+        }
+    })
 }
 
 /// The frames of one tracks topic (`probmot.Tracks3D` or ROS 2 tracks, [`TopicKind::Tracks`]):
@@ -372,5 +409,57 @@ mod tests {
         let text = format!("{e:#}");
         assert!(text.contains("log.mcap: topic /detections has schema 'probmot.Detections3D'"));
         assert!(text.contains("for the test"), "{text}");
+    }
+
+    #[test]
+    fn for_each_frame_streams_in_file_order_and_stops_on_error() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let wanted = [
+            req("/detections", TopicKind::Detections),
+            req("/tracks", TopicKind::Tracks),
+            req("/tracks", TopicKind::Tracks),
+        ];
+        let mut seen = Vec::new();
+        let mut last_bytes = 0;
+        for_each_frame(&path, &wanted, |e, stats| {
+            assert!(stats.bytes_read >= last_bytes, "bytes read only grow");
+            last_bytes = stats.bytes_read;
+            seen.push(match e {
+                FrameEvent::Channel(i) => (i, None),
+                FrameEvent::Frame(i, f) => (i, Some(f.log_time)),
+            });
+            Ok(())
+        })
+        .unwrap();
+        let frames: Vec<(usize, Option<u64>)> =
+            seen.iter().copied().filter(|e| e.1.is_some()).collect();
+        assert_eq!(
+            frames,
+            [
+                (0, Some(10)),
+                (0, Some(20)),
+                (1, Some(30)),
+                (2, Some(30)),
+                (1, Some(40)),
+                (2, Some(40))
+            ],
+            "a topic requested twice serves both requests"
+        );
+        let channels: BTreeSet<usize> =
+            seen.iter().filter(|e| e.1.is_none()).map(|e| e.0).collect();
+        assert_eq!(channels.into_iter().collect::<Vec<_>>(), [0, 1, 2]);
+        let mut n = 0;
+        let e = for_each_frame(&path, &wanted, |e, _| {
+            if matches!(e, FrameEvent::Frame(..)) {
+                n += 1;
+                anyhow::bail!("enough");
+            }
+            Ok(())
+        })
+        .unwrap_err();
+        assert_eq!(n, 1);
+        assert!(format!("{e:#}").contains("enough"));
     }
 }

@@ -70,128 +70,166 @@ pub struct FileSummary {
 
 /// Reads the whole file and summarises it.
 pub fn file_info(path: &Path) -> Result<FileSummary> {
-    let mut out = FileSummary {
-        path: path.display().to_string(),
-        ..Default::default()
+    file_info_progress(path, &|_| {})
+}
+
+/// [`file_info`], telling `progress` the bytes read at each step. Memory stays bounded by the
+/// number of channels and labels, whatever the file's length.
+pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
+    let mut st = InfoState {
+        out: FileSummary {
+            path: path.display().to_string(),
+            ..Default::default()
+        },
+        file: path.display().to_string(),
+        schemas: HashMap::new(),
+        channels: BTreeMap::new(),
+        sources: HashMap::new(),
+        transforms: TransformCollector::new(),
     };
-    let mut schemas: HashMap<u16, (String, String, Vec<u8>)> = HashMap::new();
-    let mut channels: BTreeMap<u16, ChannelSummary> = BTreeMap::new();
-    let mut sources: HashMap<u16, DetectionSource> = HashMap::new();
-    let mut transforms = TransformCollector::new();
-    let file = path.display().to_string();
-    read_records(path, |rec, _| {
+    let mut reported = 0u64;
+    read_records(path, |rec, stats| {
+        progress(stats.bytes_read.saturating_sub(reported));
+        reported = reported.max(stats.bytes_read);
         match rec {
             Record::Header(h) => {
-                out.profile = h.profile;
-                out.library = h.library;
+                st.out.profile = h.profile;
+                st.out.library = h.library;
             }
             Record::Schema { header, data } => {
-                schemas.insert(header.id, (header.name, header.encoding, data.into_owned()));
+                let schema = (header.name, header.encoding, data.into_owned());
+                st.schemas.insert(header.id, schema);
             }
-            Record::Channel(c) => {
-                let (schema, schema_encoding, schema_data) =
-                    schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                let source = DetectionSource::for_channel(
-                    &schema,
-                    &schema_encoding,
-                    &schema_data,
-                    &c.message_encoding,
-                );
-                let detections_note = match &source {
-                    Ok(s) => s.describe(),
-                    Err(_) if !is_detection_schema(&schema) => "not a detection schema".to_string(),
-                    Err(why) => why.clone(),
-                };
-                let tracks = schema == msgs::TRACKS_SCHEMA
-                    && Encoding::from_message_encoding(&c.message_encoding).is_some();
-                let is_transform = transforms.on_channel(&c, &schema).is_some();
-                let role = match source {
-                    Ok(s) => {
-                        sources.insert(c.id, s);
-                        "detections"
-                    }
-                    Err(_) if tracks => "tracks",
-                    Err(_) if is_transform => "transforms",
-                    Err(_) => "",
-                };
-                let default_candidate = is_default_candidate(&schema, &c.metadata);
-                channels.entry(c.id).or_insert(ChannelSummary {
-                    default_detections: role == "detections" && default_candidate,
-                    id: c.id,
-                    topic: c.topic,
-                    schema,
-                    schema_encoding,
-                    message_encoding: c.message_encoding,
-                    role: role.into(),
-                    detections_note,
-                    ..Default::default()
-                });
-            }
-            Record::Message { header, data } => {
-                out.messages += 1;
-                if let Some(ch) = channels.get_mut(&header.channel_id) {
-                    ch.messages += 1;
-                    let t = header.log_time;
-                    ch.log_time_range = Some(match ch.log_time_range {
-                        Some((a, b)) => (a.min(t), b.max(t)),
-                        None => (t, t),
-                    });
-                    if transforms.on_message(&file, &header, &data) {
-                        ch.undecodable = transforms
-                            .per_topic
-                            .get(&ch.topic)
-                            .map_or(0, |c| c.undecodable);
-                    }
-                    let enc = Encoding::from_message_encoding(&ch.message_encoding);
-                    let source = sources.get(&header.channel_id);
-                    match (ch.role.as_str(), enc, source) {
-                        ("detections", _, Some(source)) => match source.decode(&data) {
-                            Ok(m) => {
-                                for d in m.detections {
-                                    *ch.per_label.entry(d.label).or_default() += 1;
-                                }
-                            }
-                            Err(_) => ch.undecodable += 1,
-                        },
-                        ("tracks", Some(enc), _) => match msgs::decode::<Tracks3D>(&data, enc) {
-                            Ok(m) => {
-                                for t in m.tracks {
-                                    *ch.per_label.entry(t.label).or_default() += 1;
-                                }
-                            }
-                            Err(_) => ch.undecodable += 1,
-                        },
-                        _ => {}
-                    }
-                }
-            }
-            Record::Attachment { .. } => out.attachments += 1,
-            Record::Metadata(_) => out.metadata += 1,
+            Record::Channel(c) => st.on_channel(c),
+            Record::Message { header, data } => st.on_message(&header, &data),
+            Record::Attachment { .. } => st.out.attachments += 1,
+            Record::Metadata(_) => st.out.metadata += 1,
             _ => {}
         }
         Ok(())
     })?;
-    // `track`'s default selection: a SceneUpdate only when nothing else is there.
-    let left_out = scenes_left_out(
-        sources
-            .iter()
-            .filter(|(id, _)| channels.get(id).is_some_and(|c| c.default_detections))
-            .map(|(id, s)| (*id, s)),
-    );
-    for id in left_out {
-        if let Some(c) = channels.get_mut(&id) {
-            c.default_detections = false;
+    Ok(st.finish())
+}
+
+/// What [`file_info_progress`] keeps while reading.
+struct InfoState {
+    out: FileSummary,
+    file: String,
+    schemas: HashMap<u16, (String, String, Vec<u8>)>,
+    channels: BTreeMap<u16, ChannelSummary>,
+    sources: HashMap<u16, DetectionSource>,
+    transforms: TransformCollector,
+}
+
+impl InfoState {
+    /// A channel record: its role (detections, tracks, transforms) and summary.
+    fn on_channel(&mut self, c: mcap::records::Channel) {
+        let (schema, schema_encoding, schema_data) =
+            self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
+        let source = DetectionSource::for_channel(
+            &schema,
+            &schema_encoding,
+            &schema_data,
+            &c.message_encoding,
+        );
+        let detections_note = match &source {
+            Ok(s) => s.describe(),
+            Err(_) if !is_detection_schema(&schema) => "not a detection schema".to_string(),
+            Err(why) => why.clone(),
+        };
+        let tracks = schema == msgs::TRACKS_SCHEMA
+            && Encoding::from_message_encoding(&c.message_encoding).is_some();
+        let is_transform = self.transforms.on_channel(&c, &schema).is_some();
+        let role = match source {
+            Ok(s) => {
+                self.sources.insert(c.id, s);
+                "detections"
+            }
+            Err(_) if tracks => "tracks",
+            Err(_) if is_transform => "transforms",
+            Err(_) => "",
+        };
+        let default_candidate = is_default_candidate(&schema, &c.metadata);
+        self.channels.entry(c.id).or_insert(ChannelSummary {
+            default_detections: role == "detections" && default_candidate,
+            id: c.id,
+            topic: c.topic,
+            schema,
+            schema_encoding,
+            message_encoding: c.message_encoding,
+            role: role.into(),
+            detections_note,
+            ..Default::default()
+        });
+    }
+
+    /// A message: counts, time range, transforms and boxes per label.
+    fn on_message(&mut self, header: &mcap::records::MessageHeader, data: &[u8]) {
+        self.out.messages += 1;
+        let Some(ch) = self.channels.get_mut(&header.channel_id) else {
+            return;
+        };
+        ch.messages += 1;
+        let t = header.log_time;
+        ch.log_time_range = Some(match ch.log_time_range {
+            Some((a, b)) => (a.min(t), b.max(t)),
+            None => (t, t),
+        });
+        if self.transforms.on_message(&self.file, header, data) {
+            ch.undecodable = self
+                .transforms
+                .per_topic
+                .get(&ch.topic)
+                .map_or(0, |c| c.undecodable);
+        }
+        let enc = Encoding::from_message_encoding(&ch.message_encoding);
+        let source = self.sources.get(&header.channel_id);
+        match (ch.role.as_str(), enc, source) {
+            ("detections", _, Some(source)) => match source.decode(data) {
+                Ok(m) => {
+                    for d in m.detections {
+                        *ch.per_label.entry(d.label).or_default() += 1;
+                    }
+                }
+                Err(_) => ch.undecodable += 1,
+            },
+            ("tracks", Some(enc), _) => match msgs::decode::<Tracks3D>(data, enc) {
+                Ok(m) => {
+                    for t in m.tracks {
+                        *ch.per_label.entry(t.label).or_default() += 1;
+                    }
+                }
+                Err(_) => ch.undecodable += 1,
+            },
+            _ => {}
         }
     }
-    out.channels = channels.into_values().collect();
-    out.log_time_range = out
-        .channels
-        .iter()
-        .filter_map(|c| c.log_time_range)
-        .reduce(|(a0, a1), (b0, b1)| (a0.min(b0), a1.max(b1)));
-    transforms.finish();
-    out.transform_tree = transforms.buffer.summary();
-    Ok(out)
+
+    /// The summary: `track`'s default selection, the time range and the transform tree.
+    fn finish(mut self) -> FileSummary {
+        // `track`'s default selection: a SceneUpdate only when nothing else is there.
+        let left_out = scenes_left_out(
+            self.sources
+                .iter()
+                .filter(|(id, _)| self.channels.get(id).is_some_and(|c| c.default_detections))
+                .map(|(id, s)| (*id, s)),
+        );
+        for id in left_out {
+            if let Some(c) = self.channels.get_mut(&id) {
+                c.default_detections = false;
+            }
+        }
+        let mut out = self.out;
+        out.channels = self.channels.into_values().collect();
+        out.log_time_range = out
+            .channels
+            .iter()
+            .filter_map(|c| c.log_time_range)
+            .reduce(|(a0, a1), (b0, b1)| (a0.min(b0), a1.max(b1)));
+        self.transforms.finish();
+        out.transform_tree = self.transforms.buffer.summary();
+        out
+    }
 }
 
 /// A time in ns since the Unix epoch as ISO 8601 UTC with nanoseconds, as `mcap info` prints

@@ -36,6 +36,9 @@ pub fn centre_hota(scenes: &[Scene], classes: &[String]) -> (BTreeMap<String, Ho
                     let sim = g
                         .iter()
                         .flat_map(|a| t.iter().map(|b| centre_similarity(&a.center, &b.center)))
+                        .enumerate()
+                        .filter(|(_, v)| *v != 0.0)
+                        .map(|(k, v)| (k as u32, v))
                         .collect();
                     (
                         g.iter().map(|b| b.id as i64).collect(),

@@ -203,7 +203,7 @@ fn prepare_frame(
     (
         keep_gt.iter().map(|&i| gt[i].id).collect(),
         keep_tr.iter().map(|&j| tr[j].id as i64).collect(),
-        s,
+        super::sparse(&s),
     )
 }
 
@@ -305,7 +305,8 @@ mod tests {
         let (g, t, s) = prepare_frame(&truth, &tracks, 1, 2, KittiSimilarity::Image);
         assert_eq!(g, vec![0]); // car 1 (KITTI id = id - 1)
         assert_eq!(t, vec![11, 15]);
-        assert_eq!(s.len(), 2);
-        assert!((s[0] - 0.9).abs() < 1e-12 && s[1] == 0.0);
+        // Only the nonzero similarity is kept: (car 1, track 11); track 15 overlaps nothing.
+        assert_eq!(s.len(), 1);
+        assert!(s[0].0 == 0 && (s[0].1 - 0.9).abs() < 1e-12);
     }
 }

@@ -40,8 +40,34 @@ pub struct HotaFrame {
     pub gt: Vec<u32>,
     /// Track ids, one per track box.
     pub tr: Vec<u32>,
-    /// Similarity, `gt.len() x tr.len()`, row-major.
-    pub sim: Vec<f64>,
+    /// Similarity, `gt.len() x tr.len()`, row-major, its nonzero entries only ([`sparse`]).
+    pub sim: SparseSim,
+}
+
+/// The nonzero entries of a row-major similarity matrix as `(index, value)`, in index order:
+/// most pairs of a frame are far apart (similarity 0), and a long log cannot keep them all.
+pub type SparseSim = Vec<(u32, f64)>;
+
+/// The nonzero entries of a dense row-major similarity matrix.
+pub fn sparse(dense: &[f64]) -> SparseSim {
+    dense
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| **v != 0.0)
+        .map(|(k, v)| (k as u32, *v))
+        .collect()
+}
+
+impl HotaFrame {
+    /// Writes the dense `gt x tr` similarity matrix into `buf` (zeros where nothing is stored:
+    /// adding them changes no sum, so the metrics are those of the dense matrix).
+    fn dense_into(&self, buf: &mut Vec<f64>) {
+        buf.clear();
+        buf.resize(self.gt.len() * self.tr.len(), 0.0);
+        for &(k, v) in &self.sim {
+            buf[k as usize] = v;
+        }
+    }
 }
 
 /// Per-alpha counts and association scores of one sequence (or of several combined).
@@ -93,16 +119,17 @@ impl Alignment {
             index: HashMap::new(),
             score: Vec::new(),
         };
-        let (mut row_sum, mut col_sum) = (Vec::new(), Vec::new());
+        let (mut row_sum, mut col_sum, mut sim) = (Vec::new(), Vec::new(), Vec::new());
         for f in frames {
             let nt = f.tr.len();
+            f.dense_into(&mut sim);
             row_sum.clear();
-            row_sum.extend(f.sim.chunks_exact(nt.max(1)).map(|r| r.iter().sum::<f64>()));
+            row_sum.extend(sim.chunks_exact(nt.max(1)).map(|r| r.iter().sum::<f64>()));
             col_sum.clear();
-            col_sum.extend((0..nt).map(|j| f.sim.iter().skip(j).step_by(nt).sum::<f64>()));
+            col_sum.extend((0..nt).map(|j| sim.iter().skip(j).step_by(nt).sum::<f64>()));
             for (i, (&g, rs)) in f.gt.iter().zip(&row_sum).enumerate() {
                 for (j, (&t, cs)) in f.tr.iter().zip(&col_sum).enumerate() {
-                    let s = f.sim[i * nt + j];
+                    let s = sim[i * nt + j];
                     let denom = cs + rs - s;
                     if s != 0.0 && denom > EPS {
                         let k = a.pair(g, t);
@@ -181,6 +208,7 @@ fn match_frames(frames: &[HotaFrame], al: &mut Alignment, res: &mut HotaCounts) 
     let alpha = alphas();
     let mut loc_sum = [0.0f64; N_ALPHA];
     let mut matched = Vec::new();
+    let mut sim = Vec::new();
     for f in frames {
         let (ng, nt) = (f.gt.len(), f.tr.len());
         if ng == 0 || nt == 0 {
@@ -188,8 +216,10 @@ fn match_frames(frames: &[HotaFrame], al: &mut Alignment, res: &mut HotaCounts) 
             res.fn_.iter_mut().for_each(|v| *v += ng as f64);
             continue;
         }
+        f.dense_into(&mut sim);
+        let sim = &sim;
         let score = |i: usize, j: usize| {
-            let s = f.sim[i * nt + j];
+            let s = sim[i * nt + j];
             if s == 0.0 {
                 return 0.0;
             }
@@ -202,7 +232,7 @@ fn match_frames(frames: &[HotaFrame], al: &mut Alignment, res: &mut HotaCounts) 
             let mut n = 0usize;
             let mut s_sum = 0.0f64;
             for &(i, j) in &matched {
-                let s = f.sim[i * nt + j];
+                let s = sim[i * nt + j];
                 if s >= alpha - EPS {
                     n += 1;
                     s_sum += s;
@@ -401,8 +431,9 @@ pub fn relabel(raw: Vec<RawFrame>) -> (Vec<HotaFrame>, usize, usize) {
     (frames, gt_ids.len(), tr_ids.len())
 }
 
-/// One frame of one class before relabelling: `(truth ids, track ids, similarity)`.
-pub type RawFrame = (Vec<i64>, Vec<i64>, Vec<f64>);
+/// One frame of one class before relabelling: `(truth ids, track ids, similarity)` (the
+/// similarity's nonzero entries, [`sparse`]).
+pub type RawFrame = (Vec<i64>, Vec<i64>, SparseSim);
 
 /// Prepares (with `prepare`) and evaluates every scene as one sequence, in parallel, and
 /// combines them in scene order. Also says whether any box was there. `Err`: the first scene

@@ -6,7 +6,7 @@ fn frame(gt: &[u32], tr: &[u32], sim: &[f64]) -> HotaFrame {
     HotaFrame {
         gt: gt.to_vec(),
         tr: tr.to_vec(),
-        sim: sim.to_vec(),
+        sim: sparse(sim),
     }
 }
 

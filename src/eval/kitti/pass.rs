@@ -1,0 +1,376 @@
+//! One pass over a class's data at one score threshold: per-frame matching, then the counts
+//! along every ground-truth trajectory. Buffers live in [`ClassEval`] and are reused.
+
+use std::cmp::Ordering;
+
+use super::munkres::Munkres;
+use super::prepare::{overlap_share, Frame, Seq};
+use super::{KittiParams, MAX_COST};
+use crate::eval::events::{Collector, MarkKind};
+
+/// Counts and derived metrics of one pass over the data at one threshold.
+#[derive(Debug, Clone, Default)]
+pub(super) struct Pass {
+    pub tp: u64,
+    pub itp: u64,
+    pub fp: u64,
+    pub fn_: u64,
+    pub ifn: u64,
+    pub ids: u64,
+    pub frag: u64,
+    /// Ground truth minus ignored.
+    pub n_gt: u64,
+    pub n_igt: u64,
+    pub n_tr: u64,
+    pub n_itr: u64,
+    pub mt: f64,
+    pub pt: f64,
+    pub ml: f64,
+    pub mota: f64,
+    pub moda: f64,
+    pub motal: f64,
+    pub smota: f64,
+    pub motp: f64,
+    pub modp: f64,
+    pub recall: f64,
+    pub precision: f64,
+    pub f1: f64,
+    pub far: f64,
+    /// Mean scores of the matched boxes, in matching order.
+    pub scores: Vec<f64>,
+}
+
+/// Sums a pass carries besides [`Pass`]'s counts.
+#[derive(Debug, Default)]
+struct Tally {
+    total_cost: f64,
+    modp_sum: f64,
+    n_frames: usize,
+    pub mt: u64,
+    pub pt: u64,
+    pub ml: u64,
+    n_ignored_traj: u64,
+}
+
+/// Per-frame working buffers.
+#[derive(Debug, Default)]
+struct Scratch {
+    munkres: Munkres,
+    pairs: Vec<(usize, usize)>,
+    kept: Vec<usize>,
+    cost: Vec<f64>,
+    matched: Vec<Option<usize>>,
+    tmpcs: Vec<f64>,
+    tr_ignored: Vec<bool>,
+    sums: Vec<(f64, usize)>,
+    /// Per frame of the scene, the matched track id of each ground truth (-1: none).
+    assigned: Vec<Vec<i64>>,
+}
+
+/// One class's data and the state the reference carries from one threshold to the next.
+pub(super) struct ClassEval<'a> {
+    pub p: &'a KittiParams,
+    pub seqs: Vec<Seq>,
+    pub n_gt_trajectories: u64,
+    /// Where the decisions of a pass are recorded (`eval --events`), when set.
+    pub log: Option<Collector>,
+    scratch: Scratch,
+}
+
+impl<'a> ClassEval<'a> {
+    /// The evaluation of prepared sequences.
+    pub(super) fn new(p: &'a KittiParams, seqs: Vec<Seq>, n_gt_trajectories: u64) -> Self {
+        ClassEval {
+            p,
+            seqs,
+            n_gt_trajectories,
+            log: None,
+            scratch: Scratch::default(),
+        }
+    }
+
+    /// One pass at `threshold` (tracks whose mean score is below it are dropped), with sMOTA at
+    /// `recall_point`.
+    pub(super) fn pass(&mut self, threshold: f64, recall_point: f64) -> Pass {
+        let mut r = Pass::default();
+        let mut t = Tally::default();
+        let s = &mut self.scratch;
+        for (si, seq) in self.seqs.iter_mut().enumerate() {
+            t.n_frames += seq.frames.len();
+            average_scores(seq, &mut s.sums);
+            s.assigned.resize_with(seq.frames.len(), Vec::new);
+            for (fi, f) in seq.frames.iter_mut().enumerate() {
+                let mut assigned = std::mem::take(&mut s.assigned[fi]);
+                match_frame(f, threshold, self.p, s, &mut assigned, &mut r, &mut t);
+                s.assigned[fi] = assigned;
+                if let Some(log) = self.log.as_mut() {
+                    record_frame(log, (si, fi), f, s);
+                }
+            }
+            let log = self.log.as_mut().map(|l| (l, si));
+            count_trajectories(seq, &s.assigned, &mut r, &mut t, log);
+        }
+        finish(r, &t, self.n_gt_trajectories, recall_point)
+    }
+}
+
+/// Every row of a track takes the mean score of the track's rows, summed in file order.
+fn average_scores(seq: &mut Seq, sums: &mut Vec<(f64, usize)>) {
+    sums.clear();
+    sums.resize(seq.n_tracks, (0.0, 0));
+    for f in &seq.frames {
+        for t in &f.tr {
+            let e = &mut sums[t.slot as usize];
+            e.0 += t.score;
+            e.1 += 1;
+        }
+    }
+    for f in &mut seq.frames {
+        for t in &mut f.tr {
+            let (s, n) = sums[t.slot as usize];
+            t.score = s / n as f64;
+        }
+    }
+}
+
+/// Matches one frame at `threshold` and adds its counts; `assigned` receives the matched track
+/// id (or -1) of each ground truth.
+fn match_frame(
+    f: &mut Frame,
+    threshold: f64,
+    p: &KittiParams,
+    s: &mut Scratch,
+    assigned: &mut Vec<i64>,
+    r: &mut Pass,
+    t: &mut Tally,
+) {
+    s.kept.clear();
+    s.kept.extend(
+        (0..f.tr.len()).filter(|&k| f.tr[k].score.partial_cmp(&threshold) != Some(Ordering::Less)),
+    );
+    let (ng, nt) = (f.gt.len(), s.kept.len());
+    r.n_gt += ng as u64;
+    r.n_tr += nt as u64;
+    s.cost.clear();
+    for gi in 0..ng {
+        for &k in &s.kept {
+            let c = f.cost[gi * f.tr.len() + k];
+            s.cost.push(if c <= 1.0 - p.min_overlap {
+                c
+            } else {
+                MAX_COST
+            });
+        }
+    }
+    s.munkres.solve(&s.cost, ng, nt, &mut s.pairs);
+    assigned.clear();
+    assigned.resize(ng, -1);
+    s.matched.clear();
+    s.matched.resize(ng, None);
+    s.tmpcs.clear();
+    s.tmpcs.resize(ng, 0.0);
+    let (mut tmptp, mut gated, mut tmpc) = (0u64, 0i64, 0.0f64);
+    for &(row, col) in &s.pairs {
+        let c = s.cost[row * nt + col];
+        if c < MAX_COST {
+            let tr = &mut f.tr[s.kept[col]];
+            s.matched[row] = Some(col);
+            tr.valid = true;
+            t.total_cost += 1.0 - c;
+            tmpc += 1.0 - c;
+            s.tmpcs[row] = 1.0 - c;
+            assigned[row] = tr.id;
+            r.tp += 1;
+            tmptp += 1;
+            r.scores.push(tr.score);
+        } else {
+            gated += 1;
+        }
+    }
+    // Ignored track boxes: neighbouring class, too small, or inside DontCare.
+    s.tr_ignored.clear();
+    s.tr_ignored.resize(nt, false);
+    let mut n_ignored_tr = 0u64;
+    for (col, &k) in s.kept.iter().enumerate() {
+        let tr = &f.tr[k];
+        if tr.valid {
+            continue;
+        }
+        let height = (tr.bbox[1] - tr.bbox[3]).abs();
+        if tr.neighbour
+            || height <= p.min_height
+            || f.dc.iter().any(|d| overlap_share(&tr.bbox, d) > 0.5)
+        {
+            n_ignored_tr += 1;
+            s.tr_ignored[col] = true;
+        }
+    }
+    // Ignored ground truth: truncated, occluded or of the neighbouring class.
+    let (mut ignored_fn, mut ignored_tp, mut ignored_pairs) = (0u64, 0u64, 0u64);
+    for (gi, g) in f.gt.iter().enumerate().filter(|(_, g)| g.ignored) {
+        let _ = g;
+        match s.matched[gi] {
+            None => ignored_fn += 1,
+            Some(col) => {
+                ignored_tp += 1;
+                if s.tr_ignored[col] {
+                    ignored_pairs += 1;
+                }
+                tmpc -= s.tmpcs[gi];
+            }
+        }
+    }
+    tmptp -= ignored_tp;
+    r.itp += ignored_tp;
+    r.n_gt -= ignored_fn + ignored_tp;
+    r.n_igt += ignored_fn + ignored_tp;
+    r.n_itr += n_ignored_tr;
+    // Pairs over the IoU limit, plus ground truth left unassigned, minus the ignored ones
+    // among both (never negative).
+    let frame_fn = gated + ng as i64 - s.pairs.len() as i64 - ignored_fn as i64;
+    r.fn_ += frame_fn.max(0) as u64;
+    r.ifn += ignored_fn;
+    r.fp += nt as u64 + ignored_pairs - tmptp - n_ignored_tr - ignored_tp;
+    t.modp_sum += if tmptp != 0 { tmpc / tmptp as f64 } else { 1.0 };
+}
+
+/// Records the decisions `match_frame` took in frame `fi` of scene `si` (`eval --events`).
+fn record_frame(log: &mut Collector, (si, fi): (usize, usize), f: &Frame, s: &Scratch) {
+    log.record_kitti_frame(
+        si,
+        fi,
+        f.gt.iter().map(|g| g.id),
+        &s.matched,
+        |gi| f.gt[gi].ignored,
+        &s.tr_ignored,
+        |col| f.tr[s.kept[col]].id,
+    );
+}
+
+/// Identity switches, fragmentations and coverage along each ground-truth trajectory of a
+/// scene, from the matched ids of its rows; each switch and fragmentation also goes to `log`
+/// (with the scene's index) when given.
+fn count_trajectories(
+    seq: &Seq,
+    assigned: &[Vec<i64>],
+    r: &mut Pass,
+    t: &mut Tally,
+    mut log: Option<(&mut Collector, usize)>,
+) {
+    let mut g: Vec<i64> = Vec::new();
+    let mut ign: Vec<bool> = Vec::new();
+    for rows in &seq.trajectories {
+        let truth = rows
+            .first()
+            .map_or(-1, |&(fi, gi)| seq.frames[fi as usize].gt[gi as usize].id);
+        let mut mark = |kind, f: usize, track: i64, previous: i64| {
+            if let Some((log, si)) = log.as_mut() {
+                log.record_mark(*si, truth, f, kind, track, previous);
+            }
+        };
+        g.clear();
+        ign.clear();
+        for &(fi, gi) in rows {
+            g.push(assigned[fi as usize][gi as usize]);
+            ign.push(seq.frames[fi as usize].gt[gi as usize].ignored);
+        }
+        if ign.iter().all(|&i| i) {
+            t.n_ignored_traj += 1;
+            continue;
+        }
+        if g.iter().all(|&id| id == -1) {
+            t.ml += 1;
+            continue;
+        }
+        let n = g.len();
+        let mut last_id = g[0];
+        let mut tracked = u64::from(g[0] >= 0);
+        for f in 1..n {
+            if ign[f] {
+                last_id = -1;
+                continue;
+            }
+            if last_id != g[f] && last_id != -1 && g[f] != -1 && g[f - 1] != -1 {
+                r.ids += 1;
+                mark(MarkKind::Switch, f, g[f], last_id);
+            }
+            if f < n - 1 && g[f - 1] != g[f] && last_id != -1 && g[f] != -1 && g[f + 1] != -1 {
+                r.frag += 1;
+                mark(MarkKind::Fragmentation, f, g[f], last_id);
+            }
+            if g[f] != -1 {
+                tracked += 1;
+                last_id = g[f];
+            }
+        }
+        if n > 1 {
+            let f = n - 1;
+            if g[f - 1] != g[f] && last_id != -1 && g[f] != -1 && !ign[f] {
+                r.frag += 1;
+                mark(MarkKind::Fragmentation, f, g[f], last_id);
+            }
+        }
+        let considered = n - ign.iter().filter(|&&i| i).count();
+        let ratio = tracked as f64 / considered as f64;
+        if ratio > 0.8 {
+            t.mt += 1;
+        } else if ratio < 0.2 {
+            t.ml += 1;
+        } else {
+            t.pt += 1;
+        }
+    }
+}
+
+/// The ratios of a pass from its counts.
+fn finish(mut r: Pass, t: &Tally, n_gt_trajectories: u64, recall_point: f64) -> Pass {
+    let (mt, pt, ml, n_frames) = (t.mt, t.pt, t.ml, t.n_frames);
+    let (total_cost, modp_sum) = (t.total_cost, t.modp_sum);
+    let n_traj = n_gt_trajectories - t.n_ignored_traj;
+    if n_traj == 0 {
+        (r.mt, r.pt, r.ml) = (0.0, 0.0, 0.0);
+    } else {
+        r.mt = mt as f64 / n_traj as f64;
+        r.pt = pt as f64 / n_traj as f64;
+        r.ml = ml as f64 / n_traj as f64;
+    }
+    if r.fp + r.tp == 0 || r.tp + r.fn_ == 0 {
+        (r.recall, r.precision) = (0.0, 0.0);
+    } else {
+        r.recall = r.tp as f64 / (r.tp + r.fn_) as f64;
+        r.precision = r.tp as f64 / (r.fp + r.tp) as f64;
+    }
+    r.f1 = if r.recall + r.precision == 0.0 {
+        0.0
+    } else {
+        2.0 * (r.precision * r.recall) / (r.precision + r.recall)
+    };
+    r.far = r.fp as f64 / n_frames as f64;
+    if r.n_gt == 0 {
+        (r.mota, r.moda, r.smota, r.motal) = (
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        );
+    } else {
+        let n_gt = r.n_gt as f64;
+        r.mota = 1.0 - (r.fn_ + r.fp + r.ids) as f64 / n_gt;
+        r.moda = 1.0 - (r.fn_ + r.fp) as f64 / n_gt;
+        let s = 1.0
+            - ((r.fn_ + r.fp + r.ids) as f64 - (1.0 - recall_point) * n_gt) / (recall_point * n_gt);
+        r.smota = s.clamp(0.0, 1.0);
+        r.motal = if r.ids == 0 {
+            r.mota
+        } else {
+            1.0 - ((r.fn_ + r.fp) as f64 + (r.ids as f64).log10()) / n_gt
+        };
+    }
+    r.motp = if r.tp == 0 {
+        0.0
+    } else {
+        total_cost / r.tp as f64
+    };
+    r.modp = modp_sum / n_frames as f64;
+    r
+}
