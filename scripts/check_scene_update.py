@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Decodes the foxglove.SceneUpdate channel of a tracked MCAP with the official Foxglove
 Python schemas (PyPI `foxglove-schemas-protobuf`, generated from the same .proto files as the
-Foxglove app uses) and prints one JSON line per message, for tests/scene_update.rs.
+Foxglove app uses) and prints one JSON line per message, for tests/it/scene_update.rs.
 
 The messages are parsed with `foxglove_schemas_protobuf.SceneUpdate_pb2.SceneUpdate`, not with
 the descriptor embedded in the file, so a wrong field number or type in probmot's output fails

@@ -19,7 +19,7 @@ Times of timestamp timelines are nanoseconds since the epoch.
 
     python3 scripts/inspect_rrd.py drive.rrd
 
-Used by tests/rerun_scripts.rs. Exit status 2 when the file cannot be read.
+Used by tests/it/rerun_scripts.rs. Exit status 2 when the file cannot be read.
 """
 
 from __future__ import annotations

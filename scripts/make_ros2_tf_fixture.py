@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Writes tests/fixtures/ros2_tf/tf.mcap with a third-party ROS 2 writer (PyPI
 `mcap-ros2-support`, which serialises CDR from the message definitions below) and
-tests/fixtures/ros2_tf/expected.json with the values written, for tests/ros2_tf_fixture.rs.
+tests/fixtures/ros2_tf/expected.json with the values written, for tests/it/ros2_tf_fixture.rs.
 
 Channels:
   /tf_static  tf2_msgs/msg/TFMessage  base_link -> lidar_top (static)

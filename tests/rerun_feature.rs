@@ -1,14 +1,15 @@
 //! The Rust Rerun writer (cargo feature `rerun`): `probmot viz` and `probmot track --rerun` write
 //! .rrd files that the pinned Rerun SDK (rerun-sdk 0.36.3, scripts/requirements.txt) verifies and
 //! reads back with the same entities, row counts per timeline and top-down view as
-//! `scripts/to_rerun.py` (checked with the helpers of tests/rerun_scripts.rs).
+//! `scripts/to_rerun.py` (checked with the helpers of tests/it/rerun_scripts.rs).
 //!
 //! The read-back needs `python3 -m pip install -r scripts/requirements.txt`; without rerun-sdk the
 //! tests check what they can without it, say so on stderr and pass. Without the feature, the
 //! tests check that `viz` and `track --rerun` fail with a message saying how to get a recording.
 
+#[path = "it/common/mod.rs"]
 mod common;
-#[path = "common/rrd.rs"]
+#[path = "it/common/rrd.rs"]
 mod rrd;
 
 use common::{probmot, repo};

@@ -12,7 +12,7 @@
 //! in a string's length, as ROS 2 writes them) and the hand-written, bounds-checked
 //! [`TfMessage::decode`] / [`Odometry::decode`] that probmot uses on logs, because the `cdr`
 //! crate allocates a corrupt string length before checking it (see [`super::cdr_cursor`]).
-//! `tests/ros2_tf_fixture.rs` checks both on bytes written by `mcap-ros2-support`.
+//! `tests/it/ros2_tf_fixture.rs` checks both on bytes written by `mcap-ros2-support`.
 
 use serde::de::{Deserializer, Error as _, SeqAccess, Visitor};
 use serde::Deserialize;

@@ -9,7 +9,7 @@
 //! then diagonal, so the gain `K = P H^T S^-1` and the update `P - K H P` act within each block.
 //! The filter below computes exactly the dense equations but only on the non-zero entries:
 //! `predict` and `update` cost a few dozen flops instead of several thousand, and the Cholesky
-//! factor of the diagonal `S` is the square roots of its diagonal. `tests/tracker_core.rs`
+//! factor of the diagonal `S` is the square roots of its diagonal. `tests/it/tracker_core.rs`
 //! checks the result against the dense matrix equations.
 
 use nalgebra::{SMatrix, SVector};

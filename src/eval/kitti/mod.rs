@@ -3,7 +3,7 @@
 //! points, and the CLEAR MOT metrics (MOTA, MOTP, IDS, FRAG, ...) at the threshold with the
 //! highest MOTA. The rules are summarised in `../shared/reference/evaluation-protocols.md`
 //! (beside the repository); this is our own implementation of them, checked against numbers of
-//! the reference evaluation in `tests/kitti_eval.rs` (see `tests/fixtures/kitti/README.md`).
+//! the reference evaluation in `tests/it/kitti_eval.rs` (see `tests/fixtures/kitti/README.md`).
 //!
 //! In short, per class and over all scenes:
 //! - Rows (ground truth and tracks alike) are kept when a class string is a substring of the

@@ -2,11 +2,9 @@
 //! vehicle (`probmot simulate --ego-frame`) tracks exactly like the same drive given in the
 //! fixed frame, when the transforms are used; without them it tracks much worse.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 
-use common::*;
+use crate::common::*;
 use probmot::msgs::Tracks3D;
 use probmot::sim::ego::ego_pose;
 use probmot::sim::write::START_NS;

@@ -3,14 +3,12 @@
 //! allocate more than a few MiB, whatever its length fields claim. See `fuzz/README.md` and
 //! `tests/fixtures/fuzz/README.md`.
 
-mod common;
-
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::repo;
+use crate::common::repo;
 use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Detections3D, DetectionsEnvelope, Encoding};
 use probmot::pipeline::info::file_info;

@@ -4,13 +4,11 @@
 //! When the nuScenes devkit is installed, exports are also checked with its own loader through
 //! `scripts/check_nuscenes_export.py`.
 
-mod common;
-
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{
+use crate::common::{
     detections, devkit_has, devkit_python, messages, probmot, probmot_ok, repo, skip, tracks,
 };
 use probmot::formats::nuscenes::{

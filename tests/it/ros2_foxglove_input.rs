@@ -8,13 +8,13 @@
 //! hypothesis, metadata convention, malformed bytes). The one test that regenerates the fixtures
 //! needs those Python packages and skips with a message without them.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::*;
+use crate::common::*;
 use probmot::msgs::detection_source::{DetectionSource, SUPPORTED};
 use probmot::msgs::ros2_vision::{self, VisionLayout};
 use probmot::msgs::{foxglove_scene, Tracks3D};
@@ -30,7 +30,7 @@ const ROS2_V2_FIXTURE: &str = "tests/fixtures/ros2/turning-car-vision_msgs2.mcap
 const PROBMOT_V2_LOG: &str = "sample_logs/turning-car.mcap";
 
 /// Tracks into probmot.Tracks3D (every field, to compare in full; a ROS 2 input's default is
-/// ROS 2 tracks, compared with these in tests/ros2_bag_output.rs).
+/// ROS 2 tracks, compared with these in tests/it/ros2_bag_output.rs).
 fn track(input: &Path, output: &Path) {
     probmot_ok(&[
         "track",

@@ -1,6 +1,6 @@
 //! Checking Rerun recordings with the pinned Rerun SDK (rerun-sdk 0.36.3 from
 //! scripts/requirements.txt): `rerun rrd verify` and `scripts/inspect_rrd.py`, which reads the
-//! .rrd back with `rerun.experimental.RrdReader`. Shared by tests/rerun_scripts.rs (the Python
+//! .rrd back with `rerun.experimental.RrdReader`. Shared by tests/it/rerun_scripts.rs (the Python
 //! converters) and tests/rerun_feature.rs (the Rust `rerun` feature), so both are held to the
 //! same entities, row counts and top-down view. Included with `#[path]` next to `mod common;`.
 #![allow(dead_code)]

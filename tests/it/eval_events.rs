@@ -3,12 +3,12 @@
 //! fragmentations, false positives and misses as `eval` reports, in both protocols; the events
 //! channel decodes with the Python `mcap` reader; the copy keeps every message of the truth log.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use common::{probmot_ok, skip};
+use crate::common::{probmot_ok, skip};
 use serde_json::Value;
 
 /// Short sequences with cars, pedestrians and cyclists (about 830 frames in all).

@@ -1,13 +1,11 @@
 //! `probmot fit` on simulated logs with known noise: it recovers each R diagonal within 10% and
 //! Q within 20% of the simulator's truth.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-use common::*;
+use crate::common::*;
 use probmot::sim::scenario::{class_profile, objects, Scenario, SimOptions};
 use probmot::sim::sensor::sensor_model;
 use probmot::tracker::TrackerConfig;

@@ -1,7 +1,7 @@
 //! `probmot tune`: the search on tiny synthetic logs in memory (fast), and the 2-fold
 //! cross-validation on the shared KITTI data with a reduced budget (skipped without the data).
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::Path;

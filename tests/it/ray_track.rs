@@ -9,7 +9,7 @@
 //! Needs `python3 -m pip install -r scripts/requirements.txt` (ray, pyarrow); without them the
 //! tests say so on stderr and pass.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -17,7 +17,7 @@ use std::process::{Command, Output};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use common::{probmot_ok, repo};
+use crate::common::{probmot_ok, repo};
 use serde_json::Value;
 
 /// One Ray instance at a time: the machine has two cores.

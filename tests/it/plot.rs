@@ -1,12 +1,10 @@
 //! `probmot plot`: a bird's-eye-view PNG of a tracked sample log, checked pixel by pixel (size,
 //! colours per id in the tracks panel, grey detections, rendered text), and its errors.
 
-mod common;
-
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-use common::{probmot, probmot_ok, repo};
+use crate::common::{probmot, probmot_ok, repo};
 use probmot::viz::plot::{id_color, BACKGROUND, DETECTION_GREY, PALETTE};
 
 /// A decoded RGB picture.
@@ -285,7 +283,7 @@ fn plot_errors_are_clear_and_write_nothing() {
 #[test]
 fn plot_draws_ros2_and_foxglove_detections_like_probmot_ones() {
     // The ROS 2 and Foxglove fixtures carry the detections of sample_logs/city.mcap; tracked,
-    // they give the same boxes (tests/ros2_foxglove_input.rs), so their pictures are the same
+    // they give the same boxes (tests/it/ros2_foxglove_input.rs), so their pictures are the same
     // pixels as the probmot log's.
     let dir = tempfile::tempdir().unwrap();
     let mut pictures = Vec::new();
@@ -353,7 +351,7 @@ fn plot_marks_events_and_gives_tracks_the_colour_of_their_ground_truth() {
     let dir = tempfile::tempdir().unwrap();
     let (tracked, events) = pedestrians_with_events(dir.path());
     // 10.5 to 12.5 s: two pairs of pedestrians cross; the tracker swaps ids (eval reports the
-    // switches at 11.5 and 12 s, tests/eval_events.rs).
+    // switches at 11.5 and 12 s, tests/it/eval_events.rs).
     let plot = |name: &str, extra: &[&str]| {
         let png = dir.path().join(name);
         let mut args = vec![

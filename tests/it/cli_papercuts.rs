@@ -1,9 +1,7 @@
 //! What a new user trips over first: `--out-dir` is created, a bad output path fails before any
 //! work, every `--help` has an example, `info` prints readable times and no empty lines.
 
-mod common;
-
-use common::{probmot, probmot_ok, repo};
+use crate::common::{probmot, probmot_ok, repo};
 
 fn s(p: &std::path::Path) -> &str {
     p.to_str().unwrap()

@@ -2,12 +2,10 @@
 //! files fail with status 2 and leave no output, a killed run leaves no output, and no NaN ever
 //! reaches a tracks message.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::*;
+use crate::common::*;
 use probmot::msgs::{self, v3, Detection3D, Detections3D, Size3};
 
 fn det(label: &str, c: [f64; 3], yaw: f64, score: f64) -> Detection3D {

@@ -10,12 +10,12 @@
 //!   `eval --protocol kitti` give the scores of that README (counts equal, ratios to 1e-4), and
 //!   so do probmot's tracks; `eval --baseline` reads the imported channel.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
-use common::{probmot, probmot_ok, skip};
+use crate::common::{probmot, probmot_ok, skip};
 use serde_json::Value;
 
 const SEQUENCES: [&str; 10] = [

@@ -1,11 +1,9 @@
 //! End-to-end tests of `probmot track` on the sample logs.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::*;
+use crate::common::*;
 use prost::Message as _;
 use prost_reflect::{DescriptorPool, DynamicMessage, Value};
 

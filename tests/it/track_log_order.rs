@@ -4,12 +4,10 @@
 //! channel is there by default, on `--scene-topic`, or not at all with `--no-scene` or ROS 2
 //! tracks.
 
-mod common;
-
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use common::*;
+use crate::common::*;
 use probmot::msgs::{self, v3, Detection3D, Detections3D, Size3};
 
 const MS: u64 = 1_000_000;

@@ -3,13 +3,11 @@
 //! (`scripts/check_scene_update.py`, PyPI `foxglove-schemas-protobuf`); without those Python
 //! packages the second part says so on stderr and is skipped.
 
-mod common;
-
 use std::collections::BTreeSet;
 use std::path::Path;
 use std::process::Command;
 
-use common::*;
+use crate::common::*;
 use foxglove::schemas::SceneUpdate;
 use probmot::msgs::Tracks3D;
 use prost::Message as _;

@@ -2,7 +2,7 @@
 //! message, attachment and metadata record listed in each file's `.json` must come out unchanged.
 //! Reads `../shared/data/mcap-conformance/` beside the repository; skips when it is absent.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -8,11 +8,11 @@
 //! equal, ratios agree to 1e-6 (the result file carries 6 decimals, our evaluation reads the
 //! full-precision tracks). How the numbers were made: `tests/fixtures/kitti/README.md`.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::{probmot_ok, repo, skip};
+use crate::common::{probmot_ok, repo, skip};
 use serde_json::Value;
 
 fn data_dir() -> Option<PathBuf> {

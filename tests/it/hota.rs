@@ -8,11 +8,11 @@
 //!
 //! HOTA, DetA, AssA, LocA (and the other means) and every per-alpha curve agree to 1e-6.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::{probmot_ok, python_has, repo, skip};
+use crate::common::{probmot_ok, python_has, repo, skip};
 use serde_json::Value;
 
 const NUSCENES_CLASSES: &str = "car,pedestrian,bicycle,bus,motorcycle,trailer,truck";

@@ -6,9 +6,7 @@
 //! Needs `python3 -m pip install -r scripts/requirements.txt`; without those packages the test
 //! prints SKIPPED on stderr and passes (fails under CI=true).
 
-mod common;
-
-use common::{python_has, skip};
+use crate::common::{python_has, skip};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -6,12 +6,12 @@
 //! output back (scripts/check_ros2_bag.py: every message of every topic, the tracks decoded with
 //! their ids and compared with the generator's true positions). The other tests need no Python.
 
-mod common;
+use crate::common;
 
 use std::path::Path;
 use std::process::Command;
 
-use common::*;
+use crate::common::*;
 use probmot::msgs::ros2_vision::{self, VisionLayout};
 
 const ROS2_FIXTURE: &str = "tests/fixtures/ros2/city.mcap";

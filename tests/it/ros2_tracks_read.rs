@@ -3,16 +3,16 @@
 //! inputs) as they read `probmot.Tracks3D`.
 //!
 //! The reference is the same input tracked with `--tracks-format probmot`, read by the
-//! existing protobuf path: both runs hold the same tracks (tests/ros2_bag_output.rs checks that
+//! existing protobuf path: both runs hold the same tracks (tests/it/ros2_bag_output.rs checks that
 //! message by message), so every reader must see the same boxes, draw the same pixels and score
 //! the same metrics. Velocities have no field in the ROS 2 message and are left out of the
 //! comparison.
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 
-use common::*;
+use crate::common::*;
 use probmot::viz::{read_layers, Layer};
 
 /// Tracks the ROS 2 fixture twice into `dir`: `(ROS 2 tracks, probmot tracks)`.

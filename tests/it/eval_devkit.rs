@@ -2,9 +2,7 @@
 //! fixtures (`tests/fixtures/eval/`; `scripts/devkit_crosscheck.py` made the `.devkit.json` files
 //! with nuscenes-devkit 1.2.0 and motmetrics 1.4.0; see the README there).
 
-mod common;
-
-use common::*;
+use crate::common::*;
 use serde_json::Value;
 
 const FIXTURES: [&str; 5] = [

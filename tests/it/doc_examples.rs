@@ -7,12 +7,10 @@
 //! A block that cannot run here (a Ray cluster, the `rerun` feature build, dataset files) has the
 //! line `<!-- not run in CI: REASON -->` right before its fence; the reason is required.
 
-mod common;
-
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::repo;
+use crate::common::repo;
 
 const MARKER: &str = "<!-- not run in CI:";
 

@@ -7,12 +7,10 @@
 //! Needs Node (20) and `npm ci` in scripts/js (run by `.ci/run`); without them the test prints
 //! SKIPPED on stderr and passes (fails under CI=true).
 
-mod common;
-
 use std::path::Path;
 use std::process::Command;
 
-use common::*;
+use crate::common::*;
 use foxglove::schemas::SceneUpdate;
 use prost::Message as _;
 use serde_json::Value;

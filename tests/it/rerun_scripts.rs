@@ -6,13 +6,12 @@
 //! Needs `python3 -m pip install -r scripts/requirements.txt`; without rerun-sdk (or the MCAP
 //! readers) the tests say so on stderr and pass.
 
-mod common;
 #[path = "common/rrd.rs"]
 mod rrd;
 
 use std::path::{Path, PathBuf};
 
-use common::{detections, messages, repo, tracks};
+use crate::common::{detections, messages, repo, tracks};
 use rrd::{
     available, check_run, check_top_down_view, expected, inspect, ok, python, script, track, verify,
 };
@@ -306,7 +305,7 @@ fn to_rerun_reads_ros2_foxglove_and_json_inputs() {
             &format!("{name} detections"),
         );
         // ROS 2 tracks carry no velocity; their boxes are those of the probmot log's tracks
-        // (tests/ros2_foxglove_input.rs: the same tracks to 1e-9).
+        // (tests/it/ros2_foxglove_input.rs: the same tracks to 1e-9).
         let want = if ros2_tracks {
             let reference = dir.path().join("reference.tracked.mcap");
             track(source, &reference, &[]);

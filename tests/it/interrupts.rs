@@ -4,14 +4,14 @@
 //! next run writing that output removes it.
 #![cfg(unix)]
 
-mod common;
+use crate::common;
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use common::{bin, probmot_ok, repo};
+use crate::common::{bin, probmot_ok, repo};
 
 /// A log long enough that tracking it takes seconds (debug build): 1,500 frames of the city.
 fn long_log() -> &'static Path {

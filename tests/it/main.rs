@@ -1,0 +1,34 @@
+//! The integration tests, one binary (as ripgrep's tests/): one module per area, shared
+//! helpers in `common`. `cargo test --test it AREA::` runs one area.
+
+mod common;
+
+mod ab3dmot_kitti;
+mod cli_papercuts;
+mod conformance;
+mod doc_examples;
+mod ego_motion;
+mod eval_devkit;
+mod eval_events;
+mod fit;
+mod foxglove_js_reader;
+mod fuzz_regressions;
+mod hota;
+mod interrupts;
+mod kitti_eval;
+mod levers;
+mod nuscenes_io;
+mod plot;
+mod ray_track;
+mod rerun_scripts;
+mod robustness;
+mod ros2_bag_output;
+mod ros2_foxglove_input;
+mod ros2_tf_fixture;
+mod ros2_tracks_read;
+mod scene_update;
+mod third_party_reader;
+mod track_e2e;
+mod track_log_order;
+mod tracker_core;
+mod tune;
