@@ -394,6 +394,66 @@ fn create_output(
     Ok(out)
 }
 
+/// What the output's channels come from: the detection channels chosen in the scan, the ids free
+/// for the tracks' schema and channel, and what the scan collected on the way.
+#[derive(Default)]
+struct PlannedChannels {
+    /// The input's ROS 2 / probmot profile.
+    profile: String,
+    /// The detection topics, in channel-id order.
+    topics: Vec<String>,
+    /// Per detection channel: its decoder and the index of its topic.
+    det_channels: HashMap<u16, (DetectionSource, usize)>,
+    /// Schema and channel ids of the tracks (`None`: no detection channel).
+    ids: Option<(u16, u16)>,
+    /// The input's schema ids, channel ids and topics.
+    scan_ids: Option<(HashSet<u16>, HashSet<u16>, HashSet<String>)>,
+    /// The transforms met in the scan.
+    transforms: TransformCollector,
+}
+
+/// The channels of the output from the scan `s`: refuses a tracks topic the input already has,
+/// adds the selection warnings to `summary`.
+fn planned_channels(
+    mut s: Scan,
+    opts: &TrackOptions,
+    file: &str,
+    summary: &mut TrackSummary,
+) -> Result<PlannedChannels> {
+    let mut p = PlannedChannels::default();
+
+    if s.topics.contains(&opts.tracks_topic) {
+        bail!(
+            "{file}: already has a channel on {}; choose another topic with --tracks-topic",
+            opts.tracks_topic
+        );
+    }
+    selection_warnings(&s, opts, file, &mut summary.warnings);
+    p.transforms = std::mem::take(&mut s.transforms);
+    summary.stamps_backwards = std::mem::take(&mut s.stamps_backwards);
+    p.profile = std::mem::take(&mut s.profile);
+    let mut det: Vec<(u16, (DetectionSource, String))> = s.det_channels.into_iter().collect();
+    det.sort_by_key(|(id, _)| *id);
+    for (id, (enc, topic)) in det {
+        if !p.topics.contains(&topic) {
+            p.topics.push(topic.clone());
+        }
+        let idx = p.topics.iter().position(|t| *t == topic).unwrap();
+        p.det_channels.insert(id, (enc, idx));
+    }
+    if !p.det_channels.is_empty() {
+        let schema_id = (1..=u16::MAX)
+            .find(|i| !s.schema_ids.contains(i))
+            .context("no free schema id in the output")?;
+        let channel_id = (1..=u16::MAX)
+            .find(|i| !s.channel_ids.contains(i))
+            .context("no free channel id in the output")?;
+        p.ids = Some((schema_id, channel_id));
+    }
+    p.scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
+    Ok(p)
+}
+
 /// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
 /// the first pass or the summary; `None` with `--no-track`), `base` the progress already made.
 fn run_pass(
@@ -411,43 +471,17 @@ fn run_pass(
         output: output.display().to_string(),
         ..Default::default()
     };
-    let mut profile = String::new();
-    let mut topics: Vec<String> = Vec::new();
-    let mut det_channels: HashMap<u16, (DetectionSource, usize)> = HashMap::new();
-    let mut ids = None;
-    let mut scan_ids = None;
-    let mut transforms = TransformCollector::new();
-    if let Some(mut s) = plan {
-        if s.topics.contains(&opts.tracks_topic) {
-            bail!(
-                "{file}: already has a channel on {}; choose another topic with --tracks-topic",
-                opts.tracks_topic
-            );
-        }
-        selection_warnings(&s, opts, &file, &mut summary.warnings);
-        transforms = std::mem::take(&mut s.transforms);
-        summary.stamps_backwards = std::mem::take(&mut s.stamps_backwards);
-        profile = std::mem::take(&mut s.profile);
-        let mut det: Vec<(u16, (DetectionSource, String))> = s.det_channels.into_iter().collect();
-        det.sort_by_key(|(id, _)| *id);
-        for (id, (enc, topic)) in det {
-            if !topics.contains(&topic) {
-                topics.push(topic.clone());
-            }
-            let idx = topics.iter().position(|t| *t == topic).unwrap();
-            det_channels.insert(id, (enc, idx));
-        }
-        if !det_channels.is_empty() {
-            let schema_id = (1..=u16::MAX)
-                .find(|i| !s.schema_ids.contains(i))
-                .context("no free schema id in the output")?;
-            let channel_id = (1..=u16::MAX)
-                .find(|i| !s.channel_ids.contains(i))
-                .context("no free channel id in the output")?;
-            ids = Some((schema_id, channel_id));
-        }
-        scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
-    }
+    let PlannedChannels {
+        profile,
+        topics,
+        det_channels,
+        ids,
+        scan_ids,
+        transforms,
+    } = match plan {
+        Some(s) => planned_channels(s, opts, &file, &mut summary)?,
+        None => PlannedChannels::default(),
+    };
     summary.detection_topics = topics.clone();
     let format = TracksFormat::resolve(
         opts.tracks_format,
