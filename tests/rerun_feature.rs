@@ -240,6 +240,66 @@ mod with_feature {
         assert_eq!(from_track["views"], from_viz["views"]);
     }
 
+    /// `viz` on the file `eval --events` writes draws the events layer as `to_rerun.py` does:
+    /// a row of error boxes per frame and a text entry per identity switch and fragmentation.
+    #[test]
+    fn viz_draws_the_events_layer_as_to_rerun_py() {
+        let dir = tempfile::tempdir().unwrap();
+        let tracked = dir.path().join("ped.tracked.mcap");
+        let events = dir.path().join("ped.events.mcap");
+        track(&repo("sample_logs/pedestrians.mcap"), &tracked, &[]);
+        let out = probmot_ok(&[
+            "eval",
+            "--truth",
+            tracked.to_str().unwrap(),
+            "--events",
+            events.to_str().unwrap(),
+            "--json",
+        ]);
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let moments: u64 = v["events"]["counts"]
+            .as_object()
+            .unwrap()
+            .values()
+            .map(|c| c["ids"].as_u64().unwrap() + c["frag"].as_u64().unwrap())
+            .sum();
+        assert!(
+            moments > 0,
+            "the sample has switches or fragmentations: {v}"
+        );
+        let rrd = dir.path().join("events.rrd");
+        probmot_ok(&[
+            "viz",
+            events.to_str().unwrap(),
+            "-o",
+            rrd.to_str().unwrap(),
+            "--quiet",
+        ]);
+        check_file(&rrd);
+        if !available("viz_draws_the_events_layer_as_to_rerun_py (SDK read-back)") {
+            return;
+        }
+        verify(&rrd);
+        let rust = inspect(&rrd);
+        let e = &rust["entities"];
+        assert_eq!(e["/events"]["rows"].as_u64(), Some(moments), "{e}");
+        assert_eq!(e["/world/events"]["rows"].as_u64(), Some(40), "{e}");
+        let py_rrd = dir.path().join("python.rrd");
+        ok(
+            python(&[
+                &script("to_rerun.py"),
+                events.to_str().unwrap(),
+                "-o",
+                py_rrd.to_str().unwrap(),
+            ]),
+            "to_rerun.py",
+        );
+        let py = inspect(&py_rrd);
+        for key in ["/events", "/world/events"] {
+            assert_eq!(rust["entities"][key], py["entities"][key], "{key}");
+        }
+    }
+
     #[test]
     fn viz_reads_an_untracked_log_and_refuses_a_foreign_one() {
         let dir = tempfile::tempdir().unwrap();

@@ -8,7 +8,9 @@
 //! `world/tracks` (boxes in the id's colour, labelled "car 12"), `world/ground_truth` (thin green
 //! boxes labelled "gt 3", when the file has ground truth), `world/trails` (a line strip per track
 //! through its last centres) and `world/velocity` (an arrow per track: its velocity over one
-//! second). Timelines: `log_time` (timestamp, the MCAP log time) and `frame` (sequence, the
+//! second); with the evaluation's events in the file (`eval --events`), `world/events` (the errors
+//! as boxes coloured by kind) and `events` (a text entry per identity switch and fragmentation).
+//! Timelines: `log_time` (timestamp, the MCAP log time) and `frame` (sequence, the
 //! frame index); the SDK's own `log_time`/`log_tick` injection is turned off.
 //!
 //! The recording carries a blueprint (made active and default on load) with one 3D view of `world` whose eye looks straight
@@ -31,13 +33,17 @@ use rerun::external::re_sdk_types::blueprint::archetypes::{
 use rerun::external::uuid::Uuid;
 use rerun::{
     Angle, Arrows3D, Boxes3D, Color, FillMode, LineStrips3D, Radius, RecordingStream,
-    RecordingStreamBuilder, RotationAxisAngle, TimeCell, ViewCoordinates,
+    RecordingStreamBuilder, RotationAxisAngle, TextLog, TextLogLevel, TimeCell, ViewCoordinates,
 };
 
 use super::plot::{id_color, mix64, DETECTION_GREY};
 use super::scene::Scene;
+use super::window::read_timed_events;
 use super::{read_layers, BevBox, Layer};
 use crate::mcapio::writer::write_file_atomic;
+use crate::msgs::eval_event::Kind;
+use crate::msgs::eval_events::{kind_name, kind_rgb, EVENTS_TOPIC};
+use crate::msgs::EvalEvent;
 
 /// Application id of the recordings (as `scripts/to_rerun.py`).
 pub const APPLICATION_ID: &str = "probmot";
@@ -174,6 +180,73 @@ fn log_scene(rec: &RecordingStream, scene: &Scene) -> rerun::RecordingStreamResu
                     .with_colors(tracks.iter().map(color))
                     .with_radii([ui_points(1.0)]),
             )?;
+        }
+    }
+    log_events(rec, scene)
+}
+
+/// Logs the evaluation's errors (`eval --events`) as `scripts/to_rerun.py` does: per frame, the
+/// `world/events` boxes (a little larger than the object, in the kind's colour) and, per identity
+/// switch and fragmentation, an `events` text entry (level WARN): the moments to jump to on the
+/// timeline.
+fn log_events(rec: &RecordingStream, scene: &Scene) -> rerun::RecordingStreamResult<()> {
+    for (log_time, ev) in &scene.events {
+        if let Ok(i) = scene.frames.binary_search_by_key(log_time, |f| f.log_time) {
+            rec.set_time(
+                "frame",
+                TimeCell::from_sequence(scene.frames[i].index as i64),
+            );
+        }
+        rec.set_time(
+            "log_time",
+            TimeCell::from_timestamp_nanos_since_epoch(*log_time as i64),
+        );
+        let errors: Vec<&EvalEvent> = ev
+            .events
+            .iter()
+            .filter(|e| e.kind() != Kind::Match)
+            .collect();
+        let center = |e: &EvalEvent| e.center.unwrap_or_default();
+        let size = |e: &EvalEvent| e.size.unwrap_or_default();
+        let boxes =
+            Boxes3D::from_centers_and_half_sizes(
+                errors.iter().map(|e| {
+                    let c = center(e);
+                    [c.x as f32, c.y as f32, c.z as f32]
+                }),
+                errors.iter().map(|e| {
+                    let s = size(e);
+                    [
+                        (s.length / 2.0 + 0.2) as f32,
+                        (s.width / 2.0 + 0.2) as f32,
+                        (s.height / 2.0 + 0.2) as f32,
+                    ]
+                }),
+            )
+            .with_rotation_axis_angles(errors.iter().map(|e| {
+                RotationAxisAngle::new([0.0, 0.0, 1.0], Angle::from_radians(e.yaw as f32))
+            }))
+            .with_colors(errors.iter().map(|e| rgb(kind_rgb(e.kind()))))
+            .with_labels(
+                errors
+                    .iter()
+                    .map(|e| format!("{} gt {}", kind_name(e.kind()), e.truth_id)),
+            )
+            .with_radii([ui_points(2.0)]);
+        rec.log("world/events", &boxes)?;
+        for e in errors {
+            let what = match e.kind() {
+                Kind::Switch => format!("trk {}->{}", e.previous_track_id, e.track_id),
+                Kind::Fragmentation => format!("lost trk {}", e.previous_track_id),
+                _ => continue,
+            };
+            let text = format!(
+                "{} {} gt {} {what}",
+                kind_name(e.kind()),
+                e.label,
+                e.truth_id
+            );
+            rec.log("events", &TextLog::new(text).with_level(TextLogLevel::WARN))?;
         }
     }
     Ok(())
@@ -328,7 +401,10 @@ pub fn mcap_to_rrd(input: &Path, out: &Path, o: &VizOptions) -> Result<RrdSummar
         (Layer::GroundTruth, o.truth_topic.clone()),
     ];
     let read = read_layers(input, &wanted)?;
-    let scene = Scene::build(&read, &o.classes, o.trail);
+    let mut scene = Scene::build(&read, &o.classes, o.trail);
+    if read.topics.contains(EVENTS_TOPIC) {
+        scene.events = read_timed_events(input, EVENTS_TOPIC, 0, u64::MAX)?;
+    }
     if scene.frames.is_empty() {
         let topics = if read.topics.is_empty() {
             "none".to_string()

@@ -10,6 +10,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 
 use super::{BevBox, FileLayers, Layer};
+use crate::msgs::EvalEvents;
 
 /// One frame of the scene.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,6 +48,9 @@ pub struct Scene {
     pub frames: Vec<SceneFrame>,
     /// Which layers the file has (a topic with at least one message).
     pub layers: BTreeSet<Layer>,
+    /// The evaluation's decisions per frame with their log times, when the file has them
+    /// (`eval --events`); empty otherwise.
+    pub events: Vec<(u64, EvalEvents)>,
 }
 
 /// Whether a box can be drawn: finite centre, size and yaw.
@@ -106,7 +110,11 @@ impl Scene {
                 trails,
             });
         }
-        Scene { frames, layers }
+        Scene {
+            frames,
+            layers,
+            events: Vec::new(),
+        }
     }
 
     /// Every box of every frame and layer.

@@ -265,6 +265,17 @@ pub fn read_window(
 /// The `probmot.EvalEvents` messages of `topic` in `path` (written by `eval --events`) whose log
 /// time lies in `[from_ns, to_ns]`, read through the chunk indexes when the file has them.
 pub fn read_events(path: &Path, topic: &str, from_ns: u64, to_ns: u64) -> Result<Vec<EvalEvents>> {
+    let timed = read_timed_events(path, topic, from_ns, to_ns)?;
+    Ok(timed.into_iter().map(|(_, m)| m).collect())
+}
+
+/// [`read_events`] with the log time of each message (to place it on a recording's timelines).
+pub fn read_timed_events(
+    path: &Path,
+    topic: &str,
+    from_ns: u64,
+    to_ns: u64,
+) -> Result<Vec<(u64, EvalEvents)>> {
     let name = path.display().to_string();
     let mut file = File::open(path).with_context(|| format!("cannot open {name}"))?;
     let mut out = Vec::new();
@@ -276,7 +287,7 @@ pub fn read_events(path: &Path, topic: &str, from_ns: u64, to_ns: u64) -> Result
                     h.log_time
                 )
             })?;
-            out.push(m);
+            out.push((h.log_time, m));
         }
         Ok(())
     };
