@@ -615,6 +615,11 @@ fn evaluate_class_with(
     let thresholds = recall_thresholds(run_pass(&scenes, None, p).match_scores, gt_boxes, p);
     let achieved = thresholds.iter().filter(|t| !t.is_nan()).count();
     if achieved == 0 {
+        // No track ever matched: the metrics count every ground-truth box as missed, and so do
+        // the events (a pass that keeps no track).
+        if let Some(log) = log {
+            run_pass_with(&scenes, Some(f64::INFINITY), p, Some(log));
+        }
         return worst_metrics(gt_ids.len(), gt_boxes);
     }
     // The distinct reached thresholds, each scored once, in parallel.
