@@ -11,7 +11,7 @@ use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
-use probmot::eval::nuscenes::{evaluate, NuscenesParams, NuscenesResult};
+use probmot::eval::nuscenes::{evaluate, evaluate_recording, NuscenesParams, NuscenesResult};
 use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_progress, Scene};
@@ -19,8 +19,9 @@ use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
-use super::eval_events::{self, EventsInput::Kitti, EventsInput::Nuscenes};
+use super::eval_events;
 use super::show_progress;
+use probmot::eval::events::Protocol as EventsProtocol;
 
 /// Evaluation protocols.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -375,8 +376,8 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, removed) = load_logs(&a, &pairs, false)?;
     let spinner = scoring_spinner(&a, "nuScenes metrics and HOTA");
-    let (result, (hota, hota_notes)) = rayon::join(
-        || evaluate(&scenes, &params),
+    let ((result, decisions), (hota, hota_notes)) = rayon::join(
+        || evaluate_recording(&scenes, &params, a.events.is_some()),
         || centre_hota(&scenes, &params.classes),
     );
     spinner.finish_and_clear();
@@ -389,7 +390,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         );
     }
     let events = (a.events.as_deref())
-        .map(|out| eval_events::write(out, Nuscenes(&params), &pairs, &scenes, &a.truth_topic))
+        .map(|out| {
+            let logs = (EventsProtocol::Nuscenes, &decisions[..]);
+            eval_events::write(out, logs, &pairs, &scenes, &a.truth_topic)
+        })
         .transpose()?;
     let (base_pairs, base_scenes) = load_baseline(&a, false)?;
     let baseline = base_scenes.map(|scenes| evaluate(&scenes, &params));
@@ -569,7 +573,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let (scenes, _) = load_logs(&a, &pairs, true)?;
     let spinner = scoring_spinner(&a, "KITTI metrics");
-    let result = kitti::evaluate(&scenes, &params);
+    let (result, decisions) = kitti::evaluate_recording(&scenes, &params, a.events.is_some());
     spinner.finish_and_clear();
     let (hota_2d, mut hota_notes) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Image);
     let (hota_3d, _) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Box3d);
@@ -583,7 +587,10 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         );
     }
     let events = (a.events.as_deref())
-        .map(|out| eval_events::write(out, Kitti(&params), &pairs, &scenes, &a.truth_topic))
+        .map(|out| {
+            let logs = (EventsProtocol::Kitti, &decisions[..]);
+            eval_events::write(out, logs, &pairs, &scenes, &a.truth_topic)
+        })
         .transpose()?;
     let (base_pairs, base_scenes) = load_baseline(&a, true)?;
     let baseline = base_scenes.map(|scenes| kitti::evaluate(&scenes, &params));

@@ -6,10 +6,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
-use probmot::eval::events::{resolve, ClassEvents, Counts, Protocol};
+use probmot::eval::events::{resolve, ClassEvents, Collector, Counts, Protocol};
 use probmot::eval::events_log::{write_events_log, LogEvents};
-use probmot::eval::kitti::{self, KittiParams};
-use probmot::eval::nuscenes::{self, NuscenesParams};
 use probmot::eval::scene::Scene;
 use probmot::mcapio::writer::check_output_path;
 use probmot::msgs::eval_event::Kind;
@@ -21,14 +19,6 @@ const WORST: usize = 10;
 
 /// Seconds of context on each side of a moment in the suggested plot window.
 const CONTEXT_S: f64 = 2.0;
-
-/// Which protocol, with its parameters.
-pub enum EventsInput<'a> {
-    /// nuScenes.
-    Nuscenes(&'a NuscenesParams),
-    /// KITTI.
-    Kitti(&'a KittiParams),
-}
 
 /// One listed moment.
 #[derive(Debug, Clone, serde::Serialize)]
@@ -114,27 +104,20 @@ fn output_paths(out: &Path, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<PathBuf>
         .collect()
 }
 
-/// Computes the events of every class at its best-MOTA threshold, writes one copy of each truth
-/// log with the events channels and returns the report.
+/// Turns the decisions each class's evaluation recorded at its best-MOTA threshold (`logs`,
+/// from `evaluate_recording` of `protocol`) into events, writes one copy of each truth log with
+/// the events channels and returns the report.
 pub fn write(
     out: &Path,
-    input: EventsInput<'_>,
+    (protocol, logs): (Protocol, &[(String, Collector)]),
     pairs: &[(PathBuf, PathBuf)],
     scenes: &[Scene],
     truth_topic: &str,
 ) -> Result<EventsReport> {
     let dests = output_paths(out, pairs)?;
-    let (protocol, name, logs) = match input {
-        EventsInput::Nuscenes(p) => (
-            Protocol::Nuscenes,
-            "nuscenes",
-            nuscenes::best_threshold_decisions(scenes, p),
-        ),
-        EventsInput::Kitti(p) => (
-            Protocol::Kitti,
-            "kitti",
-            kitti::best_threshold_decisions(scenes, p),
-        ),
+    let name = match protocol {
+        Protocol::Nuscenes => "nuscenes",
+        Protocol::Kitti => "kitti",
     };
     let classes: Vec<ClassEvents> = logs
         .iter()

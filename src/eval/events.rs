@@ -435,16 +435,16 @@ mod tests {
     /// missed (the devkit's worst case), and so do the events.
     #[test]
     fn a_class_no_track_matches_has_every_truth_box_missed() {
-        use crate::eval::nuscenes::{best_threshold_decisions, evaluate, NuscenesParams};
+        use crate::eval::nuscenes::{evaluate_recording, NuscenesParams};
         let scene = Scene {
             name: "s".into(),
             frames: (0..5).map(|i| (i, vec![gt(1, i as f64)], vec![])).collect(),
         };
         let p = NuscenesParams::default();
         let scenes = [scene];
-        let metrics = evaluate(&scenes, &p).classes["car"];
+        let (result, logs) = evaluate_recording(&scenes, &p, true);
+        let metrics = result.classes["car"];
         assert_eq!(metrics.fn_, 5.0);
-        let logs = best_threshold_decisions(&scenes, &p);
         let (_, log) = logs.iter().find(|(c, _)| c == "car").unwrap();
         let c = resolve(&scenes, "car", log, Protocol::Nuscenes).counts;
         assert_eq!((c.tp, c.ids, c.frag, c.fp, c.fn_), (0, 0, 0, 0, 5));

@@ -577,18 +577,9 @@ fn worst_metrics(gt_objects: usize, gt_boxes: u64) -> Metrics {
     m
 }
 
-/// Evaluates one class. `None` when the class has no ground truth.
+/// Evaluates one class (all metrics NaN when it has no ground truth), recording the decisions of
+/// its best-MOTA threshold into `log` when given.
 fn evaluate_class(
-    scenes: &[Prepared],
-    class: (u16, &str),
-    p: &NuscenesParams,
-    notes: &mut Vec<String>,
-) -> Metrics {
-    evaluate_class_with(scenes, class, p, notes, None)
-}
-
-/// [`evaluate_class`], recording the decisions of the best-MOTA threshold into `log` when given.
-fn evaluate_class_with(
     scenes: &[Prepared],
     (class_id, class): (u16, &str),
     p: &NuscenesParams,
@@ -671,40 +662,38 @@ fn evaluate_class_with(
     out
 }
 
-/// Per class with ground truth, the association decisions at its best-MOTA threshold (the one
-/// the counts of [`evaluate`] come from), for `eval --events`. Empty for a class whose recall
-/// reaches no threshold.
-pub fn best_threshold_decisions(scenes: &[Scene], p: &NuscenesParams) -> Vec<(String, Collector)> {
-    let prepared: Vec<Prepared> = scenes.par_iter().map(|s| prepare(s, &p.classes)).collect();
-    p.classes
-        .par_iter()
-        .enumerate()
-        .filter_map(|(i, c)| {
-            let mut log = Collector::default();
-            let m =
-                evaluate_class_with(&prepared, (i as u16, c), p, &mut Vec::new(), Some(&mut log));
-            (!m.gt.is_nan()).then(|| (c.clone(), log))
-        })
-        .collect()
-}
-
 /// Evaluates scenes (one log each) with the nuScenes protocol.
 pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
+    evaluate_recording(scenes, p, false).0
+}
+
+/// [`evaluate`]; with `record`, also the association decisions of each class with ground truth
+/// at its best-MOTA threshold (the pass its counts come from), for `eval --events`.
+pub fn evaluate_recording(
+    scenes: &[Scene],
+    p: &NuscenesParams,
+    record: bool,
+) -> (NuscenesResult, Vec<(String, Collector)>) {
     let prepared: Vec<Prepared> = scenes.par_iter().map(|s| prepare(s, &p.classes)).collect();
     // Classes are independent: evaluate them in parallel.
-    let per_class: Vec<(Metrics, Vec<String>)> = p
+    let per_class: Vec<(Metrics, Vec<String>, Option<Collector>)> = p
         .classes
         .par_iter()
         .enumerate()
         .map(|(i, c)| {
             let mut notes = Vec::new();
-            let m = evaluate_class(&prepared, (i as u16, c), p, &mut notes);
-            (m, notes)
+            let mut log = record.then(Collector::default);
+            let m = evaluate_class(&prepared, (i as u16, c), p, &mut notes, log.as_mut());
+            (m, notes, log)
         })
         .collect();
     let mut notes = Vec::new();
     let mut classes = BTreeMap::new();
-    for (c, (m, n)) in p.classes.iter().zip(per_class) {
+    let mut decisions = Vec::new();
+    for (c, (m, n, log)) in p.classes.iter().zip(per_class) {
+        if let Some(log) = log.filter(|_| !m.gt.is_nan()) {
+            decisions.push((c.clone(), log));
+        }
         classes.insert(c.clone(), m);
         notes.extend(n);
     }
@@ -728,12 +717,13 @@ pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
         };
         overall.set(name, v);
     }
-    NuscenesResult {
+    let result = NuscenesResult {
         protocol: "nuscenes",
         classes,
         overall,
         notes,
-    }
+    };
+    (result, decisions)
 }
 
 #[cfg(test)]

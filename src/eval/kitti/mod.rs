@@ -529,20 +529,6 @@ fn metrics_at(best: &Pass, (gt_trajectories, tracker_trajectories): (u64, u64)) 
     }
 }
 
-/// Per evaluated class, the decisions of the pass at its best-MOTA threshold (the pass the counts
-/// of [`evaluate`] come from), for `eval --events`.
-pub fn best_threshold_decisions(scenes: &[Scene], p: &KittiParams) -> Vec<(String, Collector)> {
-    let mut out = Vec::new();
-    for c in &p.classes {
-        let c = c.to_lowercase();
-        let mut log = Collector::default();
-        if evaluate_class(scenes, &c, p, &mut Vec::new(), Some(&mut log)).is_some() {
-            out.push((c, log));
-        }
-    }
-    out
-}
-
 /// Evaluates scenes (one KITTI sequence each) with the KITTI 3D MOT protocol of AB3DMOT.
 ///
 /// Truth boxes carry the KITTI fields as attributes (`kitti_type`, `kitti_truncated`,
@@ -550,31 +536,48 @@ pub fn best_threshold_decisions(scenes: &[Scene], p: &KittiParams) -> Vec<(Strin
 /// `image_box`; track boxes need `image_box` (the 2D box of their last matched detection) for
 /// the ignore rules and take their type from `kitti_type` (else the label).
 pub fn evaluate(scenes: &[Scene], p: &KittiParams) -> KittiResult {
+    evaluate_recording(scenes, p, false).0
+}
+
+/// [`evaluate`]; with `record`, also the decisions of each evaluated class's pass at its best-MOTA
+/// threshold (the pass its counts come from), for `eval --events`.
+pub fn evaluate_recording(
+    scenes: &[Scene],
+    p: &KittiParams,
+    record: bool,
+) -> (KittiResult, Vec<(String, Collector)>) {
     // Classes are independent: evaluated in parallel, notes kept in class order.
-    let per_class: Vec<(String, Option<KittiMetrics>, Vec<String>)> = p
+    type ClassOutcome = (String, Option<KittiMetrics>, Vec<String>, Option<Collector>);
+    let per_class: Vec<ClassOutcome> = p
         .classes
         .par_iter()
         .map(|c| {
             let c = c.to_lowercase();
             let mut notes = Vec::new();
-            let m = evaluate_class(scenes, &c, p, &mut notes, None);
-            (c, m, notes)
+            let mut log = record.then(Collector::default);
+            let m = evaluate_class(scenes, &c, p, &mut notes, log.as_mut());
+            (c, m, notes, log)
         })
         .collect();
     let mut notes = Vec::new();
     let mut classes = BTreeMap::new();
-    for (c, m, n) in per_class {
+    let mut decisions = Vec::new();
+    for (c, m, n, log) in per_class {
         notes.extend(n);
         if let Some(m) = m {
+            if let Some(log) = log {
+                decisions.push((c.clone(), log));
+            }
             classes.insert(c, m);
         }
     }
     let overall = KittiMetrics::overall(classes.values().filter(|m| m.gt_objects > m.ignored_gt));
-    KittiResult {
+    let result = KittiResult {
         protocol: "kitti",
         min_overlap: p.min_overlap,
         classes,
         overall,
         notes,
-    }
+    };
+    (result, decisions)
 }
