@@ -60,16 +60,7 @@ pub struct Scene {
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
 /// message (the stamp is the message's, or its `log_time` when that is 0).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
-    read_tracks_topic_with(path, topic, &|_| {})
-}
-
-/// [`read_tracks_topic`], telling `progress` how many bytes of the file each step read.
-pub fn read_tracks_topic_with(
-    path: &Path,
-    topic: &str,
-    progress: &dyn Fn(u64),
-) -> Result<Vec<(u64, Vec<EvalBox>)>> {
-    read_boxes(path, topic, progress, false)
+    read_boxes(path, topic, &|_| {}, false)
 }
 
 /// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
