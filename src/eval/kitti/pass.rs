@@ -260,11 +260,10 @@ fn count_trajectories(
     let mut g: Vec<i64> = Vec::new();
     let mut ign: Vec<bool> = Vec::new();
     for rows in &seq.trajectories {
-        let truth = rows
-            .first()
-            .map_or(-1, |&(fi, gi)| seq.frames[fi as usize].gt[gi as usize].id);
         let mut mark = |kind, f: usize, track: i64, previous: i64| {
             if let Some((log, si)) = log.as_mut() {
+                let (fi, gi) = rows[f];
+                let truth = seq.frames[fi as usize].gt[gi as usize].id;
                 log.record_mark(*si, truth, f, kind, track, previous);
             }
         };
