@@ -300,6 +300,63 @@ mod with_feature {
         }
     }
 
+    /// `--from/--to` draws the frames whose stamp lies in the window (counted here from the
+    /// tracked file itself), and an empty or reversed window is a clear error.
+    #[test]
+    fn viz_window_draws_the_frames_of_the_window_only() {
+        let dir = tempfile::tempdir().unwrap();
+        let tracked = dir.path().join("turning-car.tracked.mcap");
+        track(&repo("sample_logs/turning-car.mcap"), &tracked, &[]);
+        let stamps: Vec<u64> = probmot::mcapio::recording::tracks_topic(&tracked, "/tracks")
+            .unwrap()
+            .iter()
+            .map(|(s, _)| *s)
+            .collect();
+        let t0 = *stamps.iter().min().unwrap();
+        let in_window = |s: &&u64| (1.0..=2.0 + 1e-6).contains(&((**s - t0) as f64 / 1e9));
+        let expected = stamps.iter().filter(in_window).count();
+        assert!(
+            expected > 0 && expected < stamps.len(),
+            "{expected} of {}",
+            stamps.len()
+        );
+        let rrd = dir.path().join("window.rrd");
+        let args = [
+            "viz",
+            tracked.to_str().unwrap(),
+            "-o",
+            rrd.to_str().unwrap(),
+        ];
+        let out = probmot_ok(&[&args[..], &["--from", "1", "--to", "2"]].concat());
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            stdout.contains(&format!(": {expected} frames,")),
+            "{stdout} (expected {expected} frames)"
+        );
+        check_file(&rrd);
+        for (window, says) in [
+            (
+                ["--from", "100", "--to", "200"],
+                "in the window 100 to 200 s",
+            ),
+            (["--from", "2", "--to", "1"], "--from 2 is after --to 1"),
+        ] {
+            let bad = dir.path().join("bad.rrd");
+            let args = [
+                "viz",
+                tracked.to_str().unwrap(),
+                "-o",
+                bad.to_str().unwrap(),
+            ];
+            let out = probmot(&[&args[..], &window[..]].concat());
+            assert_eq!(out.status.code(), Some(2));
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert!(err.contains(says), "{err}");
+            assert!(!bad.exists());
+        }
+        no_leftovers(dir.path());
+    }
+
     #[test]
     fn viz_reads_an_untracked_log_and_refuses_a_foreign_one() {
         let dir = tempfile::tempdir().unwrap();

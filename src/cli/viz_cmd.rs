@@ -22,6 +22,7 @@ use super::layer_topics::LayerTopics;
 /// Examples:
 ///   probmot viz drive.tracked.mcap -o drive.rrd && rerun drive.rrd
 ///   probmot viz drive.tracked.mcap -o cars.rrd --class car --trail 50
+///   probmot viz hour.tracked.mcap -o minute.rrd --from 600 --to 660
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct VizArgs {
@@ -36,6 +37,13 @@ pub struct VizArgs {
     /// Only boxes of these classes (comma-separated or repeated); default: every class.
     #[arg(long, value_name = "CLASS", value_delimiter = ',')]
     class: Vec<String>,
+    /// Window start, seconds after the first frame; with --from or --to only the chunks that
+    /// overlap the window are read (a minute of an hour-long drive reads a minute).
+    #[arg(long, value_name = "SECONDS")]
+    from: Option<f64>,
+    /// Window end, seconds after the first frame (inclusive).
+    #[arg(long, value_name = "SECONDS")]
+    to: Option<f64>,
     #[command(flatten)]
     topics: LayerTopics,
     /// Rerun recording id (default: a random one).
@@ -71,6 +79,16 @@ pub fn run(a: VizArgs) -> Result<ExitCode> {
     if a.trail == 0 {
         bail!("--trail must be at least 1");
     }
+    for (name, v) in [("--from", a.from), ("--to", a.to)] {
+        if v.is_some_and(|v| !v.is_finite()) {
+            bail!("{name} must be a number of seconds");
+        }
+    }
+    if let (Some(f), Some(t)) = (a.from, a.to) {
+        if f > t {
+            bail!("--from {f} is after --to {t}; the window is empty");
+        }
+    }
     write(&a)
 }
 
@@ -84,6 +102,8 @@ fn write(a: &VizArgs) -> Result<ExitCode> {
         classes: a.class.clone(),
         trail: a.trail,
         recording_id: a.recording_id.clone(),
+        from_s: a.from,
+        to_s: a.to,
     };
     let s = mcap_to_rrd(&a.file, &a.output, &o)?;
     if !a.quiet {

@@ -38,8 +38,8 @@ use rerun::{
 
 use super::plot::{id_color, mix64, DETECTION_GREY};
 use super::scene::Scene;
-use super::window::read_timed_events;
-use super::{read_layers, Layer};
+use super::window::{read_timed_events, read_window};
+use super::{read_layers, FileLayers, Layer, Selection};
 use crate::mcapio::writer::write_file_atomic;
 use crate::mcapio::LabelledBox;
 use crate::msgs::eval_event::Kind;
@@ -377,6 +377,11 @@ pub struct VizOptions {
     pub trail: usize,
     /// Rerun recording id; `None` for a random one.
     pub recording_id: Option<String>,
+    /// Window start, seconds after the first frame (inclusive); `None` from the start. With a
+    /// window only the chunks that overlap it are read.
+    pub from_s: Option<f64>,
+    /// Window end, seconds after the first frame (inclusive); `None` to the end.
+    pub to_s: Option<f64>,
 }
 
 impl Default for VizOptions {
@@ -388,6 +393,8 @@ impl Default for VizOptions {
             classes: Vec::new(),
             trail: 20,
             recording_id: None,
+            from_s: None,
+            to_s: None,
         }
     }
 }
@@ -401,10 +408,24 @@ pub fn mcap_to_rrd(input: &Path, out: &Path, o: &VizOptions) -> Result<RrdSummar
         (Layer::Tracks, o.tracks_topic.clone()),
         (Layer::GroundTruth, o.truth_topic.clone()),
     ];
-    let read = read_layers(input, &wanted)?;
+    let read = read_drawn(input, &wanted, o)?;
     let mut scene = Scene::build(&read, &o.classes, o.trail);
-    if read.topics.contains(EVENTS_TOPIC) {
-        scene.events = read_timed_events(input, EVENTS_TOPIC, 0, u64::MAX)?;
+    let log_times = read.layers.iter().flat_map(|l| l.log_times.iter().copied());
+    let (first, last) = log_times.fold((u64::MAX, 0), |(a, b), t| (a.min(t), b.max(t)));
+    if read.topics.contains(EVENTS_TOPIC) && first <= last {
+        let whole = o.from_s.is_none() && o.to_s.is_none();
+        let (from, to) = if whole { (0, u64::MAX) } else { (first, last) };
+        scene.events = read_timed_events(input, EVENTS_TOPIC, from, to)?;
+    }
+    if scene.frames.is_empty() && (o.from_s.is_some() || o.to_s.is_some()) {
+        bail!(
+            "{file}: no frame of {}, {} or {} in the window {} to {} s after the first frame",
+            o.detections_topic,
+            o.tracks_topic,
+            o.truth_topic,
+            o.from_s.map_or("the start".to_string(), |s| s.to_string()),
+            o.to_s.map_or("the end".to_string(), |s| s.to_string()),
+        );
     }
     if scene.frames.is_empty() {
         let topics = if read.topics.is_empty() {
@@ -428,4 +449,39 @@ pub fn mcap_to_rrd(input: &Path, out: &Path, o: &VizOptions) -> Result<RrdSummar
         name,
     };
     write_rrd(&scene, out, &opts).with_context(|| format!("writing {}", out.display()))
+}
+
+/// The layers the recording draws: the whole file, or with a window ([`VizOptions::from_s`],
+/// [`VizOptions::to_s`]) only the chunks that overlap it ([`read_window`]), trimmed to the
+/// frames whose stamp lies in it.
+fn read_drawn(input: &Path, wanted: &[(Layer, String)], o: &VizOptions) -> Result<FileLayers> {
+    if o.from_s.is_none() && o.to_s.is_none() {
+        return read_layers(input, wanted);
+    }
+    let mut read = read_window(input, wanted, &Layer::ALL, o.from_s, o.to_s)?;
+    let stamps = read
+        .layers
+        .iter()
+        .flat_map(|l| l.frames.iter().map(|f| f.0));
+    let Some(t0) = read.span.map(|s| s.0).or_else(|| stamps.min()) else {
+        return Ok(read);
+    };
+    let window = Selection {
+        classes: Vec::new(),
+        from_s: o.from_s,
+        to_s: o.to_s,
+    };
+    for lf in &mut read.layers {
+        let keep: Vec<bool> = lf
+            .frames
+            .iter()
+            .map(|f| window.in_window(f.0, t0))
+            .collect();
+        let mut k = keep.iter();
+        lf.frames.retain(|_| *k.next().expect("one flag per frame"));
+        let mut k = keep.iter();
+        lf.log_times
+            .retain(|_| *k.next().expect("one flag per log time"));
+    }
+    Ok(read)
 }
