@@ -60,11 +60,8 @@ fn bench(c: &mut Criterion) {
     g.throughput(Throughput::Elements(1));
     for label in ["car", "pedestrian", "cyclist"] {
         let cfg = single_class(&fitted, label, fitted.classes[label].clone());
-        // As the tune does: each log's truth for the class is prepared once.
-        let truth: Vec<_> = refs
-            .iter()
-            .map(|l| class_truth(l, label, &scoring))
-            .collect();
+        // As the tune does: the class's truth is prepared once.
+        let truth = class_truth(&refs, label, &scoring);
         g.bench_function(format!("one_config_{label}_10_logs"), |b| {
             b.iter(|| score_class_with(&refs, &truth, &cfg, label, &scoring).unwrap())
         });

@@ -50,7 +50,7 @@ use super::scene::Scene;
 use pass::{ClassEval, Pass};
 use prepare::loaded_types;
 pub use prepare::ClassTruth;
-pub use tracks::{scene_rows, RowKind, Skip, TrackRow};
+pub use tracks::{row_kind, scene_rows, RowKind, Skip, TrackRow};
 
 mod munkres;
 mod pass;

@@ -57,6 +57,27 @@ pub fn scene_rows(scene: &Scene, cls: &str) -> Vec<TrackRow> {
     rows
 }
 
+/// What a track box of KITTI type `kind` (lower case: the `kitti_type` attribute, else the
+/// label) is to the evaluation of class `cls`; `None` when the class does not load it.
+pub fn row_kind(cls: &str, kind: &str) -> Option<RowKind> {
+    let types = loaded_types(cls);
+    types
+        .iter()
+        .any(|t| kind.contains(t.as_str()))
+        .then(|| classify(cls, kind))
+}
+
+/// [`row_kind`] of a type the class loads.
+fn classify(cls: &str, kind: &str) -> RowKind {
+    if kind == "dontcare" {
+        RowKind::DontCare
+    } else if is_neighbour(cls, kind) {
+        RowKind::Neighbour
+    } else {
+        RowKind::Class
+    }
+}
+
 /// One evaluation box as a row of class `cls` (`types`: [`loaded_types`]).
 fn track_row(b: &EvalBox, cls: &str, types: &[String], frame: u32) -> Option<TrackRow> {
     let kind = kitti_type(b);
@@ -67,13 +88,7 @@ fn track_row(b: &EvalBox, cls: &str, types: &[String], frame: u32) -> Option<Tra
     if id == -1 && kind != "dontcare" {
         return None;
     }
-    let kind = if kind == "dontcare" {
-        RowKind::DontCare
-    } else if is_neighbour(cls, &kind) {
-        RowKind::Neighbour
-    } else {
-        RowKind::Class
-    };
+    let kind = classify(cls, &kind);
     Some(TrackRow {
         frame,
         id,
