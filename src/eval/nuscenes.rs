@@ -14,6 +14,7 @@ use super::mot_accumulator::{EventKind, MotAccumulator};
 use super::nan_as_null;
 use super::numpy_compat::{linspace_round12, np_interp, np_mean, np_sum};
 use super::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::config::NUSCENES_CLASSES;
 
 /// Parameters of the protocol.
@@ -192,7 +193,7 @@ struct Prepared {
     pred: Vec<Vec<PBox>>,
 }
 
-fn to_pbox(b: &super::scene::EvalBox, classes: &[String]) -> PBox {
+fn to_pbox(b: &LabelledBox, classes: &[String]) -> PBox {
     PBox {
         id: b.id,
         label: classes
@@ -729,10 +730,10 @@ pub fn evaluate_recording(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::scene::EvalBox;
+    use crate::mcapio::LabelledBox;
 
-    fn gt(id: u64, x: f64) -> EvalBox {
-        EvalBox {
+    fn gt(id: u64, x: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "bicycle".into(),
             center: [x, 0.0, 0.0],
@@ -741,6 +742,7 @@ mod tests {
             score: 1.0,
             attributes: Default::default(),
             image_box: None,
+            ..Default::default()
         }
     }
 

@@ -8,7 +8,8 @@ use anyhow::{anyhow, Result};
 use super::data::TuneLog;
 use crate::eval::kitti::{self, KittiParams, RowKind, TrackRow};
 use crate::eval::nuscenes::{self, NuscenesParams};
-use crate::eval::scene::{EvalBox, Scene};
+use crate::eval::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::{ClassConfig, Detection, TrackReport, Tracker, TrackerConfig};
 
 /// The benchmark protocol whose headline metric a tune maximises.
@@ -108,7 +109,7 @@ pub enum ClassTruth {
     /// KITTI: the class's truth as the protocol reads it.
     Kitti(kitti::ClassTruth),
     /// nuScenes: per log, per frame, the truth boxes.
-    Nuscenes(Vec<Vec<Vec<EvalBox>>>),
+    Nuscenes(Vec<Vec<Vec<LabelledBox>>>),
 }
 
 /// The truth of class `label` in `logs` as the protocol's evaluation of that class reads it
@@ -192,11 +193,11 @@ fn run_tracker(
 pub fn track_frames(
     log: &TuneLog,
     cfg: &TrackerConfig,
-    truth: impl Fn(usize) -> Vec<EvalBox>,
+    truth: impl Fn(usize) -> Vec<LabelledBox>,
 ) -> Result<Scene> {
-    let mut tracks: Vec<Vec<EvalBox>> = vec![Vec::new(); log.frames.len()];
+    let mut tracks: Vec<Vec<LabelledBox>> = vec![Vec::new(); log.frames.len()];
     run_tracker(log, cfg, |fi, r, label, image_box| {
-        tracks[fi].push(EvalBox {
+        tracks[fi].push(LabelledBox {
             id: r.id,
             label: label.to_string(),
             center: r.bbox.center,
@@ -205,6 +206,7 @@ pub fn track_frames(
             score: r.score,
             attributes: BTreeMap::new(),
             image_box,
+            ..Default::default()
         })
     })?;
     let frames = log

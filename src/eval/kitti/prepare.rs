@@ -6,7 +6,8 @@ use std::collections::HashMap;
 
 use super::DEVKIT_EXTRA_FRAMES;
 use super::{KittiParams, ATTR_OCCLUDED, ATTR_TRACK_ID, ATTR_TRUNCATED, ATTR_TYPE};
-use crate::eval::scene::{EvalBox, Scene};
+use crate::eval::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::Box3;
 
 /// A ground-truth box of the evaluated class (or its neighbour).
@@ -56,7 +57,7 @@ impl ClassTruth {
     pub fn new<'a, S, F>(scenes: S, cls: &str, p: &KittiParams) -> ClassTruth
     where
         S: IntoIterator<Item = (&'a str, F)>,
-        F: IntoIterator<Item = &'a [EvalBox]>,
+        F: IntoIterator<Item = &'a [LabelledBox]>,
     {
         let cls = cls.to_lowercase();
         let types = loaded_types(&cls);
@@ -120,7 +121,7 @@ impl ClassTruth {
 }
 
 /// The lower-cased KITTI type of a box: the `kitti_type` attribute, else the label.
-pub(super) fn kitti_type(b: &EvalBox) -> String {
+pub(super) fn kitti_type(b: &LabelledBox) -> String {
     b.attributes
         .get(ATTR_TYPE)
         .unwrap_or(&b.label)
@@ -146,7 +147,7 @@ pub(super) fn is_neighbour(cls: &str, kind: &str) -> bool {
 }
 
 /// A numeric attribute truncated to an integer like Python's `int(float(s))`.
-fn int_attr(b: &EvalBox, key: &str, default: i64) -> i64 {
+fn int_attr(b: &LabelledBox, key: &str, default: i64) -> i64 {
     b.attributes
         .get(key)
         .and_then(|v| v.trim().parse::<f64>().ok())
@@ -155,7 +156,7 @@ fn int_attr(b: &EvalBox, key: &str, default: i64) -> i64 {
 }
 
 /// The 3D box of an evaluation box.
-pub(super) fn box3(b: &EvalBox) -> Box3 {
+pub(super) fn box3(b: &LabelledBox) -> Box3 {
     Box3 {
         center: b.center,
         yaw: b.yaw,
@@ -176,7 +177,7 @@ pub(super) fn overlap_share(a: &[f64; 4], b: &[f64; 4]) -> f64 {
 /// A truth box of the class (or its neighbour): its KITTI id and row; DontCare
 /// boxes go to `dc`; `None` for rows the class does not load and ids of -1.
 fn truth_row(
-    b: &EvalBox,
+    b: &LabelledBox,
     cls: &str,
     types: &[String],
     p: &KittiParams,

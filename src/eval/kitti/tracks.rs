@@ -9,7 +9,8 @@ use rayon::prelude::*;
 
 use super::prepare::{box3, is_neighbour, kitti_type, loaded_types, overlap_share, TruthSeq};
 use super::KittiParams;
-use crate::eval::scene::{EvalBox, Scene};
+use crate::eval::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
 
@@ -79,7 +80,7 @@ fn classify(cls: &str, kind: &str) -> RowKind {
 }
 
 /// One evaluation box as a row of class `cls` (`types`: [`loaded_types`]).
-fn track_row(b: &EvalBox, cls: &str, types: &[String], frame: u32) -> Option<TrackRow> {
+fn track_row(b: &LabelledBox, cls: &str, types: &[String], frame: u32) -> Option<TrackRow> {
     let kind = kitti_type(b);
     if !types.iter().any(|t| kind.contains(t.as_str())) {
         return None;
