@@ -470,14 +470,14 @@ impl ClassTruth {
         let p = &self.p;
         let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, p)?;
         let mut e = ClassEval::new(self, seqs);
-        let first = e.pass(-10000.0, 1.0);
+        let first = e.pass(-10000.0, 1.0, true);
         let num_gt = first.tp + first.fn_;
         let (ths, recs) = thresholds(&first.scores, num_gt, p.recall_points);
         let mut curve = Vec::with_capacity(ths.len());
         let (mut sum_smota, mut sum_mota, mut sum_motp) = (0.0f64, 0.0f64, 0.0f64);
         let (mut best_mota, mut best_threshold) = (0.0f64, -10000.0f64);
         for (&th, &rec) in ths.iter().zip(&recs) {
-            let r = e.pass(th, rec);
+            let r = e.pass(th, rec, false);
             sum_smota += r.smota;
             sum_mota += r.mota;
             sum_motp += r.motp;
@@ -488,7 +488,7 @@ impl ClassTruth {
             curve.push(curve_point(th, rec, &r));
         }
         e.log = log.is_some().then(Collector::default);
-        let best = e.pass(best_threshold, 1.0);
+        let best = e.pass(best_threshold, 1.0, false);
         if let (Some(out), Some(recorded)) = (log, e.log.take()) {
             *out = recorded;
         }

@@ -8,6 +8,10 @@
 //! pairs it uses for the feasible one and one other), far beyond rounding, so the Munkres takes
 //! them all, and the rest of its assignment is forbidden pairs, which count nothing but misses.
 //! Other frames (rare: 42 in 100 000 on KITTI) run the Munkres on the same matrix as before.
+//!
+//! A frame whose kept tracks are those of the previous pass gives the previous pass's counts
+//! (the matching depends only on the kept set, and the rows' `valid` flags changed only by that
+//! same matching), so they are replayed from [`FrameMemo`], the cost sums in the same order.
 
 use std::cmp::Ordering;
 
@@ -61,6 +65,41 @@ struct Tally {
     n_ignored_traj: u64,
 }
 
+/// What one frame added to a pass, kept to be replayed while its kept tracks do not change.
+#[derive(Debug, Default)]
+struct FrameMemo {
+    /// Whether the fields below are those of the frame's kept tracks of the last pass.
+    fresh: bool,
+    /// Added to `n_gt, n_igt, n_tr, n_itr, tp, itp, fp, fn_, ifn`.
+    counts: [u64; 9],
+    /// `1 - cost` of each match, in matching order (added to the total cost).
+    ious: Vec<f64>,
+    /// Added to the MODP sum.
+    modp: f64,
+    /// The matched track id (or -1) of each ground truth.
+    assigned: Vec<i64>,
+}
+
+impl FrameMemo {
+    /// Adds the frame's counts and sums to the pass.
+    fn apply(&self, r: &mut Pass, t: &mut Tally) {
+        let c = &self.counts;
+        r.n_gt += c[0];
+        r.n_igt += c[1];
+        r.n_tr += c[2];
+        r.n_itr += c[3];
+        r.tp += c[4];
+        r.itp += c[5];
+        r.fp += c[6];
+        r.fn_ += c[7];
+        r.ifn += c[8];
+        for &v in &self.ious {
+            t.total_cost += v;
+        }
+        t.modp_sum += self.modp;
+    }
+}
+
 /// "Not kept" in [`Scratch::col_of`].
 const NONE: u32 = u32::MAX;
 
@@ -84,8 +123,6 @@ struct Scratch {
     tmpcs: Vec<f64>,
     tr_ignored: Vec<bool>,
     sums: Vec<(f64, usize)>,
-    /// Per frame of the scene, the matched track id of each ground truth (-1: none).
-    assigned: Vec<Vec<i64>>,
     /// Along one trajectory: matched track ids and ignore flags.
     traj_ids: Vec<i64>,
     traj_ignored: Vec<bool>,
@@ -98,45 +135,65 @@ pub(super) struct ClassEval<'a> {
     pub seqs: Vec<SeqTracks>,
     /// Where the decisions of a pass are recorded (`eval --events`), when set.
     pub log: Option<Collector>,
+    /// Per scene, per frame: its share of the last pass.
+    memos: Vec<Vec<FrameMemo>>,
     scratch: Scratch,
 }
 
 impl<'a> ClassEval<'a> {
     /// The evaluation of prepared tracks against `truth`.
     pub(super) fn new(truth: &'a ClassTruth, seqs: Vec<SeqTracks>) -> Self {
+        let memos = truth.seqs.iter().map(|t| {
+            let frames = t.frames.iter();
+            frames.map(|_| FrameMemo::default()).collect()
+        });
         ClassEval {
             truth,
             seqs,
             log: None,
+            memos: memos.collect(),
             scratch: Scratch::default(),
         }
     }
 
     /// One pass at `threshold` (tracks whose mean score is below it are dropped), with sMOTA at
-    /// `recall_point`.
-    pub(super) fn pass(&mut self, threshold: f64, recall_point: f64) -> Pass {
+    /// `recall_point`; with `scores`, [`Pass::scores`] is filled.
+    pub(super) fn pass(&mut self, threshold: f64, recall_point: f64, scores: bool) -> Pass {
         let mut r = Pass::default();
         let mut t = Tally::default();
         let s = &mut self.scratch;
-        for (si, (seq, truth)) in self.seqs.iter_mut().zip(&self.truth.seqs).enumerate() {
+        let seqs = self.seqs.iter_mut().zip(&self.truth.seqs);
+        for (si, ((seq, truth), memos)) in seqs.zip(&mut self.memos).enumerate() {
             t.n_frames += truth.frames.len();
             average_scores(seq, &mut s.sums);
-            s.assigned.resize_with(truth.frames.len(), Vec::new);
-            for (fi, f) in truth.frames.iter().enumerate() {
+            for (fi, (f, memo)) in truth.frames.iter().zip(memos.iter_mut()).enumerate() {
                 let (rows, edges) = seq.frame(fi);
-                let mut assigned = std::mem::take(&mut s.assigned[fi]);
-                let frame = (f.gt.as_slice(), &mut *rows, edges);
-                match_frame(frame, threshold, s, &mut assigned, (&mut r, &mut t));
-                s.assigned[fi] = assigned;
+                let changed = update_kept(rows, threshold);
+                if changed || !memo.fresh || scores || self.log.is_some() {
+                    let scores = scores.then_some(&mut r.scores);
+                    match_frame((&f.gt, &mut *rows, edges), s, memo, scores);
+                }
+                memo.apply(&mut r, &mut t);
                 if let Some(log) = self.log.as_mut() {
                     record_frame(log, (si, fi), &f.gt, rows, s);
                 }
             }
             let log = self.log.as_mut().map(|l| (l, si));
-            count_trajectories(truth, s, &mut r, &mut t, log);
+            count_trajectories(truth, memos, s, (&mut r, &mut t), log);
         }
         finish(r, &t, self.truth.n_gt_trajectories, recall_point)
     }
+}
+
+/// Marks the rows kept at `threshold` (score not below it); whether any changed.
+fn update_kept(rows: &mut [TrObj], threshold: f64) -> bool {
+    let mut changed = false;
+    for row in rows {
+        let kept = row.score.partial_cmp(&threshold) != Some(Ordering::Less);
+        changed |= kept != row.kept;
+        row.kept = kept;
+    }
+    changed
 }
 
 /// Every row of a track takes the mean score of the track's rows, summed in file order.
@@ -200,19 +257,19 @@ fn select_pairs(edges: &[Edge], ng: usize, nt: usize, s: &mut Scratch) {
     }
 }
 
-/// Matches one frame (its ground truth, track rows and feasible pairs) at `threshold` and adds
-/// its counts; `assigned` receives the matched track id (or -1) of each ground truth.
+/// Matches one frame (its ground truth, track rows marked by [`update_kept`] and feasible
+/// pairs) and writes its share of the pass into `memo`; the matched boxes' scores go to
+/// `scores` when given.
 fn match_frame(
     (gt, tr, edges): (&[GtObj], &mut [TrObj], &[Edge]),
-    threshold: f64,
     s: &mut Scratch,
-    assigned: &mut Vec<i64>,
-    (r, t): (&mut Pass, &mut Tally),
+    memo: &mut FrameMemo,
+    mut scores: Option<&mut Vec<f64>>,
 ) {
     s.kept.clear();
     s.col_of.clear();
     for (k, row) in tr.iter().enumerate() {
-        if row.score.partial_cmp(&threshold) != Some(Ordering::Less) {
+        if row.kept {
             s.col_of.push(s.kept.len() as u32);
             s.kept.push(k as u32);
         } else {
@@ -220,11 +277,10 @@ fn match_frame(
         }
     }
     let (ng, nt) = (gt.len(), s.kept.len());
-    r.n_gt += ng as u64;
-    r.n_tr += nt as u64;
     select_pairs(edges, ng, nt, s);
-    assigned.clear();
-    assigned.resize(ng, -1);
+    memo.assigned.clear();
+    memo.assigned.resize(ng, -1);
+    memo.ious.clear();
     s.tmpcs.clear();
     s.tmpcs.resize(ng, 0.0);
     let (mut tmptp, mut n_matched, mut tmpc) = (0u64, 0i64, 0.0f64);
@@ -233,15 +289,17 @@ fn match_frame(
         let c = s.matched_cost[row];
         let tr = &mut tr[s.kept[col] as usize];
         tr.valid = true;
-        t.total_cost += 1.0 - c;
+        memo.ious.push(1.0 - c);
         tmpc += 1.0 - c;
         s.tmpcs[row] = 1.0 - c;
-        assigned[row] = tr.id;
-        r.tp += 1;
+        memo.assigned[row] = tr.id;
         tmptp += 1;
         n_matched += 1;
-        r.scores.push(tr.score);
+        if let Some(v) = scores.as_mut() {
+            v.push(tr.score);
+        }
     }
+    let tp = tmptp;
     // Ignored track boxes: neighbouring class, too small, or inside DontCare.
     s.tr_ignored.clear();
     s.tr_ignored.resize(nt, false);
@@ -268,18 +326,24 @@ fn match_frame(
         }
     }
     tmptp -= ignored_tp;
-    r.itp += ignored_tp;
-    r.n_gt -= ignored_fn + ignored_tp;
-    r.n_igt += ignored_fn + ignored_tp;
-    r.n_itr += n_ignored_tr;
     // The reference: pairs over the IoU limit, plus ground truth left unassigned, minus the
     // ignored ones among both; its Munkres pairs min(ng, nt) rows, so this is the ground truth
     // without a feasible match minus the ignored ones (never negative).
     let frame_fn = ng as i64 - n_matched - ignored_fn as i64;
-    r.fn_ += frame_fn.max(0) as u64;
-    r.ifn += ignored_fn;
-    r.fp += nt as u64 + ignored_pairs - tmptp - n_ignored_tr - ignored_tp;
-    t.modp_sum += if tmptp != 0 { tmpc / tmptp as f64 } else { 1.0 };
+    let n_ignored_gt = ignored_fn + ignored_tp;
+    memo.counts = [
+        ng as u64 - n_ignored_gt,
+        n_ignored_gt,
+        nt as u64,
+        n_ignored_tr,
+        tp,
+        ignored_tp,
+        nt as u64 + ignored_pairs - tmptp - n_ignored_tr - ignored_tp,
+        frame_fn.max(0) as u64,
+        ignored_fn,
+    ];
+    memo.modp = if tmptp != 0 { tmpc / tmptp as f64 } else { 1.0 };
+    memo.fresh = true;
 }
 
 /// Records the decisions `match_frame` took in frame `fi` of scene `si` (`eval --events`).
@@ -306,12 +370,12 @@ fn record_frame(
 /// (with the scene's index) when given.
 fn count_trajectories(
     seq: &TruthSeq,
+    memos: &[FrameMemo],
     s: &mut Scratch,
-    r: &mut Pass,
-    t: &mut Tally,
+    (r, t): (&mut Pass, &mut Tally),
     mut log: Option<(&mut Collector, usize)>,
 ) {
-    let (assigned, g, ign) = (&s.assigned, &mut s.traj_ids, &mut s.traj_ignored);
+    let (g, ign) = (&mut s.traj_ids, &mut s.traj_ignored);
     for rows in &seq.trajectories {
         let mut mark = |kind, f: usize, track: i64, previous: i64| {
             if let Some((log, si)) = log.as_mut() {
@@ -323,7 +387,7 @@ fn count_trajectories(
         g.clear();
         ign.clear();
         for &(fi, gi) in rows {
-            g.push(assigned[fi as usize][gi as usize]);
+            g.push(memos[fi as usize].assigned[gi as usize]);
             ign.push(seq.frames[fi as usize].gt[gi as usize].ignored);
         }
         if ign.iter().all(|&i| i) {

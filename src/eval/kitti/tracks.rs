@@ -114,6 +114,8 @@ pub(super) struct TrObj {
     pub score: f64,
     /// Matched at some threshold already (then never ignored).
     pub valid: bool,
+    /// Kept (score at least the threshold) in the last pass.
+    pub kept: bool,
 }
 
 /// A (ground truth, track) pair of a frame that may match: `1 - IoU3D <= 1 - min_overlap`.
@@ -267,6 +269,7 @@ fn prepare_seq(
                     || frame.dc.iter().any(|d| overlap_share(&bbox, d) > 0.5),
                 score: r.score,
                 valid: false,
+                kept: false,
             });
         }
         for (gi, g) in frame.boxes.iter().enumerate() {
