@@ -2,7 +2,8 @@
 //! sequences in `../shared/data/kitti-tracking-train` (PointRCNN detections). One configuration
 //! of one class = track the class in all ten logs in memory and score it with the KITTI protocol
 //! (sAMOTA at IoU 0.25), which is what the search does per candidate. Criterion's throughput line
-//! (elem/s) is the configurations per second of one core; `tune` runs candidates in parallel.
+//! (elem/s) is the configurations per second of one candidate (its tracks' IoUs are computed on
+//! all cores, its threshold passes on one); `tune` runs candidates in parallel.
 //! Skipped (with a message) when the data is absent.
 
 use std::path::{Path, PathBuf};
