@@ -9,21 +9,20 @@ use std::sync::Mutex;
 use anyhow::Result;
 
 use super::data::TuneLog;
-use super::score::{class_truth, score_class_with, single_class, Scoring};
+use super::score::{class_truth, score_class_with, single_class, ClassTruth, Scoring};
 use super::space::key;
-use crate::mcapio::LabelledBox;
 use crate::tracker::{ClassConfig, TrackerConfig};
 
-/// Per log, per frame: the truth boxes one class's evaluation reads.
-type ClassTruth = std::sync::Arc<Vec<Vec<Vec<LabelledBox>>>>;
+/// One class's truth, prepared for its evaluation once per tune.
+type SharedTruth = std::sync::Arc<ClassTruth>;
 
 /// Scores of one tune's logs, by class and config key.
 pub struct ScoreCache<'a> {
     logs: &'a [&'a TuneLog],
     cfg: &'a TrackerConfig,
     scoring: Scoring,
-    /// Per class: per log, per frame, the truth its evaluation reads.
-    truth: Mutex<HashMap<String, ClassTruth>>,
+    /// Per class: the truth as its evaluation reads it.
+    truth: Mutex<HashMap<String, SharedTruth>>,
     map: Mutex<HashMap<(String, String), f64>>,
 }
 
@@ -68,16 +67,10 @@ impl<'a> ScoreCache<'a> {
     }
 
     /// The truth the evaluation of `label` reads, prepared once.
-    fn truth_of(&self, label: &str) -> ClassTruth {
+    fn truth_of(&self, label: &str) -> SharedTruth {
         let mut m = self.truth.lock().expect("cache lock");
         m.entry(label.to_string())
-            .or_insert_with(|| {
-                let t = self
-                    .logs
-                    .iter()
-                    .map(|l| class_truth(l, label, &self.scoring));
-                std::sync::Arc::new(t.collect())
-            })
+            .or_insert_with(|| std::sync::Arc::new(class_truth(self.logs, label, &self.scoring)))
             .clone()
     }
 

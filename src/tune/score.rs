@@ -6,11 +6,11 @@ use std::collections::BTreeMap;
 use anyhow::{anyhow, Result};
 
 use super::data::TuneLog;
-use crate::eval::kitti::{self, KittiParams};
+use crate::eval::kitti::{self, KittiParams, RowKind, TrackRow};
 use crate::eval::nuscenes::{self, NuscenesParams};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
-use crate::tracker::{ClassConfig, Detection, Tracker, TrackerConfig};
+use crate::tracker::{ClassConfig, Detection, TrackReport, Tracker, TrackerConfig};
 
 /// The benchmark protocol whose headline metric a tune maximises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -103,44 +103,90 @@ pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
     track_frames(log, cfg, |i| log.frames[i].truth.clone())
 }
 
-/// The KITTI attribute holding a truth box's type (as `probmot import kitti` writes it).
-const KITTI_TYPE: &str = "kitti_type";
-
-/// Whether the KITTI evaluation of class `label` reads truth box `b`: its type (the `kitti_type`
-/// attribute, else the label, lower-cased) contains the class, its neighbouring class (`van` for
-/// `car`, `person_sitting` for `pedestrian`) or `dontcare` (the rule of `eval::kitti`, repeated
-/// here so that each candidate only copies the truth its class needs).
-fn kitti_reads(label: &str, b: &LabelledBox) -> bool {
-    let kind = b
-        .attributes
-        .get(KITTI_TYPE)
-        .unwrap_or(&b.label)
-        .to_lowercase();
-    let neighbour = if label.contains("car") {
-        "van"
-    } else if label.contains("pedestrian") {
-        "person_sitting"
-    } else {
-        label
-    };
-    kind.contains(label) || kind.contains(neighbour) || kind.contains("dontcare")
+/// One class's truth in a tune's logs, prepared once and read by every candidate.
+#[derive(Debug, Clone)]
+pub enum ClassTruth {
+    /// KITTI: the class's truth as the protocol reads it.
+    Kitti(kitti::ClassTruth),
+    /// nuScenes: per log, per frame, the truth boxes.
+    Nuscenes(Vec<Vec<Vec<LabelledBox>>>),
 }
 
-/// The truth of each frame of `log` that the evaluation of `label` reads (KITTI: the class, its
-/// neighbour and DontCare regions; nuScenes: all of it).
-pub fn class_truth(log: &TuneLog, label: &str, scoring: &Scoring) -> Vec<Vec<LabelledBox>> {
-    log.frames
-        .iter()
-        .map(|f| match scoring.protocol {
-            Protocol::Kitti => f
-                .truth
-                .iter()
-                .filter(|b| kitti_reads(label, b))
-                .cloned()
+/// The truth of class `label` in `logs` as the protocol's evaluation of that class reads it
+/// (KITTI: the class, its neighbour and DontCare regions, with their ignore flags).
+pub fn class_truth(logs: &[&TuneLog], label: &str, scoring: &Scoring) -> ClassTruth {
+    match scoring.protocol {
+        Protocol::Kitti => {
+            let scenes = logs.iter().map(|l| {
+                let frames = l.frames.iter().map(|f| f.truth.as_slice());
+                (l.name.as_str(), frames)
+            });
+            ClassTruth::Kitti(kitti::ClassTruth::new(
+                scenes,
+                label,
+                &kitti_params(label, scoring),
+            ))
+        }
+        Protocol::Nuscenes => ClassTruth::Nuscenes(
+            logs.iter()
+                .map(|l| l.frames.iter().map(|f| f.truth.clone()).collect())
                 .collect(),
-            Protocol::Nuscenes => f.truth.clone(),
-        })
-        .collect()
+        ),
+    }
+}
+
+/// The KITTI parameters of one class's evaluation.
+fn kitti_params(label: &str, scoring: &Scoring) -> KittiParams {
+    KittiParams {
+        classes: vec![label.to_string()],
+        min_overlap: scoring.iou,
+        ..KittiParams::default()
+    }
+}
+
+/// Runs the tracker over `log` as [`track_log`] describes, handing every reported track to
+/// `emit` with its frame index, class label and 2D box.
+fn run_tracker(
+    log: &TuneLog,
+    cfg: &TrackerConfig,
+    mut emit: impl FnMut(usize, &TrackReport, &str, Option<[f64; 4]>),
+) -> Result<()> {
+    let mut tracker = Tracker::new(cfg.clone()).map_err(|e| anyhow!("{e}"))?;
+    let mut dets: Vec<Detection> = Vec::new();
+    let mut src: Vec<usize> = Vec::new();
+    // Image box of each track's last matched detection, by track id.
+    let mut image: Vec<Option<[f64; 4]>> = Vec::new();
+    for (fi, f) in log.frames.iter().enumerate() {
+        if !f.has_detections {
+            continue;
+        }
+        dets.clear();
+        src.clear();
+        for (i, d) in f.detections.iter().enumerate() {
+            if let Some(class) = tracker.class_id(&d.label) {
+                dets.push(Detection {
+                    bbox: d.bbox,
+                    class,
+                    score: d.score,
+                });
+                src.push(i);
+            }
+        }
+        tracker
+            .step(f.stamp, &dets)
+            .map_err(|e| anyhow!("{}: stamp {}: {e}", log.name, f.stamp))?;
+        for r in tracker.reports() {
+            let id = r.id as usize;
+            if image.len() <= id {
+                image.resize(id + 1, None);
+            }
+            if let Some(d) = r.detection {
+                image[id] = f.detections[src[d as usize]].image_box;
+            }
+            emit(fi, r, tracker.label(r.class), image[id]);
+        }
+    }
+    Ok(())
 }
 
 /// [`track_log`] with the truth of frame `i` given by `truth(i)`.
@@ -149,60 +195,57 @@ pub fn track_frames(
     cfg: &TrackerConfig,
     truth: impl Fn(usize) -> Vec<LabelledBox>,
 ) -> Result<Scene> {
-    let mut tracker = Tracker::new(cfg.clone()).map_err(|e| anyhow!("{e}"))?;
-    let mut dets: Vec<Detection> = Vec::new();
-    let mut src: Vec<usize> = Vec::new();
-    let mut buf = Vec::new();
-    // Image box of each track's last matched detection, by track id.
-    let mut image: Vec<Option<[f64; 4]>> = Vec::new();
-    let mut frames = Vec::with_capacity(log.frames.len());
-    for (fi, f) in log.frames.iter().enumerate() {
-        let mut tracks = Vec::new();
-        if f.has_detections {
-            dets.clear();
-            src.clear();
-            for (i, d) in f.detections.iter().enumerate() {
-                if let Some(class) = tracker.class_id(&d.label) {
-                    dets.push(Detection {
-                        bbox: d.bbox,
-                        class,
-                        score: d.score,
-                    });
-                    src.push(i);
-                }
-            }
-            let reports = tracker
-                .step(f.stamp, &dets)
-                .map_err(|e| anyhow!("{}: stamp {}: {e}", log.name, f.stamp))?;
-            buf.clear();
-            buf.extend_from_slice(reports);
-            for r in &buf {
-                let id = r.id as usize;
-                if image.len() <= id {
-                    image.resize(id + 1, None);
-                }
-                if let Some(d) = r.detection {
-                    image[id] = f.detections[src[d as usize]].image_box;
-                }
-                tracks.push(LabelledBox {
-                    id: r.id,
-                    label: tracker.label(r.class).to_string(),
-                    center: r.bbox.center,
-                    size: r.bbox.size,
-                    yaw: r.bbox.yaw,
-                    score: r.score,
-                    attributes: BTreeMap::new(),
-                    image_box: image[id],
-                    ..Default::default()
-                });
-            }
-        }
-        frames.push((f.stamp, truth(fi), tracks));
-    }
+    let mut tracks: Vec<Vec<LabelledBox>> = vec![Vec::new(); log.frames.len()];
+    run_tracker(log, cfg, |fi, r, label, image_box| {
+        tracks[fi].push(LabelledBox {
+            id: r.id,
+            label: label.to_string(),
+            center: r.bbox.center,
+            size: r.bbox.size,
+            yaw: r.bbox.yaw,
+            score: r.score,
+            attributes: BTreeMap::new(),
+            image_box,
+            ..Default::default()
+        })
+    })?;
+    let frames = log
+        .frames
+        .iter()
+        .zip(tracks)
+        .enumerate()
+        .map(|(fi, (f, t))| (f.stamp, truth(fi), t))
+        .collect();
     Ok(Scene {
         name: log.name.clone(),
         frames,
     })
+}
+
+/// The rows of class `cls` in the tracks of `log` tracked with `cfg`, as the KITTI evaluation
+/// reads them (the tracks' label is their KITTI type).
+pub fn track_rows(log: &TuneLog, cfg: &TrackerConfig, cls: &str) -> Result<Vec<TrackRow>> {
+    let mut rows = Vec::new();
+    // What each tracker class is to `cls`, by class index (looked up once per class).
+    let mut kinds: Vec<Option<Option<RowKind>>> = Vec::new();
+    run_tracker(log, cfg, |fi, r, label, image_box| {
+        let c = r.class as usize;
+        if kinds.len() <= c {
+            kinds.resize(c + 1, None);
+        }
+        let kind = *kinds[c].get_or_insert_with(|| kitti::row_kind(cls, &label.to_lowercase()));
+        if let Some(kind) = kind {
+            rows.push(TrackRow {
+                frame: fi as u32,
+                id: r.id as i64,
+                kind,
+                bbox: r.bbox,
+                score: r.score,
+                image_box,
+            });
+        }
+    })?;
+    Ok(rows)
 }
 
 /// The headline metric of one class when `logs` are tracked with `cfg`.
@@ -212,26 +255,40 @@ pub fn score_class(
     label: &str,
     scoring: &Scoring,
 ) -> Result<f64> {
-    let truth: Vec<_> = logs
-        .iter()
-        .map(|l| class_truth(l, label, scoring))
-        .collect();
-    score_class_with(logs, &truth, cfg, label, scoring)
+    score_class_with(
+        logs,
+        &class_truth(logs, label, scoring),
+        cfg,
+        label,
+        scoring,
+    )
 }
 
-/// [`score_class`] with each log's per-frame truth prepared by [`class_truth`] (once per tune).
+/// [`score_class`] with the class's truth prepared by [`class_truth`] (once per tune). KITTI
+/// scores the tracks' rows against the prepared truth without building evaluation scenes.
 pub fn score_class_with(
     logs: &[&TuneLog],
-    truth: &[Vec<Vec<LabelledBox>>],
+    truth: &ClassTruth,
     cfg: &TrackerConfig,
     label: &str,
     scoring: &Scoring,
 ) -> Result<f64> {
-    let scenes = logs
-        .iter()
-        .zip(truth)
-        .map(|(l, t)| track_frames(l, cfg, |i| t[i].clone()))
-        .collect::<Result<Vec<_>>>()?;
-    let classes = [label.to_string()];
-    Ok(scoring.evaluate(&scenes, &classes)[label])
+    match truth {
+        ClassTruth::Kitti(t) => {
+            let rows = logs
+                .iter()
+                .map(|l| track_rows(l, cfg, t.class()))
+                .collect::<Result<Vec<_>>>()?;
+            Ok(t.evaluate(&rows).map_or(f64::NAN, |m| m.samota))
+        }
+        ClassTruth::Nuscenes(t) => {
+            let scenes = logs
+                .iter()
+                .zip(t)
+                .map(|(l, t)| track_frames(l, cfg, |i| t[i].clone()))
+                .collect::<Result<Vec<_>>>()?;
+            let classes = [label.to_string()];
+            Ok(scoring.evaluate(&scenes, &classes)[label])
+        }
+    }
 }

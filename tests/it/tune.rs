@@ -324,7 +324,7 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
         let want = o.scoring.evaluate(&full, &[label.to_string()])[label];
         let cfg = single_class(&base, label, base.class(label).unwrap().clone());
         let got = score_class(&refs, &cfg, label, &o.scoring).unwrap();
-        assert!((got - want).abs() < 1e-12, "{label}: {got} vs {want}");
+        assert_eq!(got.to_bits(), want.to_bits(), "{label}: {got} vs {want}");
         assert!(label != "car" || want > 0.5, "car: {want}");
     }
     let cv = cross_validate(&base, &logs, 2, &o, &ProgressBar::hidden()).unwrap();

@@ -48,13 +48,16 @@ use super::events::Collector;
 use super::nan_as_null;
 use super::scene::Scene;
 use pass::{ClassEval, Pass};
-use prepare::{loaded_types, prepare, Skip};
+use prepare::loaded_types;
+pub use prepare::ClassTruth;
+pub use tracks::{row_kind, scene_rows, RowKind, Skip, TrackRow};
 
 mod munkres;
 mod pass;
 mod prepare;
 #[cfg(test)]
 mod tests;
+mod tracks;
 
 /// The classes evaluated by default.
 pub const KITTI_CLASSES: [&str; 3] = ["car", "pedestrian", "cyclist"];
@@ -415,59 +418,88 @@ fn evaluate_class(
     notes: &mut Vec<String>,
     log: Option<&mut Collector>,
 ) -> Option<KittiMetrics> {
-    let (seqs, n_gt_trajectories, n_tr_trajectories) = match prepare(scenes, cls, p) {
-        Ok(v) => v,
+    let truth = ClassTruth::of_scenes(scenes, cls, p);
+    let tracks: Vec<Vec<TrackRow>> = scenes.iter().map(|s| scene_rows(s, cls)).collect();
+    match truth.evaluate_recording(&tracks, log) {
+        Ok(m) => {
+            if m.gt_objects == m.ignored_gt {
+                notes.push(format!(
+                    "{cls}: no ground truth that counts (all ignored or none): MOTA is -inf \
+                     (null), as in the reference; left out of overall"
+                ));
+            }
+            Some(m)
+        }
         Err(Skip::NoTracks) => {
             notes.push(format!(
                 "{cls}: no track box of the types {} evaluated; class not evaluated (as the \
                  reference does)",
                 loaded_types(cls)[..loaded_types(cls).len() - 1].join("/")
             ));
-            return None;
+            None
         }
         Err(Skip::DuplicateId { scene, frame, id }) => {
             notes.push(format!(
                 "{cls}: {scene}: track id {id} appears twice in frame {frame}; class not \
                  evaluated (the reference rejects such results)"
             ));
-            return None;
+            None
         }
-    };
-    let mut e = ClassEval::new(p, seqs, n_gt_trajectories);
-    let first = e.pass(-10000.0, 1.0);
-    let num_gt = first.tp + first.fn_;
-    let (ths, recs) = thresholds(&first.scores, num_gt, p.recall_points);
-    let mut curve = Vec::with_capacity(ths.len());
-    let (mut sum_smota, mut sum_mota, mut sum_motp) = (0.0f64, 0.0f64, 0.0f64);
-    let (mut best_mota, mut best_threshold) = (0.0f64, -10000.0f64);
-    for (&th, &rec) in ths.iter().zip(&recs) {
-        let r = e.pass(th, rec);
-        sum_smota += r.smota;
-        sum_mota += r.mota;
-        sum_motp += r.motp;
-        if r.mota > best_mota {
-            best_threshold = th;
-            best_mota = r.mota;
+        Err(Skip::Mismatch(m)) => {
+            notes.push(format!("{cls}: {m}; class not evaluated"));
+            None
         }
-        curve.push(curve_point(th, rec, &r));
     }
-    e.log = log.is_some().then(Collector::default);
-    let best = e.pass(best_threshold, 1.0);
-    if let (Some(out), Some(recorded)) = (log, e.log.take()) {
-        *out = recorded;
+}
+
+impl ClassTruth {
+    /// The class's metrics for one set of tracks of the truth's scenes: per scene, its track
+    /// rows of the class in frame order (as [`scene_rows`] selects them). The truth is not
+    /// changed, so one `ClassTruth` scores any number of track sets.
+    pub fn evaluate(&self, tracks: &[Vec<TrackRow>]) -> Result<KittiMetrics, Skip> {
+        self.evaluate_recording(tracks, None)
     }
-    if best.n_gt == 0 {
-        notes.push(format!(
-            "{cls}: no ground truth that counts (all ignored or none): MOTA is -inf (null), as \
-             in the reference; left out of overall"
-        ));
+
+    /// [`ClassTruth::evaluate`]; with `log`, also the decisions of the pass at the best-MOTA
+    /// threshold (the pass the counts come from).
+    pub fn evaluate_recording(
+        &self,
+        tracks: &[Vec<TrackRow>],
+        log: Option<&mut Collector>,
+    ) -> Result<KittiMetrics, Skip> {
+        let p = &self.p;
+        let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, p)?;
+        let mut e = ClassEval::new(self, seqs);
+        let first = e.pass(-10000.0, 1.0, true);
+        let num_gt = first.tp + first.fn_;
+        let (ths, recs) = thresholds(&first.scores, num_gt, p.recall_points);
+        let mut curve = Vec::with_capacity(ths.len());
+        let (mut sum_smota, mut sum_mota, mut sum_motp) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut best_mota, mut best_threshold) = (0.0f64, -10000.0f64);
+        for (&th, &rec) in ths.iter().zip(&recs) {
+            let r = e.pass(th, rec, false);
+            sum_smota += r.smota;
+            sum_mota += r.mota;
+            sum_motp += r.motp;
+            if r.mota > best_mota {
+                best_threshold = th;
+                best_mota = r.mota;
+            }
+            curve.push(curve_point(th, rec, &r));
+        }
+        e.log = log.is_some().then(Collector::default);
+        let best = e.pass(best_threshold, 1.0, false);
+        if let (Some(out), Some(recorded)) = (log, e.log.take()) {
+            *out = recorded;
+        }
+        let k = p.recall_points as f64;
+        let n_gt_trajectories = self.n_gt_trajectories;
+        let mut m = metrics_at(&best, (n_gt_trajectories, n_tr_trajectories));
+        (m.samota, m.amota, m.amotp) = (sum_smota / k, sum_mota / k, sum_motp / k);
+        m.best_threshold = best_threshold;
+        m.curve = curve;
+        Ok(m)
     }
-    let k = p.recall_points as f64;
-    let mut m = metrics_at(&best, (n_gt_trajectories, n_tr_trajectories));
-    (m.samota, m.amota, m.amotp) = (sum_smota / k, sum_mota / k, sum_motp / k);
-    m.best_threshold = best_threshold;
-    m.curve = curve;
-    Some(m)
 }
 
 /// One point of the curve: the pass at threshold `th` (recall point `rec`).

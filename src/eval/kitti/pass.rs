@@ -1,11 +1,24 @@
 //! One pass over a class's data at one score threshold: per-frame matching, then the counts
 //! along every ground-truth trajectory. Buffers live in [`ClassEval`] and are reused.
+//!
+//! The matching of a frame is the reference's Munkres on `1 - IoU3D` over the kept tracks,
+//! forbidden pairs costing `MAX_COST`. When no kept ground truth or track has more than one
+//! feasible pair, every feasible pair is matched without running it: any assignment leaving
+//! such a pair out costs at least `MAX_COST - 1` more than one taking it (swap the forbidden
+//! pairs it uses for the feasible one and one other), far beyond rounding, so the Munkres takes
+//! them all, and the rest of its assignment is forbidden pairs, which count nothing but misses.
+//! Other frames (rare: 42 in 100 000 on KITTI) run the Munkres on the same matrix as before.
+//!
+//! A frame whose kept tracks are those of the previous pass gives the previous pass's counts
+//! (the matching depends only on the kept set, and the rows' `valid` flags changed only by that
+//! same matching), so they are replayed from [`FrameMemo`], the cost sums in the same order.
 
 use std::cmp::Ordering;
 
 use super::munkres::Munkres;
-use super::prepare::{overlap_share, Frame, Seq};
-use super::{KittiParams, MAX_COST};
+use super::prepare::{ClassTruth, GtObj, TruthSeq};
+use super::tracks::{Edge, SeqTracks, TrObj};
+use super::MAX_COST;
 use crate::eval::events::{Collector, MarkKind};
 
 /// Counts and derived metrics of one pass over the data at one threshold.
@@ -52,163 +65,255 @@ struct Tally {
     n_ignored_traj: u64,
 }
 
+/// What one frame added to a pass, kept to be replayed while its kept tracks do not change.
+#[derive(Debug, Default)]
+struct FrameMemo {
+    /// Whether the fields below are those of the frame's kept tracks of the last pass.
+    fresh: bool,
+    /// Added to `n_gt, n_igt, n_tr, n_itr, tp, itp, fp, fn_, ifn`.
+    counts: [u64; 9],
+    /// `1 - cost` of each match, in matching order (added to the total cost).
+    ious: Vec<f64>,
+    /// Added to the MODP sum.
+    modp: f64,
+    /// The matched track id (or -1) of each ground truth.
+    assigned: Vec<i64>,
+}
+
+impl FrameMemo {
+    /// Adds the frame's counts and sums to the pass.
+    fn apply(&self, r: &mut Pass, t: &mut Tally) {
+        let c = &self.counts;
+        r.n_gt += c[0];
+        r.n_igt += c[1];
+        r.n_tr += c[2];
+        r.n_itr += c[3];
+        r.tp += c[4];
+        r.itp += c[5];
+        r.fp += c[6];
+        r.fn_ += c[7];
+        r.ifn += c[8];
+        for &v in &self.ious {
+            t.total_cost += v;
+        }
+        t.modp_sum += self.modp;
+    }
+}
+
+/// "Not kept" in [`Scratch::col_of`].
+const NONE: u32 = u32::MAX;
+
 /// Per-frame working buffers.
 #[derive(Debug, Default)]
 struct Scratch {
     munkres: Munkres,
     pairs: Vec<(usize, usize)>,
-    kept: Vec<usize>,
+    /// Kept track rows (indices in the frame), in order: column `c` is row `kept[c]`.
+    kept: Vec<u32>,
+    /// Per track row of the frame, its column among the kept ones, or [`NONE`].
+    col_of: Vec<u32>,
+    /// The feasible pairs among the kept tracks: `(ground truth, column, cost)`.
+    feasible: Vec<(u32, u32, f64)>,
+    row_deg: Vec<u8>,
+    col_deg: Vec<u8>,
     cost: Vec<f64>,
+    /// Per ground truth, its matched column and the pair's cost.
     matched: Vec<Option<usize>>,
+    matched_cost: Vec<f64>,
     tmpcs: Vec<f64>,
     tr_ignored: Vec<bool>,
     sums: Vec<(f64, usize)>,
-    /// Per frame of the scene, the matched track id of each ground truth (-1: none).
-    assigned: Vec<Vec<i64>>,
+    /// Along one trajectory: matched track ids and ignore flags.
+    traj_ids: Vec<i64>,
+    traj_ignored: Vec<bool>,
 }
 
-/// One class's data and the state the reference carries from one threshold to the next.
+/// One class's tracks against its truth, and the state the reference carries from one
+/// threshold to the next.
 pub(super) struct ClassEval<'a> {
-    pub p: &'a KittiParams,
-    pub seqs: Vec<Seq>,
-    pub n_gt_trajectories: u64,
+    pub truth: &'a ClassTruth,
+    pub seqs: Vec<SeqTracks>,
     /// Where the decisions of a pass are recorded (`eval --events`), when set.
     pub log: Option<Collector>,
+    /// Per scene, per frame: its share of the last pass.
+    memos: Vec<Vec<FrameMemo>>,
     scratch: Scratch,
 }
 
 impl<'a> ClassEval<'a> {
-    /// The evaluation of prepared sequences.
-    pub(super) fn new(p: &'a KittiParams, seqs: Vec<Seq>, n_gt_trajectories: u64) -> Self {
+    /// The evaluation of prepared tracks against `truth`.
+    pub(super) fn new(truth: &'a ClassTruth, seqs: Vec<SeqTracks>) -> Self {
+        let memos = truth.seqs.iter().map(|t| {
+            let frames = t.frames.iter();
+            frames.map(|_| FrameMemo::default()).collect()
+        });
         ClassEval {
-            p,
+            truth,
             seqs,
-            n_gt_trajectories,
             log: None,
+            memos: memos.collect(),
             scratch: Scratch::default(),
         }
     }
 
     /// One pass at `threshold` (tracks whose mean score is below it are dropped), with sMOTA at
-    /// `recall_point`.
-    pub(super) fn pass(&mut self, threshold: f64, recall_point: f64) -> Pass {
+    /// `recall_point`; with `scores`, [`Pass::scores`] is filled.
+    pub(super) fn pass(&mut self, threshold: f64, recall_point: f64, scores: bool) -> Pass {
         let mut r = Pass::default();
         let mut t = Tally::default();
         let s = &mut self.scratch;
-        for (si, seq) in self.seqs.iter_mut().enumerate() {
-            t.n_frames += seq.frames.len();
+        let seqs = self.seqs.iter_mut().zip(&self.truth.seqs);
+        for (si, ((seq, truth), memos)) in seqs.zip(&mut self.memos).enumerate() {
+            t.n_frames += truth.frames.len();
             average_scores(seq, &mut s.sums);
-            s.assigned.resize_with(seq.frames.len(), Vec::new);
-            for (fi, f) in seq.frames.iter_mut().enumerate() {
-                let mut assigned = std::mem::take(&mut s.assigned[fi]);
-                match_frame(f, threshold, self.p, s, &mut assigned, &mut r, &mut t);
-                s.assigned[fi] = assigned;
+            for (fi, (f, memo)) in truth.frames.iter().zip(memos.iter_mut()).enumerate() {
+                let (rows, edges) = seq.frame(fi);
+                let changed = update_kept(rows, threshold);
+                if changed || !memo.fresh || scores || self.log.is_some() {
+                    let scores = scores.then_some(&mut r.scores);
+                    match_frame((&f.gt, &mut *rows, edges), s, memo, scores);
+                }
+                memo.apply(&mut r, &mut t);
                 if let Some(log) = self.log.as_mut() {
-                    record_frame(log, (si, fi), f, s);
+                    record_frame(log, (si, fi), &f.gt, rows, s);
                 }
             }
             let log = self.log.as_mut().map(|l| (l, si));
-            count_trajectories(seq, &s.assigned, &mut r, &mut t, log);
+            count_trajectories(truth, memos, s, (&mut r, &mut t), log);
         }
-        finish(r, &t, self.n_gt_trajectories, recall_point)
+        finish(r, &t, self.truth.n_gt_trajectories, recall_point)
     }
+}
+
+/// Marks the rows kept at `threshold` (score not below it); whether any changed.
+fn update_kept(rows: &mut [TrObj], threshold: f64) -> bool {
+    let mut changed = false;
+    for row in rows {
+        let kept = row.score.partial_cmp(&threshold) != Some(Ordering::Less);
+        changed |= kept != row.kept;
+        row.kept = kept;
+    }
+    changed
 }
 
 /// Every row of a track takes the mean score of the track's rows, summed in file order.
-fn average_scores(seq: &mut Seq, sums: &mut Vec<(f64, usize)>) {
+fn average_scores(seq: &mut SeqTracks, sums: &mut Vec<(f64, usize)>) {
     sums.clear();
     sums.resize(seq.n_tracks, (0.0, 0));
-    for f in &seq.frames {
-        for t in &f.tr {
-            let e = &mut sums[t.slot as usize];
-            e.0 += t.score;
-            e.1 += 1;
-        }
+    for t in &seq.rows {
+        let e = &mut sums[t.slot as usize];
+        e.0 += t.score;
+        e.1 += 1;
     }
-    for f in &mut seq.frames {
-        for t in &mut f.tr {
-            let (s, n) = sums[t.slot as usize];
-            t.score = s / n as f64;
+    for t in &mut seq.rows {
+        let (s, n) = sums[t.slot as usize];
+        t.score = s / n as f64;
+    }
+}
+
+/// The pairs the reference's Munkres matches in a frame, into `s.matched` and
+/// `s.matched_cost` (see the module documentation for the shortcut).
+fn select_pairs(edges: &[Edge], ng: usize, nt: usize, s: &mut Scratch) {
+    s.matched.clear();
+    s.matched.resize(ng, None);
+    s.matched_cost.clear();
+    s.matched_cost.resize(ng, 0.0);
+    s.feasible.clear();
+    s.row_deg.clear();
+    s.row_deg.resize(ng, 0);
+    s.col_deg.clear();
+    s.col_deg.resize(nt, 0);
+    let mut conflict = false;
+    for e in edges {
+        let col = s.col_of[e.tr as usize];
+        if col == NONE {
+            continue;
+        }
+        s.feasible.push((e.gt, col, e.cost));
+        let (rd, cd) = (&mut s.row_deg[e.gt as usize], &mut s.col_deg[col as usize]);
+        *rd = rd.saturating_add(1);
+        *cd = cd.saturating_add(1);
+        conflict |= *rd > 1 || *cd > 1;
+    }
+    if !conflict {
+        for &(g, col, c) in &s.feasible {
+            s.matched[g as usize] = Some(col as usize);
+            s.matched_cost[g as usize] = c;
+        }
+        return;
+    }
+    s.cost.clear();
+    s.cost.resize(ng * nt, MAX_COST);
+    for &(g, col, c) in &s.feasible {
+        s.cost[g as usize * nt + col as usize] = c;
+    }
+    s.munkres.solve(&s.cost, ng, nt, &mut s.pairs);
+    for &(row, col) in &s.pairs {
+        let c = s.cost[row * nt + col];
+        if c < MAX_COST {
+            s.matched[row] = Some(col);
+            s.matched_cost[row] = c;
         }
     }
 }
 
-/// Matches one frame at `threshold` and adds its counts; `assigned` receives the matched track
-/// id (or -1) of each ground truth.
+/// Matches one frame (its ground truth, track rows marked by [`update_kept`] and feasible
+/// pairs) and writes its share of the pass into `memo`; the matched boxes' scores go to
+/// `scores` when given.
 fn match_frame(
-    f: &mut Frame,
-    threshold: f64,
-    p: &KittiParams,
+    (gt, tr, edges): (&[GtObj], &mut [TrObj], &[Edge]),
     s: &mut Scratch,
-    assigned: &mut Vec<i64>,
-    r: &mut Pass,
-    t: &mut Tally,
+    memo: &mut FrameMemo,
+    mut scores: Option<&mut Vec<f64>>,
 ) {
     s.kept.clear();
-    s.kept.extend(
-        (0..f.tr.len()).filter(|&k| f.tr[k].score.partial_cmp(&threshold) != Some(Ordering::Less)),
-    );
-    let (ng, nt) = (f.gt.len(), s.kept.len());
-    r.n_gt += ng as u64;
-    r.n_tr += nt as u64;
-    s.cost.clear();
-    for gi in 0..ng {
-        for &k in &s.kept {
-            let c = f.cost[gi * f.tr.len() + k];
-            s.cost.push(if c <= 1.0 - p.min_overlap {
-                c
-            } else {
-                MAX_COST
-            });
+    s.col_of.clear();
+    for (k, row) in tr.iter().enumerate() {
+        if row.kept {
+            s.col_of.push(s.kept.len() as u32);
+            s.kept.push(k as u32);
+        } else {
+            s.col_of.push(NONE);
         }
     }
-    s.munkres.solve(&s.cost, ng, nt, &mut s.pairs);
-    assigned.clear();
-    assigned.resize(ng, -1);
-    s.matched.clear();
-    s.matched.resize(ng, None);
+    let (ng, nt) = (gt.len(), s.kept.len());
+    select_pairs(edges, ng, nt, s);
+    memo.assigned.clear();
+    memo.assigned.resize(ng, -1);
+    memo.ious.clear();
     s.tmpcs.clear();
     s.tmpcs.resize(ng, 0.0);
-    let (mut tmptp, mut gated, mut tmpc) = (0u64, 0i64, 0.0f64);
-    for &(row, col) in &s.pairs {
-        let c = s.cost[row * nt + col];
-        if c < MAX_COST {
-            let tr = &mut f.tr[s.kept[col]];
-            s.matched[row] = Some(col);
-            tr.valid = true;
-            t.total_cost += 1.0 - c;
-            tmpc += 1.0 - c;
-            s.tmpcs[row] = 1.0 - c;
-            assigned[row] = tr.id;
-            r.tp += 1;
-            tmptp += 1;
-            r.scores.push(tr.score);
-        } else {
-            gated += 1;
+    let (mut tmptp, mut n_matched, mut tmpc) = (0u64, 0i64, 0.0f64);
+    for (row, m) in s.matched.iter().enumerate() {
+        let Some(col) = *m else { continue };
+        let c = s.matched_cost[row];
+        let tr = &mut tr[s.kept[col] as usize];
+        tr.valid = true;
+        memo.ious.push(1.0 - c);
+        tmpc += 1.0 - c;
+        s.tmpcs[row] = 1.0 - c;
+        memo.assigned[row] = tr.id;
+        tmptp += 1;
+        n_matched += 1;
+        if let Some(v) = scores.as_mut() {
+            v.push(tr.score);
         }
     }
+    let tp = tmptp;
     // Ignored track boxes: neighbouring class, too small, or inside DontCare.
     s.tr_ignored.clear();
     s.tr_ignored.resize(nt, false);
     let mut n_ignored_tr = 0u64;
     for (col, &k) in s.kept.iter().enumerate() {
-        let tr = &f.tr[k];
-        if tr.valid {
-            continue;
-        }
-        let height = (tr.bbox[1] - tr.bbox[3]).abs();
-        if tr.neighbour
-            || height <= p.min_height
-            || f.dc.iter().any(|d| overlap_share(&tr.bbox, d) > 0.5)
-        {
+        let tr = &tr[k as usize];
+        if !tr.valid && tr.ignorable {
             n_ignored_tr += 1;
             s.tr_ignored[col] = true;
         }
     }
     // Ignored ground truth: truncated, occluded or of the neighbouring class.
     let (mut ignored_fn, mut ignored_tp, mut ignored_pairs) = (0u64, 0u64, 0u64);
-    for (gi, g) in f.gt.iter().enumerate().filter(|(_, g)| g.ignored) {
-        let _ = g;
+    for (gi, _) in gt.iter().enumerate().filter(|(_, g)| g.ignored) {
         match s.matched[gi] {
             None => ignored_fn += 1,
             Some(col) => {
@@ -221,29 +326,42 @@ fn match_frame(
         }
     }
     tmptp -= ignored_tp;
-    r.itp += ignored_tp;
-    r.n_gt -= ignored_fn + ignored_tp;
-    r.n_igt += ignored_fn + ignored_tp;
-    r.n_itr += n_ignored_tr;
-    // Pairs over the IoU limit, plus ground truth left unassigned, minus the ignored ones
-    // among both (never negative).
-    let frame_fn = gated + ng as i64 - s.pairs.len() as i64 - ignored_fn as i64;
-    r.fn_ += frame_fn.max(0) as u64;
-    r.ifn += ignored_fn;
-    r.fp += nt as u64 + ignored_pairs - tmptp - n_ignored_tr - ignored_tp;
-    t.modp_sum += if tmptp != 0 { tmpc / tmptp as f64 } else { 1.0 };
+    // The reference: pairs over the IoU limit, plus ground truth left unassigned, minus the
+    // ignored ones among both; its Munkres pairs min(ng, nt) rows, so this is the ground truth
+    // without a feasible match minus the ignored ones (never negative).
+    let frame_fn = ng as i64 - n_matched - ignored_fn as i64;
+    let n_ignored_gt = ignored_fn + ignored_tp;
+    memo.counts = [
+        ng as u64 - n_ignored_gt,
+        n_ignored_gt,
+        nt as u64,
+        n_ignored_tr,
+        tp,
+        ignored_tp,
+        nt as u64 + ignored_pairs - tmptp - n_ignored_tr - ignored_tp,
+        frame_fn.max(0) as u64,
+        ignored_fn,
+    ];
+    memo.modp = if tmptp != 0 { tmpc / tmptp as f64 } else { 1.0 };
+    memo.fresh = true;
 }
 
 /// Records the decisions `match_frame` took in frame `fi` of scene `si` (`eval --events`).
-fn record_frame(log: &mut Collector, (si, fi): (usize, usize), f: &Frame, s: &Scratch) {
+fn record_frame(
+    log: &mut Collector,
+    (si, fi): (usize, usize),
+    gt: &[GtObj],
+    tr: &[TrObj],
+    s: &Scratch,
+) {
     log.record_kitti_frame(
         si,
         fi,
-        f.gt.iter().map(|g| g.id),
+        gt.iter().map(|g| g.id),
         &s.matched,
-        |gi| f.gt[gi].ignored,
+        |gi| gt[gi].ignored,
         &s.tr_ignored,
-        |col| f.tr[s.kept[col]].id,
+        |col| tr[s.kept[col] as usize].id,
     );
 }
 
@@ -251,14 +369,13 @@ fn record_frame(log: &mut Collector, (si, fi): (usize, usize), f: &Frame, s: &Sc
 /// scene, from the matched ids of its rows; each switch and fragmentation also goes to `log`
 /// (with the scene's index) when given.
 fn count_trajectories(
-    seq: &Seq,
-    assigned: &[Vec<i64>],
-    r: &mut Pass,
-    t: &mut Tally,
+    seq: &TruthSeq,
+    memos: &[FrameMemo],
+    s: &mut Scratch,
+    (r, t): (&mut Pass, &mut Tally),
     mut log: Option<(&mut Collector, usize)>,
 ) {
-    let mut g: Vec<i64> = Vec::new();
-    let mut ign: Vec<bool> = Vec::new();
+    let (g, ign) = (&mut s.traj_ids, &mut s.traj_ignored);
     for rows in &seq.trajectories {
         let mut mark = |kind, f: usize, track: i64, previous: i64| {
             if let Some((log, si)) = log.as_mut() {
@@ -270,7 +387,7 @@ fn count_trajectories(
         g.clear();
         ign.clear();
         for &(fi, gi) in rows {
-            g.push(assigned[fi as usize][gi as usize]);
+            g.push(memos[fi as usize].assigned[gi as usize]);
             ign.push(seq.frames[fi as usize].gt[gi as usize].ignored);
         }
         if ign.iter().all(|&i| i) {

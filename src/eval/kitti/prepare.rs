@@ -1,13 +1,13 @@
-//! One class's rows of every scene, with the pair costs and the ignore flags of the truth,
-//! as the passes read them: ids are small per-scene slots, so a pass needs no map.
+//! One class's ground truth of every scene, prepared once (rows of the class, ignore flags,
+//! DontCare regions, trajectories, boxes), so that many sets of tracks can be scored against it
+//! (`probmot tune` scores hundreds). The tracks' side is in `tracks.rs`.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::HashMap;
 
 use super::DEVKIT_EXTRA_FRAMES;
 use super::{KittiParams, ATTR_OCCLUDED, ATTR_TRACK_ID, ATTR_TRUNCATED, ATTR_TYPE};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
-use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
 
 /// A ground-truth box of the evaluated class (or its neighbour).
@@ -19,45 +19,109 @@ pub(super) struct GtObj {
     pub ignored: bool,
 }
 
-/// A track box; `score` and `valid` persist across thresholds, as in the reference.
-#[derive(Debug, Clone)]
-pub(super) struct TrObj {
-    /// Track id.
-    pub id: i64,
-    /// Index of the track among the scene's tracks (for its mean score).
-    pub slot: u32,
-    /// Of the neighbouring class (ignored when unmatched).
-    pub neighbour: bool,
-    /// 2D box `x1 y1 x2 y2`.
-    pub bbox: [f64; 4],
-    /// Score: the track's mean after the first pass.
-    pub score: f64,
-    /// Matched at some threshold already (then never ignored).
-    pub valid: bool,
-}
-
-/// One frame of one class: ground truth, DontCare regions, track boxes and the cost
-/// `1 - IoU3D` of every (ground truth, track) pair, row-major.
+/// One frame of one class's truth: its rows, their boxes (same order) and the DontCare regions.
 #[derive(Debug, Clone, Default)]
-pub(super) struct Frame {
+pub(super) struct TruthFrame {
     pub gt: Vec<GtObj>,
+    pub boxes: Vec<Box3>,
     pub dc: Vec<[f64; 4]>,
-    pub tr: Vec<TrObj>,
-    pub cost: Vec<f64>,
 }
 
-/// One scene of one class.
+/// One scene of one class's truth.
 #[derive(Debug, Clone, Default)]
-pub(super) struct Seq {
-    pub frames: Vec<Frame>,
-    /// Number of distinct track ids (slots of [`TrObj::slot`]).
-    pub n_tracks: usize,
+pub(super) struct TruthSeq {
+    /// Scene name (for messages).
+    pub name: String,
+    /// The scene's frames, then the devkit's extra empty frame(s).
+    pub frames: Vec<TruthFrame>,
     /// Per ground-truth trajectory, its rows in frame order as `(frame, index in frame.gt)`.
     pub trajectories: Vec<Vec<(u32, u32)>>,
 }
 
+/// One class's ground truth of a list of scenes, prepared once to score many sets of tracks of
+/// the same scenes with [`ClassTruth::evaluate`]; `evaluate` (the whole protocol) builds one per
+/// class.
+#[derive(Debug, Clone)]
+pub struct ClassTruth {
+    /// The class (lower case).
+    pub(super) cls: String,
+    pub(super) p: KittiParams,
+    pub(super) seqs: Vec<TruthSeq>,
+    pub(super) n_gt_trajectories: u64,
+}
+
+impl ClassTruth {
+    /// The truth of class `cls` in `scenes`: per scene its name and the truth boxes of each
+    /// frame, in frame order (boxes carry the KITTI attributes `probmot import kitti` writes).
+    /// Only the rows the class reads are kept (the class, its neighbour, DontCare regions).
+    pub fn new<'a, S, F>(scenes: S, cls: &str, p: &KittiParams) -> ClassTruth
+    where
+        S: IntoIterator<Item = (&'a str, F)>,
+        F: IntoIterator<Item = &'a [LabelledBox]>,
+    {
+        let cls = cls.to_lowercase();
+        let types = loaded_types(&cls);
+        let mut seqs = Vec::new();
+        let mut n_gt_trajectories = 0u64;
+        for (name, frames) in scenes {
+            let mut seq = TruthSeq {
+                name: name.to_string(),
+                ..TruthSeq::default()
+            };
+            let mut slots: HashMap<i64, u32> = HashMap::new();
+            for (fi, truth) in frames.into_iter().enumerate() {
+                let mut frame = TruthFrame::default();
+                for b in truth {
+                    let Some((id, g)) = truth_row(b, &cls, &types, p, &mut frame.dc) else {
+                        continue;
+                    };
+                    let next = slots.len() as u32;
+                    let slot = *slots.entry(id).or_insert(next);
+                    if slot == next {
+                        seq.trajectories.push(Vec::new());
+                    }
+                    seq.trajectories[slot as usize].push((fi as u32, frame.gt.len() as u32));
+                    frame.gt.push(g);
+                    frame.boxes.push(box3(b));
+                }
+                seq.frames.push(frame);
+            }
+            for _ in 0..DEVKIT_EXTRA_FRAMES {
+                seq.frames.push(TruthFrame::default());
+            }
+            n_gt_trajectories += slots.len() as u64;
+            seqs.push(seq);
+        }
+        ClassTruth {
+            cls,
+            p: p.clone(),
+            seqs,
+            n_gt_trajectories,
+        }
+    }
+
+    /// [`ClassTruth::new`] from the truth of evaluation scenes.
+    pub fn of_scenes(scenes: &[Scene], cls: &str, p: &KittiParams) -> ClassTruth {
+        let it = scenes.iter().map(|s| {
+            let frames = s.frames.iter().map(|(_, truth, _)| truth.as_slice());
+            (s.name.as_str(), frames)
+        });
+        ClassTruth::new(it, cls, p)
+    }
+
+    /// The class (lower case).
+    pub fn class(&self) -> &str {
+        &self.cls
+    }
+
+    /// Number of scenes.
+    pub fn scenes(&self) -> usize {
+        self.seqs.len()
+    }
+}
+
 /// The lower-cased KITTI type of a box: the `kitti_type` attribute, else the label.
-fn kitti_type(b: &LabelledBox) -> String {
+pub(super) fn kitti_type(b: &LabelledBox) -> String {
     b.attributes
         .get(ATTR_TYPE)
         .unwrap_or(&b.label)
@@ -91,7 +155,8 @@ fn int_attr(b: &LabelledBox, key: &str, default: i64) -> i64 {
         .unwrap_or(default)
 }
 
-fn box3(b: &LabelledBox) -> Box3 {
+/// The 3D box of an evaluation box.
+pub(super) fn box3(b: &LabelledBox) -> Box3 {
     Box3 {
         center: b.center,
         yaw: b.yaw,
@@ -107,102 +172,6 @@ pub(super) fn overlap_share(a: &[f64; 4], b: &[f64; 4]) -> f64 {
         return 0.0;
     }
     w * h / ((a[2] - a[0]) * (a[3] - a[1]))
-}
-
-/// Why a class cannot be evaluated.
-pub(super) enum Skip {
-    NoTracks,
-    DuplicateId {
-        scene: String,
-        frame: usize,
-        id: i64,
-    },
-}
-
-/// Selects one class's rows of every scene and computes the pair costs: the sequences and the
-/// numbers of ground-truth and track trajectories.
-pub(super) fn prepare(
-    scenes: &[Scene],
-    cls: &str,
-    p: &KittiParams,
-) -> Result<(Vec<Seq>, u64, u64), Skip> {
-    let types = loaded_types(cls);
-    let mut seqs = Vec::with_capacity(scenes.len());
-    let (mut n_gt_traj, mut n_tr_traj) = (0u64, 0u64);
-    for scene in scenes {
-        let mut seq = Seq::default();
-        let mut gt_slots: HashMap<i64, u32> = HashMap::new();
-        let mut tr_slots: HashMap<i64, u32> = HashMap::new();
-        let mut tr_ids = HashSet::new();
-        let (mut gt_boxes, mut tr_boxes) = (Vec::new(), Vec::new());
-        for (fi, (_, truth, tracks)) in scene.frames.iter().enumerate() {
-            let mut frame = Frame::default();
-            gt_boxes.clear();
-            tr_boxes.clear();
-            for b in truth {
-                let Some((id, g)) = truth_row(b, cls, &types, p, &mut frame.dc) else {
-                    continue;
-                };
-                let next = gt_slots.len() as u32;
-                let slot = *gt_slots.entry(id).or_insert(next);
-                if slot == next {
-                    seq.trajectories.push(Vec::new());
-                }
-                seq.trajectories[slot as usize].push((fi as u32, frame.gt.len() as u32));
-                frame.gt.push(g);
-                gt_boxes.push(box3(b));
-            }
-            let mut seen = HashSet::new();
-            for b in tracks {
-                let kind = kitti_type(b);
-                if !types.iter().any(|t| kind.contains(t.as_str())) {
-                    continue;
-                }
-                let id = b.id as i64;
-                if id == -1 && kind != "dontcare" {
-                    continue;
-                }
-                if !seen.insert(id) {
-                    let scene = scene.name.clone();
-                    return Err(Skip::DuplicateId {
-                        scene,
-                        frame: fi,
-                        id,
-                    });
-                }
-                if kind != "dontcare" && tr_ids.insert(id) {
-                    n_tr_traj += 1;
-                }
-                let next = tr_slots.len() as u32;
-                frame.tr.push(TrObj {
-                    id,
-                    slot: *tr_slots.entry(id).or_insert(next),
-                    neighbour: is_neighbour(cls, &kind),
-                    bbox: b.image_box.unwrap_or([0.0; 4]),
-                    score: b.score,
-                    valid: false,
-                });
-                tr_boxes.push(box3(b));
-            }
-            frame.cost = Vec::with_capacity(gt_boxes.len() * tr_boxes.len());
-            for g in &gt_boxes {
-                for t in &tr_boxes {
-                    frame.cost.push(1.0 - iou3d(g, t));
-                }
-            }
-            seq.frames.push(frame);
-        }
-        for _ in 0..DEVKIT_EXTRA_FRAMES {
-            seq.frames.push(Frame::default());
-        }
-        n_gt_traj += gt_slots.len() as u64;
-        seq.n_tracks = tr_slots.len();
-        seqs.push(seq);
-    }
-    if n_tr_traj == 0 {
-        return Err(Skip::NoTracks);
-    }
-    Ok((seqs, n_gt_traj, n_tr_traj))
 }
 
 /// A truth box of the class (or its neighbour): its KITTI id and row; DontCare

@@ -460,3 +460,37 @@ fn munkres_finds_minimum_cost_assignments() {
     assert_eq!(pairs, vec![(0, 1), (1, 3), (2, 2)]);
     assert!(munkres(&[], 0, 3).is_empty());
 }
+
+#[test]
+fn munkres_takes_every_feasible_pair_that_competes_with_none() {
+    // The shortcut of `pass::select_pairs`: when no row and no column has two feasible pairs,
+    // the reference's Munkres matches exactly the feasible pairs (the others at MAX_COST).
+    let mut state = 987654321u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 33) as f64 / (1u64 << 31) as f64
+    };
+    for (rows, cols) in [(1, 1), (3, 3), (4, 7), (7, 4), (12, 20), (20, 12), (30, 30)] {
+        for _ in 0..40 {
+            let mut cost = vec![MAX_COST; rows * cols];
+            let mut feasible = Vec::new();
+            let mut used_col = vec![false; cols];
+            for r in 0..rows {
+                let c = (next() * cols as f64) as usize % cols;
+                if next() < 0.7 && !used_col[c] {
+                    used_col[c] = true;
+                    // Costs as the evaluation has them: 1 - IoU, at most 1 - 0.25.
+                    cost[r * cols + c] = 0.75 * next();
+                    feasible.push((r, c));
+                }
+            }
+            let got: Vec<(usize, usize)> = munkres(&cost, rows, cols)
+                .into_iter()
+                .filter(|&(r, c)| cost[r * cols + c] < MAX_COST)
+                .collect();
+            assert_eq!(got, feasible, "{rows}x{cols}");
+        }
+    }
+}
