@@ -30,7 +30,7 @@ pub struct EvalBox {
 }
 
 impl EvalBox {
-    fn from_track(t: Track3D) -> EvalBox {
+    pub(crate) fn from_track(t: Track3D) -> EvalBox {
         let c = t.center.unwrap_or_default();
         let s = t.size.unwrap_or_default();
         EvalBox {
