@@ -6,7 +6,8 @@ use criterion::{criterion_group, criterion_main, Criterion};
 use probmot::eval::columns::ColumnScene;
 use probmot::eval::hota::centre::centre_hota;
 use probmot::eval::nuscenes::{evaluate_columns, NuscenesParams};
-use probmot::eval::scene::{EvalBox, Scene};
+use probmot::eval::scene::Scene;
+use probmot::mcapio::LabelledBox;
 use probmot::tracker::config::NUSCENES_CLASSES;
 
 struct Lcg(u64);
@@ -20,16 +21,15 @@ impl Lcg {
     }
 }
 
-fn eval_box(id: u64, label: &str, x: f64, y: f64, score: f64) -> EvalBox {
-    EvalBox {
+fn eval_box(id: u64, label: &str, x: f64, y: f64, score: f64) -> LabelledBox {
+    LabelledBox {
         id,
         label: label.into(),
         center: [x, y, 1.0],
         size: [4.5, 1.9, 1.6],
         yaw: 0.0,
         score,
-        attributes: Default::default(),
-        image_box: None,
+        ..Default::default()
     }
 }
 

@@ -21,8 +21,9 @@ use probmot::eval::range::{
     apply_range_filter, read_ego_positions, EgoPositions, RangeFilter, RangeRemoved,
 };
 use probmot::eval::report::{fmt_value, table};
-use probmot::eval::scene::{load_scene_progress, EvalBox, Scene};
+use probmot::eval::scene::{load_scene_progress, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
+use probmot::mcapio::LabelledBox;
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
@@ -227,7 +228,7 @@ impl<'a> LogFilters<'a> {
     fn apply_message(
         &self,
         scene_name: &str,
-        (stamp, boxes, truth): (u64, &mut Vec<EvalBox>, bool),
+        (stamp, boxes, truth): (u64, &mut Vec<LabelledBox>, bool),
         counts: &mut FilterCounts,
     ) -> Result<()> {
         if self.ego.is_none() && self.args.min_points.is_none() && self.racks.is_none() {

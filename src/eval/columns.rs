@@ -8,8 +8,9 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use super::scene::{EvalBox, Scene};
+use super::scene::Scene;
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
+use crate::mcapio::LabelledBox;
 
 /// The boxes of one channel, frame by frame: frame `f`'s boxes are `at[f]..at[f + 1]`.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -42,7 +43,7 @@ impl Side {
         self.id.is_empty()
     }
 
-    fn push(&mut self, b: &EvalBox, label: u16) {
+    fn push(&mut self, b: &LabelledBox, label: u16) {
         self.id.push(b.id);
         self.label.push(label);
         self.xy.push([b.center[0], b.center[1]]);
@@ -160,7 +161,7 @@ impl Builder {
     }
 
     /// Appends one message of side `s` (0 truth, 1 tracks).
-    fn push(&mut self, s: usize, stamp: u64, boxes: &[EvalBox]) {
+    fn push(&mut self, s: usize, stamp: u64, boxes: &[LabelledBox]) {
         let start = self.sides[s].cols.len();
         self.sides[s].messages.push((stamp, start));
         for b in boxes {
@@ -213,7 +214,7 @@ fn union_offsets(all: &[u64], own: &[u64], at: &[usize]) -> Vec<usize> {
 
 /// Per message, what the caller removes from its boxes before they are stored (the nuScenes
 /// filters): `(stamp, boxes, is_truth)`.
-pub type MessageFilter<'a> = dyn FnMut(u64, &mut Vec<EvalBox>, bool) -> Result<()> + 'a;
+pub type MessageFilter<'a> = dyn FnMut(u64, &mut Vec<LabelledBox>, bool) -> Result<()> + 'a;
 
 /// Loads one scene into columns while streaming: truth and tracks topics (one pass when both
 /// are in the same file), each message filtered by `filter`, checked as
@@ -239,7 +240,7 @@ pub fn load_columns(
         files.push((tracks, vec![(1, tracks_topic)]));
     }
     let weight = if one_pass { 2 } else { 1 };
-    let mut boxes: Vec<EvalBox> = Vec::new();
+    let mut boxes: Vec<LabelledBox> = Vec::new();
     for (path, sides) in files {
         let reqs: Vec<TopicRequest> = sides.iter().map(|s| request(s.1)).collect();
         let mut found = vec![false; reqs.len()];
@@ -253,7 +254,9 @@ pub fn load_columns(
                     let side = sides[i].0;
                     boxes.clear();
                     match f.boxes {
-                        Boxes::Tracks(t) => boxes.extend(t.into_iter().map(EvalBox::from_track)),
+                        Boxes::Tracks(t) => {
+                            boxes.extend(t.into_iter().map(LabelledBox::from_track))
+                        }
                         Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                     }
                     if side == 0 {
@@ -298,7 +301,7 @@ fn check(ts: &[u64], rs: &[u64], truth: (&Path, &str), tracks: (&Path, &str)) ->
 }
 
 /// The first truth box without id (id 0; KITTI's `dontcare` regions excepted), as an error.
-fn check_ids(path: &Path, topic: &str, stamp: u64, boxes: &[EvalBox]) -> Result<()> {
+fn check_ids(path: &Path, topic: &str, stamp: u64, boxes: &[LabelledBox]) -> Result<()> {
     if let Some(b) = boxes.iter().find(|b| b.id == 0 && b.label != "dontcare") {
         bail!(
             "{}: topic {topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \

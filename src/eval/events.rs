@@ -14,7 +14,8 @@ use std::collections::HashMap;
 use serde::Serialize;
 
 use super::mot_accumulator::EventKind;
-use super::scene::{EvalBox, Scene};
+use super::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::{size3, v3, EvalEvent};
 
@@ -225,7 +226,7 @@ pub struct ClassEvents {
 
 /// KITTI's id of a ground-truth box: the label file's track id, else the box id minus one (the
 /// rule of the KITTI evaluation's loader).
-fn kitti_truth_id(b: &EvalBox) -> i64 {
+fn kitti_truth_id(b: &LabelledBox) -> i64 {
     match b
         .attributes
         .get("kitti_track_id")
@@ -244,7 +245,7 @@ struct Boxes<'a> {
 }
 
 impl Boxes<'_> {
-    fn truth(&self, scene: usize, frame: usize, id: u64) -> Option<&EvalBox> {
+    fn truth(&self, scene: usize, frame: usize, id: u64) -> Option<&LabelledBox> {
         let boxes = &self.scenes.get(scene)?.frames.get(frame)?.1;
         match self.protocol {
             Protocol::Nuscenes => boxes.iter().find(|b| b.id == id && b.label == self.class),
@@ -254,7 +255,7 @@ impl Boxes<'_> {
         }
     }
 
-    fn track(&self, scene: usize, frame: usize, id: u64) -> Option<&EvalBox> {
+    fn track(&self, scene: usize, frame: usize, id: u64) -> Option<&LabelledBox> {
         let boxes = &self.scenes.get(scene)?.frames.get(frame)?.2;
         boxes
             .iter()
@@ -418,8 +419,8 @@ fn kitti_marks(
 mod tests {
     use super::*;
 
-    fn gt(id: u64, x: f64) -> EvalBox {
-        EvalBox {
+    fn gt(id: u64, x: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "car".into(),
             center: [x, 0.0, 0.0],
@@ -428,6 +429,7 @@ mod tests {
             score: 1.0,
             attributes: Default::default(),
             image_box: None,
+            ..Default::default()
         }
     }
 

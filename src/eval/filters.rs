@@ -18,8 +18,9 @@ use anyhow::{bail, Context, Result};
 use serde::Serialize;
 
 use super::range::RangeRemoved;
-use super::scene::{read_tracks_topic, EvalBox, Scene};
+use super::scene::{read_tracks_topic, Scene};
 use crate::formats::nuscenes::attr;
+use crate::mcapio::LabelledBox;
 
 /// Boxes each filter removed, in the devkit's order; `None` for a filter that was off.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
@@ -48,7 +49,7 @@ impl FilterCounts {
     }
 }
 
-fn count(b: &EvalBox, key: &str) -> Option<i64> {
+fn count(b: &LabelledBox, key: &str) -> Option<i64> {
     b.attributes.get(key)?.trim().parse().ok()
 }
 
@@ -179,7 +180,7 @@ pub fn apply_bike_racks(scene: &mut Scene, racks: &BTreeMap<u64, Vec<Rack>>) -> 
         let Some(racks) = racks.get(stamp).filter(|r| !r.is_empty()) else {
             continue;
         };
-        let keep = |b: &EvalBox| {
+        let keep = |b: &LabelledBox| {
             !matches!(b.label.as_str(), "bicycle" | "motorcycle")
                 || !racks.iter().any(|r| r.contains(b.center))
         };
@@ -196,13 +197,13 @@ pub fn apply_bike_racks(scene: &mut Scene, racks: &BTreeMap<u64, Vec<Rack>>) -> 
 mod tests {
     use super::*;
 
-    fn b(label: &str, c: [f64; 3], pts: Option<(i64, i64)>) -> EvalBox {
+    fn b(label: &str, c: [f64; 3], pts: Option<(i64, i64)>) -> LabelledBox {
         let mut attributes = BTreeMap::new();
         if let Some((l, r)) = pts {
             attributes.insert(attr::NUM_LIDAR_PTS.to_string(), l.to_string());
             attributes.insert(attr::NUM_RADAR_PTS.to_string(), r.to_string());
         }
-        EvalBox {
+        LabelledBox {
             id: 1,
             label: label.into(),
             center: c,
@@ -211,6 +212,7 @@ mod tests {
             score: 0.5,
             attributes,
             image_box: None,
+            ..Default::default()
         }
     }
 

@@ -764,10 +764,10 @@ pub fn evaluate_columns_recording(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::eval::scene::EvalBox;
+    use crate::mcapio::LabelledBox;
 
-    fn gt(id: u64, x: f64) -> EvalBox {
-        EvalBox {
+    fn gt(id: u64, x: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "bicycle".into(),
             center: [x, 0.0, 0.0],
@@ -776,6 +776,7 @@ mod tests {
             score: 1.0,
             attributes: Default::default(),
             image_box: None,
+            ..Default::default()
         }
     }
 

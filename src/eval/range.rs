@@ -13,8 +13,9 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
-use super::scene::{EvalBox, Scene};
+use super::scene::Scene;
 use crate::mcapio::topic::for_each_payload;
+use crate::mcapio::LabelledBox;
 use crate::msgs::EGO_POSE_SCHEMA;
 
 /// Maximum ego distance per class, metres.
@@ -216,7 +217,7 @@ pub fn apply_range_filter(
                 ego.samples.last().map_or(0, |s| s.0)
             );
         };
-        let keep = |b: &EvalBox| filter.keeps(&b.label, b.center[0] - p[0], b.center[1] - p[1]);
+        let keep = |b: &LabelledBox| filter.keeps(&b.label, b.center[0] - p[0], b.center[1] - p[1]);
         let (n_truth, n_tracks) = (truth.len(), tracks.len());
         truth.retain(keep);
         tracks.retain(keep);
@@ -230,8 +231,8 @@ pub fn apply_range_filter(
 mod tests {
     use super::*;
 
-    fn b(label: &str, x: f64, y: f64) -> EvalBox {
-        EvalBox {
+    fn b(label: &str, x: f64, y: f64) -> LabelledBox {
+        LabelledBox {
             id: 1,
             label: label.into(),
             center: [x, y, 0.0],
@@ -240,6 +241,7 @@ mod tests {
             score: 0.5,
             attributes: Default::default(),
             image_box: None,
+            ..Default::default()
         }
     }
 

@@ -6,45 +6,7 @@ use std::path::Path;
 use anyhow::{bail, Result};
 
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
-use crate::msgs::Track3D;
-
-/// One box as the evaluation sees it.
-#[derive(Debug, Clone, PartialEq)]
-pub struct EvalBox {
-    /// Track or instance id.
-    pub id: u64,
-    /// Class label.
-    pub label: String,
-    /// Centre.
-    pub center: [f64; 3],
-    /// Length, width, height.
-    pub size: [f64; 3],
-    /// Heading.
-    pub yaw: f64,
-    /// Score (tracks) or 1 (truth).
-    pub score: f64,
-    /// Attributes (KITTI fields are carried here).
-    pub attributes: BTreeMap<String, String>,
-    /// 2D box, if known.
-    pub image_box: Option<[f64; 4]>,
-}
-
-impl EvalBox {
-    pub(crate) fn from_track(t: Track3D) -> EvalBox {
-        let c = t.center.unwrap_or_default();
-        let s = t.size.unwrap_or_default();
-        EvalBox {
-            id: t.id,
-            label: t.label,
-            center: [c.x, c.y, c.z],
-            size: [s.length, s.width, s.height],
-            yaw: t.yaw,
-            score: t.score,
-            attributes: t.attributes,
-            image_box: t.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
-        }
-    }
-}
+use crate::mcapio::LabelledBox;
 
 /// Ground truth and tracks of one log, by frame stamp (ns). Every stamp of either channel is a
 /// frame; a frame may hold no box of one or both.
@@ -53,13 +15,13 @@ pub struct Scene {
     /// Name (the file name), used in reports.
     pub name: String,
     /// Frames in stamp order: `(stamp_ns, truth boxes, track boxes)`.
-    pub frames: Vec<(u64, Vec<EvalBox>, Vec<EvalBox>)>,
+    pub frames: Vec<(u64, Vec<LabelledBox>, Vec<LabelledBox>)>,
 }
 
 /// Reads the tracks messages of one topic (`probmot.Tracks3D`, or ROS 2
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
 /// message (the stamp is the message's, or its `log_time` when that is 0).
-pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
     read_boxes(path, topic, &|_| {}, false)
 }
 
@@ -78,7 +40,7 @@ fn read_boxes(
     topic: &str,
     progress: &dyn Fn(u64),
     evaluated_only: bool,
-) -> Result<Vec<(u64, Vec<EvalBox>)>> {
+) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
@@ -93,18 +55,17 @@ fn read_boxes(
         match event {
             FrameEvent::Channel(_) => found = true,
             FrameEvent::Frame(_, f) => {
-                let mut boxes: Vec<EvalBox> = match f.boxes {
-                    Boxes::Tracks(t) => t.into_iter().map(EvalBox::from_track).collect(),
+                let boxes: Vec<LabelledBox> = match f.boxes {
+                    Boxes::Tracks(t) => t
+                        .into_iter()
+                        .map(LabelledBox::from_track)
+                        .map(|b| match evaluated_only {
+                            true => b.keep_attributes(is_evaluated_attribute),
+                            false => b,
+                        })
+                        .collect(),
                     Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                 };
-                for b in boxes.iter_mut().filter(|_| evaluated_only) {
-                    if b.attributes.keys().any(|k| !is_evaluated_attribute(k)) {
-                        b.attributes = std::mem::take(&mut b.attributes)
-                            .into_iter()
-                            .filter(|(k, _)| is_evaluated_attribute(k))
-                            .collect();
-                    }
-                }
                 out.push((f.stamp, boxes));
             }
         }
@@ -181,7 +142,7 @@ pub fn load_scene_progress(
             truth.display()
         );
     }
-    let mut frames: BTreeMap<u64, (Vec<EvalBox>, Vec<EvalBox>)> = BTreeMap::new();
+    let mut frames: BTreeMap<u64, (Vec<LabelledBox>, Vec<LabelledBox>)> = BTreeMap::new();
     for (s, b) in gt {
         frames.entry(s).or_default().0.extend(b);
     }

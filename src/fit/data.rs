@@ -1,42 +1,8 @@
 //! The plain data the fit works on: per log, the frames (distinct ground-truth stamps) with their
 //! truth boxes and the detections of the same stamp.
 
+use crate::mcapio::LabelledBox;
 use std::collections::BTreeMap;
-
-/// One box, truth or detection, reduced to what the noise fit needs.
-#[derive(Debug, Clone, PartialEq)]
-pub struct FitBox {
-    /// True instance id (truth); 0 for detections.
-    pub id: u64,
-    /// Class label.
-    pub label: String,
-    /// Centre x, y, z.
-    pub center: [f64; 3],
-    /// Length, width, height.
-    pub size: [f64; 3],
-    /// Heading, radians.
-    pub yaw: f64,
-}
-
-impl FitBox {
-    /// The seven measured values `x y z yaw l w h`.
-    pub fn measurement(&self) -> [f64; 7] {
-        [
-            self.center[0],
-            self.center[1],
-            self.center[2],
-            self.yaw,
-            self.size[0],
-            self.size[1],
-            self.size[2],
-        ]
-    }
-
-    /// Whether every field is finite.
-    pub fn is_finite(&self) -> bool {
-        self.measurement().iter().all(|v| v.is_finite())
-    }
-}
 
 /// One frame: a distinct stamp of the ground-truth channel.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -44,9 +10,9 @@ pub struct FitFrame {
     /// Stamp, nanoseconds.
     pub stamp: u64,
     /// Ground-truth boxes of this stamp.
-    pub truth: Vec<FitBox>,
+    pub truth: Vec<LabelledBox>,
     /// Detections with the same stamp.
-    pub detections: Vec<FitBox>,
+    pub detections: Vec<LabelledBox>,
 }
 
 /// One log (one scene): frames in stamp order. Instance ids are only compared within a log.
@@ -65,8 +31,8 @@ pub struct FitLog {
 /// whose stamp is no truth stamp are only counted.
 pub fn assemble_frames(
     name: &str,
-    truth: Vec<(u64, Vec<FitBox>)>,
-    detections: Vec<(u64, Vec<FitBox>)>,
+    truth: Vec<(u64, Vec<LabelledBox>)>,
+    detections: Vec<(u64, Vec<LabelledBox>)>,
 ) -> FitLog {
     let mut frames: BTreeMap<u64, FitFrame> = BTreeMap::new();
     for (stamp, boxes) in truth {
@@ -97,13 +63,14 @@ pub fn assemble_frames(
 mod tests {
     use super::*;
 
-    fn b(id: u64) -> FitBox {
-        FitBox {
+    fn b(id: u64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "car".into(),
             center: [0.0; 3],
             size: [1.0; 3],
             yaw: 0.0,
+            ..Default::default()
         }
     }
 

@@ -6,12 +6,13 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
-use super::data::{assemble_frames, FitBox, FitLog};
+use super::data::{assemble_frames, FitLog};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
+use crate::mcapio::LabelledBox;
 use crate::msgs::{Detection3D, Track3D};
 
 /// `(stamp, boxes)` per message of one topic.
-type TopicBoxes = Vec<(u64, Vec<FitBox>)>;
+type TopicBoxes = Vec<(u64, Vec<LabelledBox>)>;
 
 /// Reads topics of `path` in one pass ([`recording::for_each_frame`]), each message turned into
 /// fit boxes as soon as it is decoded: `(stamp, boxes)` per message and request, the stamp being
@@ -34,7 +35,7 @@ fn read_topics(
             }
             FrameEvent::Frame(i, f) => {
                 let boxes = match f.boxes {
-                    Boxes::Detections(d) => d.iter().filter_map(detection_box).collect(),
+                    Boxes::Detections(d) => d.into_iter().filter_map(detection_box).collect(),
                     Boxes::Tracks(t) => t.into_iter().map(truth_box).collect(),
                 };
                 out[i].get_or_insert_with(Vec::new).push((f.stamp, boxes));
@@ -60,35 +61,22 @@ fn request(topic: &str, kind: TopicKind, role: &str) -> TopicRequest {
 
 /// Reads the detection messages of one topic (any input `track` reads): `(stamp, boxes)` per
 /// message. Boxes without a centre or size are left out. Errors name the file and topic.
-pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<FitBox>)>> {
+pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
     let req = request(topic, TopicKind::Detections, "detections");
     let mut v = read_topics(path, &[req], &|_| {})
         .with_context(|| format!("reading detections from {}", path.display()))?;
     Ok(v.remove(0))
 }
 
-/// A ground-truth track as a fit box (missing centre or size read as zeros, as eval does).
-fn truth_box(t: Track3D) -> FitBox {
-    let c = t.center.unwrap_or_default();
-    let s = t.size.unwrap_or_default();
-    FitBox {
-        id: t.id,
-        label: t.label,
-        center: [c.x, c.y, c.z],
-        size: [s.length, s.width, s.height],
-        yaw: t.yaw,
-    }
+/// A ground-truth track as a fit box (missing centre or size read as zeros, as eval does); the
+/// fit reads no attribute, so none is kept.
+fn truth_box(t: Track3D) -> LabelledBox {
+    LabelledBox::from_track(t).keep_attributes(|_| false)
 }
 
-fn detection_box(d: &Detection3D) -> Option<FitBox> {
-    let (c, s) = (d.center?, d.size?);
-    Some(FitBox {
-        id: 0,
-        label: d.label.clone(),
-        center: [c.x, c.y, c.z],
-        size: [s.length, s.width, s.height],
-        yaw: d.yaw,
-    })
+/// A detection as a fit box, if it has a centre and a size (else it measures nothing).
+fn detection_box(d: Detection3D) -> Option<LabelledBox> {
+    LabelledBox::has_geometry(&d).then(|| LabelledBox::from_detection(d).keep_attributes(|_| false))
 }
 
 /// Reads one log: truth from `truth_topic`, detections from `detections_topic`. The truth must
@@ -141,13 +129,7 @@ pub fn load_log_progress(
                     b.id
                 );
             }
-            fb.push(FitBox {
-                id: b.id,
-                label: b.label,
-                center: b.center,
-                size: b.size,
-                yaw: b.yaw,
-            });
+            fb.push(b);
         }
         truth_boxes.push((stamp, fb));
     }

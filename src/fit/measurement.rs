@@ -10,9 +10,10 @@ use std::collections::{BTreeMap, HashMap};
 
 use serde::Serialize;
 
-use super::data::{FitBox, FitLog};
+use super::data::FitLog;
 use super::stats::Moments;
 use crate::eval::mot_accumulator::assign_with_missing_edges;
+use crate::mcapio::LabelledBox;
 use crate::tracker::angle::{fold_half_turn, wrap};
 
 /// Pairs whose BEV centre distance is at least this many metres are never matched.
@@ -81,13 +82,13 @@ impl MeasurementStats {
 pub type MeasurementStatsByLabel = BTreeMap<String, MeasurementStats>;
 
 /// Bird's-eye-view distance between two box centres.
-pub fn bev_distance(a: &FitBox, b: &FitBox) -> f64 {
+pub fn bev_distance(a: &LabelledBox, b: &LabelledBox) -> f64 {
     (a.center[0] - b.center[0]).hypot(a.center[1] - b.center[1])
 }
 
 /// Matches truth boxes with detections (all of one label): minimum total BEV centre distance
 /// with pairs at or over [`MATCH_RADIUS_M`] invalid. Returns `(truth index, detection index)`.
-pub fn match_frame(truth: &[&FitBox], detections: &[&FitBox]) -> Vec<(usize, usize)> {
+pub fn match_frame(truth: &[&LabelledBox], detections: &[&LabelledBox]) -> Vec<(usize, usize)> {
     let (n, m) = (truth.len(), detections.len());
     let dist: Vec<f64> = truth
         .iter()
@@ -110,7 +111,7 @@ pub fn match_frame(truth: &[&FitBox], detections: &[&FitBox]) -> Vec<(usize, usi
 }
 
 /// Residual `detection - truth` of `x y z yaw l w h`, the yaw wrapped to `[-pi, pi)`.
-pub fn residual(detection: &FitBox, truth: &FitBox) -> [f64; 7] {
+pub fn residual(detection: &LabelledBox, truth: &LabelledBox) -> [f64; 7] {
     let d = detection.measurement();
     let t = truth.measurement();
     let mut r: [f64; 7] = std::array::from_fn(|i| d[i] - t[i]);
@@ -128,7 +129,7 @@ type LastResidual = (usize, [f64; 4], f64);
 pub fn accumulate_measurement_noise(log: &FitLog, stats: &mut MeasurementStatsByLabel) {
     let mut last: HashMap<(String, u64), LastResidual> = HashMap::new();
     for (k, frame) in log.frames.iter().enumerate() {
-        let mut by_label: BTreeMap<&str, (Vec<&FitBox>, Vec<&FitBox>)> = BTreeMap::new();
+        let mut by_label: BTreeMap<&str, (Vec<&LabelledBox>, Vec<&LabelledBox>)> = BTreeMap::new();
         for t in frame.truth.iter().filter(|b| b.is_finite()) {
             by_label.entry(&t.label).or_default().0.push(t);
         }
@@ -170,13 +171,14 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    fn b(id: u64, label: &str, x: f64, y: f64, yaw: f64) -> FitBox {
-        FitBox {
+    fn b(id: u64, label: &str, x: f64, y: f64, yaw: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: label.into(),
             center: [x, y, 1.0],
             size: [4.0, 2.0, 1.5],
             yaw,
+            ..Default::default()
         }
     }
 
@@ -187,14 +189,14 @@ mod tests {
         // optimal assignment (with invalid pairs as expensive edges) matches both.
         let t = [b(1, "car", 0.0, 0.0, 0.0), b(2, "car", 1.6, 0.0, 0.0)];
         let d = [b(0, "car", 0.1, 0.0, 0.0), b(0, "car", -1.0, 0.0, 0.0)];
-        let tr: Vec<&FitBox> = t.iter().collect();
-        let de: Vec<&FitBox> = d.iter().collect();
+        let tr: Vec<&LabelledBox> = t.iter().collect();
+        let de: Vec<&LabelledBox> = d.iter().collect();
         let mut p = match_frame(&tr, &de);
         p.sort_unstable();
         assert_eq!(p, vec![(0, 1), (1, 0)]);
         // Nothing within 2 m: no pair; exactly 2 m is not a pair either.
         let far = [b(0, "car", 2.0, 0.0, 0.0)];
-        let fa: Vec<&FitBox> = far.iter().collect();
+        let fa: Vec<&LabelledBox> = far.iter().collect();
         assert!(match_frame(&tr[..1], &fa).is_empty());
         assert!(match_frame(&tr, &[]).is_empty());
     }

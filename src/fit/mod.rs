@@ -28,7 +28,7 @@ use std::collections::BTreeSet;
 use serde::Serialize;
 
 pub use apply::fitted_config;
-pub use data::{FitBox, FitFrame, FitLog};
+pub use data::{FitFrame, FitLog};
 pub use measurement::YawMode;
 pub use timing::FramePeriod;
 
@@ -211,6 +211,7 @@ pub fn fit(logs: &[FitLog], options: &FitOptions) -> FitReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mcapio::LabelledBox;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
     use rand_distr::{Distribution, Normal};
@@ -226,12 +227,13 @@ mod tests {
         for id in 1..=n {
             let (mut x, mut v) = (id as f64 * 100.0, 1.0);
             for f in 0..frames {
-                let b = FitBox {
+                let b = LabelledBox {
                     id,
                     label: "car".into(),
                     center: [x, 0.0, 1.0],
                     size: [4.0, 2.0, 1.5],
                     yaw: 0.0,
+                    ..Default::default()
                 };
                 let mut d = b.clone();
                 d.id = 0;

@@ -7,8 +7,9 @@
 
 use std::collections::{BTreeMap, HashMap};
 
-use super::data::{FitBox, FitLog};
+use super::data::FitLog;
 use super::stats::Moments;
+use crate::mcapio::LabelledBox;
 use crate::tracker::angle::wrap;
 
 /// Per label, the moments of the second differences of `x y z yaw`.
@@ -17,7 +18,7 @@ pub type ProcessStats = BTreeMap<String, [Moments; 4]>;
 /// Second difference `c - 2 b + a` of `x y z yaw` for three consecutive truth boxes of one
 /// instance. Yaw: both first differences are wrapped to `[-pi, pi)` and so is their difference,
 /// so that crossing `+-pi` is not a jump of `2 pi`.
-pub fn second_difference(a: &FitBox, b: &FitBox, c: &FitBox) -> [f64; 4] {
+pub fn second_difference(a: &LabelledBox, b: &LabelledBox, c: &LabelledBox) -> [f64; 4] {
     let d = |i: usize| c.center[i] - 2.0 * b.center[i] + a.center[i];
     let yaw = wrap(wrap(c.yaw - b.yaw) - wrap(b.yaw - a.yaw));
     [d(0), d(1), d(2), yaw]
@@ -27,7 +28,7 @@ pub fn second_difference(a: &FitBox, b: &FitBox, c: &FitBox) -> [f64; 4] {
 /// the log's frame list; an instance (same label and id) absent from a frame breaks its
 /// sequence, so no difference spans a gap. Boxes with non-finite fields are ignored.
 pub fn accumulate_process_noise(log: &FitLog, stats: &mut ProcessStats) {
-    let index: Vec<HashMap<(&str, u64), &FitBox>> = log
+    let index: Vec<HashMap<(&str, u64), &LabelledBox>> = log
         .frames
         .iter()
         .map(|f| {
@@ -64,17 +65,18 @@ mod tests {
     use super::*;
     use std::f64::consts::PI;
 
-    fn b(id: u64, x: f64, yaw: f64) -> FitBox {
-        FitBox {
+    fn b(id: u64, x: f64, yaw: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "car".into(),
             center: [x, 2.0 * x, 1.0],
             size: [4.0, 2.0, 1.5],
             yaw,
+            ..Default::default()
         }
     }
 
-    fn log(frames: Vec<Vec<FitBox>>) -> FitLog {
+    fn log(frames: Vec<Vec<LabelledBox>>) -> FitLog {
         FitLog {
             name: "t".into(),
             frames: frames

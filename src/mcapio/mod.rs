@@ -1,12 +1,15 @@
 //! MCAP input and output: a streaming record reader over any file, and an atomic writer (also
-//! one that writes and compresses on a thread of its own).
+//! one that writes and compresses on a thread of its own), the one reader of box channels
+//! ([`recording`]) and the one box type its readers hand on ([`LabelledBox`]).
 
 pub mod background;
+pub mod labelled_box;
 pub mod reader;
 pub mod recording;
 pub mod sink;
 pub mod topic;
 pub mod writer;
 
+pub use labelled_box::LabelledBox;
 pub use reader::{read_records, ReadStats};
 pub use writer::{AtomicOutput, OutputOptions};

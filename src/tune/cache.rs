@@ -11,11 +11,11 @@ use anyhow::Result;
 use super::data::TuneLog;
 use super::score::{class_truth, score_class_with, single_class, Scoring};
 use super::space::key;
-use crate::eval::scene::EvalBox;
+use crate::mcapio::LabelledBox;
 use crate::tracker::{ClassConfig, TrackerConfig};
 
 /// Per log, per frame: the truth boxes one class's evaluation reads.
-type ClassTruth = std::sync::Arc<Vec<Vec<Vec<EvalBox>>>>;
+type ClassTruth = std::sync::Arc<Vec<Vec<Vec<LabelledBox>>>>;
 
 /// Scores of one tune's logs, by class and config key.
 pub struct ScoreCache<'a> {

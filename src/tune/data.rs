@@ -7,9 +7,10 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
-use crate::eval::scene::{read_tracks_topic, EvalBox};
-use crate::fit::data::{assemble_frames, FitBox, FitLog};
+use crate::eval::scene::read_tracks_topic;
+use crate::fit::data::{assemble_frames, FitLog};
 use crate::mcapio::topic::for_each_message;
+use crate::mcapio::LabelledBox;
 use crate::msgs::{self, Detections3D};
 use crate::tracker::Box3;
 
@@ -38,7 +39,7 @@ pub struct TuneFrame {
     /// Detections of this stamp (valid boxes only).
     pub detections: Vec<TuneDet>,
     /// Ground-truth boxes of this stamp.
-    pub truth: Vec<EvalBox>,
+    pub truth: Vec<LabelledBox>,
 }
 
 /// One log in memory.
@@ -111,19 +112,21 @@ impl TuneLog {
 
     /// The log as the noise fit sees it: truth stamps as frames, boxes without DontCare regions.
     pub fn fit_log(&self) -> FitLog {
-        let fb = |b: &EvalBox, id| FitBox {
-            id,
+        // The fit reads geometry and labels only.
+        let fb = |b: &LabelledBox| LabelledBox {
+            id: b.id,
             label: b.label.clone(),
             center: b.center,
             size: b.size,
             yaw: b.yaw,
+            ..Default::default()
         };
         let truth = self
             .frames
             .iter()
             .filter(|f| f.has_truth)
             .map(|f| {
-                let boxes = f.truth.iter().filter(|b| b.id != 0).map(|b| fb(b, b.id));
+                let boxes = f.truth.iter().filter(|b| b.id != 0).map(fb);
                 (f.stamp, boxes.collect())
             })
             .collect();
@@ -132,12 +135,13 @@ impl TuneLog {
             .iter()
             .filter(|f| f.has_detections)
             .map(|f| {
-                let boxes = f.detections.iter().map(|d| FitBox {
+                let boxes = f.detections.iter().map(|d| LabelledBox {
                     id: 0,
                     label: d.label.clone(),
                     center: d.bbox.center,
                     size: d.bbox.size,
                     yaw: d.bbox.yaw,
+                    ..Default::default()
                 });
                 (f.stamp, boxes.collect())
             })

@@ -8,7 +8,8 @@ use anyhow::{anyhow, Result};
 use super::data::TuneLog;
 use crate::eval::kitti::{self, KittiParams};
 use crate::eval::nuscenes::{self, NuscenesParams};
-use crate::eval::scene::{EvalBox, Scene};
+use crate::eval::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::{ClassConfig, Detection, Tracker, TrackerConfig};
 
 /// The benchmark protocol whose headline metric a tune maximises.
@@ -109,7 +110,7 @@ const KITTI_TYPE: &str = "kitti_type";
 /// attribute, else the label, lower-cased) contains the class, its neighbouring class (`van` for
 /// `car`, `person_sitting` for `pedestrian`) or `dontcare` (the rule of `eval::kitti`, repeated
 /// here so that each candidate only copies the truth its class needs).
-fn kitti_reads(label: &str, b: &EvalBox) -> bool {
+fn kitti_reads(label: &str, b: &LabelledBox) -> bool {
     let kind = b
         .attributes
         .get(KITTI_TYPE)
@@ -127,7 +128,7 @@ fn kitti_reads(label: &str, b: &EvalBox) -> bool {
 
 /// The truth of each frame of `log` that the evaluation of `label` reads (KITTI: the class, its
 /// neighbour and DontCare regions; nuScenes: all of it).
-pub fn class_truth(log: &TuneLog, label: &str, scoring: &Scoring) -> Vec<Vec<EvalBox>> {
+pub fn class_truth(log: &TuneLog, label: &str, scoring: &Scoring) -> Vec<Vec<LabelledBox>> {
     log.frames
         .iter()
         .map(|f| match scoring.protocol {
@@ -146,7 +147,7 @@ pub fn class_truth(log: &TuneLog, label: &str, scoring: &Scoring) -> Vec<Vec<Eva
 pub fn track_frames(
     log: &TuneLog,
     cfg: &TrackerConfig,
-    truth: impl Fn(usize) -> Vec<EvalBox>,
+    truth: impl Fn(usize) -> Vec<LabelledBox>,
 ) -> Result<Scene> {
     let mut tracker = Tracker::new(cfg.clone()).map_err(|e| anyhow!("{e}"))?;
     let mut dets: Vec<Detection> = Vec::new();
@@ -183,7 +184,7 @@ pub fn track_frames(
                 if let Some(d) = r.detection {
                     image[id] = f.detections[src[d as usize]].image_box;
                 }
-                tracks.push(EvalBox {
+                tracks.push(LabelledBox {
                     id: r.id,
                     label: tracker.label(r.class).to_string(),
                     center: r.bbox.center,
@@ -192,6 +193,7 @@ pub fn track_frames(
                     score: r.score,
                     attributes: BTreeMap::new(),
                     image_box: image[id],
+                    ..Default::default()
                 });
             }
         }
@@ -220,7 +222,7 @@ pub fn score_class(
 /// [`score_class`] with each log's per-frame truth prepared by [`class_truth`] (once per tune).
 pub fn score_class_with(
     logs: &[&TuneLog],
-    truth: &[Vec<Vec<EvalBox>>],
+    truth: &[Vec<Vec<LabelledBox>>],
     cfg: &TrackerConfig,
     label: &str,
     scoring: &Scoring,

@@ -4,7 +4,7 @@
 
 use plotters::style::RGBColor;
 
-use super::BevBox;
+use crate::mcapio::LabelledBox;
 
 /// Advance of one character of the embedded font (Hack is monospaced), in em.
 const ADVANCE_EM: f64 = 0.6;
@@ -22,8 +22,8 @@ pub struct Label {
 
 impl Label {
     /// A label for a box (its bird's-eye outline).
-    pub fn beside(text: String, b: &BevBox, color: RGBColor) -> Label {
-        let c = b.corners();
+    pub fn beside(text: String, b: &LabelledBox, color: RGBColor) -> Label {
+        let c = b.bev_corners();
         let xs = c.iter().map(|p| p.0);
         let ys = c.iter().map(|p| p.1);
         Label {

@@ -20,75 +20,21 @@ use std::path::Path;
 use anyhow::Result;
 
 use crate::mcapio::recording::{self, Boxes, TopicKind, TopicRequest};
+use crate::mcapio::LabelledBox;
 use crate::msgs::{self, Detection3D, Track3D};
 
-/// One box seen from above (z and height are kept but not drawn).
-#[derive(Debug, Clone, PartialEq)]
-pub struct BevBox {
-    /// Track or instance id; 0 for detections, which have none.
-    pub id: u64,
-    /// Class label.
-    pub label: String,
-    /// Box centre, metres.
-    pub center: [f64; 3],
-    /// Length (along the heading), width, height, metres.
-    pub size: [f64; 3],
-    /// Heading about +z, radians; 0 points along +x.
-    pub yaw: f64,
-    /// Detection or track score.
-    pub score: f64,
-    /// Velocity, m/s (zero when the message has none).
-    pub velocity: [f64; 3],
+/// A track as drawn. Nothing draws attributes, so they are not kept.
+pub(crate) fn drawn_track(t: Track3D) -> LabelledBox {
+    LabelledBox::from_track(t).keep_attributes(|_| false)
 }
 
-impl BevBox {
-    fn from_track(t: &Track3D) -> BevBox {
-        let c = t.center.unwrap_or_default();
-        let s = t.size.unwrap_or_default();
-        let v = t.velocity.unwrap_or_default();
-        BevBox {
-            id: t.id,
-            label: t.label.clone(),
-            center: [c.x, c.y, c.z],
-            size: [s.length, s.width, s.height],
-            yaw: t.yaw,
-            score: t.score,
-            velocity: [v.x, v.y, v.z],
-        }
-    }
-
-    fn from_detection(d: &Detection3D) -> BevBox {
-        let c = d.center.unwrap_or_default();
-        let s = d.size.unwrap_or_default();
-        let v = d.velocity.unwrap_or_default();
-        BevBox {
-            id: 0,
-            label: d.label.clone(),
-            center: [c.x, c.y, c.z],
-            size: [s.length, s.width, s.height],
-            yaw: d.yaw,
-            score: d.score,
-            velocity: [v.x, v.y, v.z],
-        }
-    }
-
-    /// The four corners of the box seen from above, counter-clockwise: front-left, rear-left,
-    /// rear-right, front-right.
-    pub fn corners(&self) -> [(f64, f64); 4] {
-        let (s, c) = self.yaw.sin_cos();
-        let (hl, hw) = (self.size[0] / 2.0, self.size[1] / 2.0);
-        let at = |l: f64, w: f64| {
-            (
-                self.center[0] + l * c - w * s,
-                self.center[1] + l * s + w * c,
-            )
-        };
-        [at(hl, hw), at(-hl, hw), at(-hl, -hw), at(hl, -hw)]
-    }
+/// A detection as drawn (a missing centre or size draws at zero, as the message says).
+pub(crate) fn drawn_detection(d: Detection3D) -> LabelledBox {
+    LabelledBox::from_detection(d).keep_attributes(|_| false)
 }
 
 /// Boxes of one frame: `(stamp in ns, boxes)`.
-pub type Frame = (u64, Vec<BevBox>);
+pub type Frame = (u64, Vec<LabelledBox>);
 
 /// What a channel holds, and so how it is drawn.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
@@ -247,9 +193,9 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
             let frames = f
                 .into_iter()
                 .map(|fr| {
-                    let boxes = match &fr.boxes {
-                        Boxes::Detections(d) => d.iter().map(BevBox::from_detection).collect(),
-                        Boxes::Tracks(t) => t.iter().map(BevBox::from_track).collect(),
+                    let boxes = match fr.boxes {
+                        Boxes::Detections(d) => d.into_iter().map(drawn_detection).collect(),
+                        Boxes::Tracks(t) => t.into_iter().map(drawn_track).collect(),
                     };
                     (fr.stamp, boxes)
                 })
@@ -319,8 +265,8 @@ impl Selection {
 mod tests {
     use super::*;
 
-    fn bx(id: u64, label: &str) -> BevBox {
-        BevBox {
+    fn bx(id: u64, label: &str) -> LabelledBox {
+        LabelledBox {
             id,
             label: label.into(),
             center: [1.0, 2.0, 0.5],
@@ -328,17 +274,18 @@ mod tests {
             yaw: 0.0,
             score: 1.0,
             velocity: [0.0; 3],
+            ..Default::default()
         }
     }
 
     #[test]
     fn corners_follow_the_heading() {
         let mut b = bx(1, "car");
-        let c = b.corners();
+        let c = b.bev_corners();
         assert_eq!(c[0], (3.0, 3.0));
         assert_eq!(c[2], (-1.0, 1.0));
         b.yaw = std::f64::consts::FRAC_PI_2;
-        let c = b.corners();
+        let c = b.bev_corners();
         // Front-left of a box heading +y lies at +y (front) and -x (left).
         assert!((c[0].0 - 0.0).abs() < 1e-12 && (c[0].1 - 4.0).abs() < 1e-12);
     }

@@ -80,7 +80,7 @@ pub fn world_extent(panels: &[Panel]) -> Option<Extent> {
     let ids_only = boxes(true).next().is_some();
     let mut ext: Option<Extent> = None;
     for b in boxes(ids_only) {
-        for (x, y) in b.corners() {
+        for (x, y) in b.bev_corners() {
             if !(x.is_finite() && y.is_finite()) {
                 continue;
             }
@@ -163,10 +163,11 @@ pub fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::viz::{BevBox, Frame, Layer};
+    use crate::mcapio::LabelledBox;
+    use crate::viz::{Frame, Layer};
 
-    fn bx(id: u64, x: f64, y: f64, yaw: f64) -> BevBox {
-        BevBox {
+    fn bx(id: u64, x: f64, y: f64, yaw: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "car".into(),
             center: [x, y, 0.8],
@@ -174,6 +175,7 @@ mod tests {
             yaw,
             score: 0.9,
             velocity: [0.0; 3],
+            ..Default::default()
         }
     }
 
@@ -206,7 +208,7 @@ mod tests {
         };
         let (x0, x1, y0, y1) = world_extent(std::slice::from_ref(&p)).unwrap();
         for b in &p.frames[0].1 {
-            for (x, y) in b.corners() {
+            for (x, y) in b.bev_corners() {
                 assert!(x > x0 && x < x1 && y > y0 && y < y1);
             }
         }

@@ -13,7 +13,8 @@ use super::labels::{place_labels, Label};
 use super::plot_types::{
     draw_err, equal_aspect, rgb, EventMark, Extent, Panel, DETECTION_GREY, FONT, UNMATCHED,
 };
-use super::{BevBox, Frame};
+use super::Frame;
+use crate::mcapio::LabelledBox;
 use crate::msgs::colors::id_color;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::eval_events::kind_rgb;
@@ -21,8 +22,8 @@ use crate::msgs::eval_events::kind_rgb;
 type Chart<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
 
 /// Per id, in time order: its boxes with their stamps (id 0, detections, is one group).
-fn by_id(frames: &[Frame]) -> BTreeMap<u64, Vec<(u64, &BevBox)>> {
-    let mut m: BTreeMap<u64, Vec<(u64, &BevBox)>> = BTreeMap::new();
+fn by_id(frames: &[Frame]) -> BTreeMap<u64, Vec<(u64, &LabelledBox)>> {
+    let mut m: BTreeMap<u64, Vec<(u64, &LabelledBox)>> = BTreeMap::new();
     let mut order: Vec<&Frame> = frames.iter().collect();
     order.sort_by_key(|f| f.0);
     for (stamp, boxes) in order {
@@ -33,14 +34,14 @@ fn by_id(frames: &[Frame]) -> BTreeMap<u64, Vec<(u64, &BevBox)>> {
     m
 }
 
-fn outline(b: &BevBox) -> Vec<(f64, f64)> {
-    let c = b.corners();
+fn outline(b: &LabelledBox) -> Vec<(f64, f64)> {
+    let c = b.bev_corners();
     vec![c[0], c[1], c[2], c[3], c[0]]
 }
 
 /// Heading tick: from the middle of the front edge, outward by a third of the length (at most
 /// 1.5 m, at least 0.5 m).
-fn heading_tick(b: &BevBox) -> Vec<(f64, f64)> {
+fn heading_tick(b: &LabelledBox) -> Vec<(f64, f64)> {
     let (s, c) = b.yaw.sin_cos();
     let hl = b.size[0] / 2.0;
     let len = (b.size[0] / 3.0).clamp(0.5, 1.5);
@@ -51,7 +52,7 @@ fn heading_tick(b: &BevBox) -> Vec<(f64, f64)> {
     ]
 }
 
-fn finite(b: &BevBox) -> bool {
+fn finite(b: &LabelledBox) -> bool {
     b.center[0].is_finite()
         && b.center[1].is_finite()
         && b.size[0].is_finite()
@@ -174,7 +175,8 @@ where
         draw_marks(&mut chart, marks, sc, &mut labels)?;
     }
     for (&id, boxes) in &groups {
-        let boxes: Vec<(u64, &BevBox)> = boxes.iter().copied().filter(|b| finite(b.1)).collect();
+        let boxes: Vec<(u64, &LabelledBox)> =
+            boxes.iter().copied().filter(|b| finite(b.1)).collect();
         if let Some(label) = draw_id(&mut chart, panel, id, &boxes, sc)? {
             labels.push(label);
         }
@@ -201,7 +203,7 @@ fn draw_id<DB: DrawingBackend>(
     chart: &mut Chart<'_, DB>,
     panel: &Panel,
     id: u64,
-    boxes: &[(u64, &BevBox)],
+    boxes: &[(u64, &LabelledBox)],
     sc: Scale,
 ) -> Result<Option<Label>>
 where

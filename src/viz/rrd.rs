@@ -39,8 +39,9 @@ use rerun::{
 use super::plot::{id_color, mix64, DETECTION_GREY};
 use super::scene::Scene;
 use super::window::read_timed_events;
-use super::{read_layers, BevBox, Layer};
+use super::{read_layers, Layer};
 use crate::mcapio::writer::write_file_atomic;
+use crate::mcapio::LabelledBox;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::eval_events::{kind_name, kind_rgb, EVENTS_TOPIC};
 use crate::msgs::EvalEvent;
@@ -90,9 +91,9 @@ fn ui_points(r: f32) -> Radius {
 }
 
 fn boxes3d(
-    boxes: &[BevBox],
-    color: impl Fn(&BevBox) -> Color,
-    label: impl Fn(&BevBox) -> String,
+    boxes: &[LabelledBox],
+    color: impl Fn(&LabelledBox) -> Color,
+    label: impl Fn(&LabelledBox) -> String,
     radius: f32,
     show_labels: bool,
 ) -> Boxes3D {
@@ -152,7 +153,7 @@ fn log_scene(rec: &RecordingStream, scene: &Scene) -> rerun::RecordingStreamResu
             )?;
         }
         if let Some(tracks) = &f.tracks {
-            let color = |b: &BevBox| rgb(id_color(b.id));
+            let color = |b: &LabelledBox| rgb(id_color(b.id));
             rec.log(
                 "world/tracks",
                 &boxes3d(

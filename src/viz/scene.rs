@@ -9,7 +9,8 @@
 
 use std::collections::{BTreeMap, BTreeSet};
 
-use super::{BevBox, FileLayers, Layer};
+use super::{FileLayers, Layer};
+use crate::mcapio::LabelledBox;
 use crate::msgs::EvalEvents;
 
 /// One frame of the scene.
@@ -20,11 +21,11 @@ pub struct SceneFrame {
     /// Index of the frame among all frames, from 0.
     pub index: u64,
     /// Detection boxes, when the detections topic has a message at this log time.
-    pub detections: Option<Vec<BevBox>>,
+    pub detections: Option<Vec<LabelledBox>>,
     /// Track boxes, when the tracks topic has a message at this log time.
-    pub tracks: Option<Vec<BevBox>>,
+    pub tracks: Option<Vec<LabelledBox>>,
     /// Ground-truth boxes, when the ground-truth topic has a message at this log time.
-    pub ground_truth: Option<Vec<BevBox>>,
+    pub ground_truth: Option<Vec<LabelledBox>>,
     /// For each box of `tracks` (same order): its id's last centres, oldest first, this
     /// frame's centre last. Empty when `tracks` is `None`.
     pub trails: Vec<Vec<[f64; 3]>>,
@@ -54,7 +55,7 @@ pub struct Scene {
 }
 
 /// Whether a box can be drawn: finite centre, size and yaw.
-pub fn drawable(b: &BevBox) -> bool {
+pub fn drawable(b: &LabelledBox) -> bool {
     b.center.iter().chain(&b.size).all(|v| v.is_finite()) && b.yaw.is_finite()
 }
 
@@ -63,9 +64,10 @@ impl Scene {
     /// are kept (all when empty); `trail` (at least 1) is the number of centres per trail.
     pub fn build(read: &FileLayers, classes: &[String], trail: usize) -> Scene {
         let trail = trail.max(1);
-        let keep = |b: &BevBox| drawable(b) && (classes.is_empty() || classes.contains(&b.label));
+        let keep =
+            |b: &LabelledBox| drawable(b) && (classes.is_empty() || classes.contains(&b.label));
         // Per layer: log time -> boxes of every message at that log time, in file order.
-        let mut by_time: BTreeMap<Layer, BTreeMap<u64, Vec<BevBox>>> = BTreeMap::new();
+        let mut by_time: BTreeMap<Layer, BTreeMap<u64, Vec<LabelledBox>>> = BTreeMap::new();
         for lf in &read.layers {
             let frames = by_time.entry(lf.layer).or_default();
             for ((_, boxes), &t) in lf.frames.iter().zip(&lf.log_times) {
@@ -118,7 +120,7 @@ impl Scene {
     }
 
     /// Every box of every frame and layer.
-    pub fn boxes(&self) -> impl Iterator<Item = &BevBox> {
+    pub fn boxes(&self) -> impl Iterator<Item = &LabelledBox> {
         self.frames.iter().flat_map(|f| {
             [&f.detections, &f.tracks, &f.ground_truth]
                 .into_iter()
@@ -171,8 +173,8 @@ mod tests {
     use super::super::LayerFrames;
     use super::*;
 
-    fn bx(id: u64, label: &str, x: f64) -> BevBox {
-        BevBox {
+    fn bx(id: u64, label: &str, x: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: label.into(),
             center: [x, 0.0, 0.5],
@@ -180,10 +182,11 @@ mod tests {
             yaw: 0.0,
             score: 0.9,
             velocity: [1.0, 0.0, 0.0],
+            ..Default::default()
         }
     }
 
-    fn layer(layer: Layer, msgs: Vec<(u64, Vec<BevBox>)>) -> LayerFrames {
+    fn layer(layer: Layer, msgs: Vec<(u64, Vec<LabelledBox>)>) -> LayerFrames {
         LayerFrames {
             layer,
             topic: layer.default_topic().into(),

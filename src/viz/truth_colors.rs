@@ -84,10 +84,10 @@ pub fn marks(events: &[EvalEvents], keep_class: impl Fn(&str) -> bool) -> Vec<Ev
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::viz::BevBox;
+    use crate::mcapio::LabelledBox;
 
-    fn b(id: u64, x: f64) -> BevBox {
-        BevBox {
+    fn b(id: u64, x: f64) -> LabelledBox {
+        LabelledBox {
             id,
             label: "pedestrian".into(),
             center: [x, 0.0, 0.0],
@@ -95,6 +95,7 @@ mod tests {
             yaw: 0.0,
             score: 1.0,
             velocity: [0.0; 3],
+            ..Default::default()
         }
     }
 

@@ -16,9 +16,10 @@ use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedRead
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
 use mcap::{Channel, Summary};
 
-use super::{read_layers, BevBox, FileLayers, Frame, Layer, LayerFrames};
+use super::{drawn_detection, drawn_track, read_layers, FileLayers, Frame, Layer, LayerFrames};
 use crate::mcapio::reader::read_records;
 use crate::mcapio::recording::tracks_stamp;
+use crate::mcapio::LabelledBox;
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::eval_events::EVAL_EVENTS_SCHEMA;
@@ -90,12 +91,12 @@ impl Decoder {
     }
 
     /// `(stamp, frame_id, boxes)` of one message.
-    fn decode(&self, h: &MessageHeader, data: &[u8]) -> Result<(u64, String, Vec<BevBox>)> {
+    fn decode(&self, h: &MessageHeader, data: &[u8]) -> Result<(u64, String, Vec<LabelledBox>)> {
         Ok(match self {
             Decoder::Detections(s) => {
                 let m = s.decode(data)?;
                 let stamp = stamp_or_log_time(m.stamp, h.log_time);
-                let boxes = m.detections.iter().map(BevBox::from_detection).collect();
+                let boxes = m.detections.into_iter().map(drawn_detection).collect();
                 (stamp, m.frame_id, boxes)
             }
             Decoder::Tracks(e) => tracks(msgs::decode::<Tracks3D>(data, *e)?, h),
@@ -104,8 +105,8 @@ impl Decoder {
     }
 }
 
-fn tracks(m: Tracks3D, h: &MessageHeader) -> (u64, String, Vec<BevBox>) {
-    let boxes = m.tracks.iter().map(BevBox::from_track).collect();
+fn tracks(m: Tracks3D, h: &MessageHeader) -> (u64, String, Vec<LabelledBox>) {
+    let boxes = m.tracks.into_iter().map(drawn_track).collect();
     (tracks_stamp(m.stamp, h.log_time), m.frame_id, boxes)
 }
 

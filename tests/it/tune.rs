@@ -3,11 +3,10 @@
 
 use crate::common;
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use indicatif::ProgressBar;
-use probmot::eval::scene::EvalBox;
+use probmot::mcapio::LabelledBox;
 use probmot::tracker::{Box3, TrackerConfig};
 use probmot::tune::data::{TuneDet, TuneFrame};
 use probmot::tune::score::{score_class, single_class, track_log};
@@ -17,16 +16,15 @@ use probmot::tune::{
 
 const PERIOD: u64 = 500_000_000;
 
-fn truth(id: u64, x: f64, y: f64) -> EvalBox {
-    EvalBox {
+fn truth(id: u64, x: f64, y: f64) -> LabelledBox {
+    LabelledBox {
         id,
         label: "car".into(),
         center: [x, y, 0.8],
         size: [4.5, 1.9, 1.6],
         yaw: 0.0,
         score: 1.0,
-        attributes: BTreeMap::new(),
-        image_box: None,
+        ..Default::default()
     }
 }
 

@@ -15,7 +15,8 @@
 use std::collections::BTreeMap;
 
 use super::{eval_scenes, Hota, RawFrame, EPS};
-use crate::eval::scene::{EvalBox, Scene};
+use crate::eval::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
 
@@ -51,7 +52,7 @@ fn class_id(kind: &str) -> Option<u8> {
 }
 
 /// The lower-cased KITTI type of a box: the `kitti_type` attribute, else the label.
-fn kind(b: &EvalBox) -> String {
+fn kind(b: &LabelledBox) -> String {
     b.attributes
         .get("kitti_type")
         .unwrap_or(&b.label)
@@ -59,7 +60,7 @@ fn kind(b: &EvalBox) -> String {
 }
 
 /// A numeric attribute as `int(float(s))` (Python truncates toward zero).
-fn int_attr(b: &EvalBox, key: &str) -> i64 {
+fn int_attr(b: &LabelledBox, key: &str) -> i64 {
     b.attributes
         .get(key)
         .and_then(|v| v.trim().parse::<f64>().ok())
@@ -67,7 +68,7 @@ fn int_attr(b: &EvalBox, key: &str) -> i64 {
 }
 
 /// The KITTI track id of a truth box: the `kitti_track_id` attribute, else `id - 1`.
-fn truth_id(b: &EvalBox) -> i64 {
+fn truth_id(b: &LabelledBox) -> i64 {
     match b
         .attributes
         .get("kitti_track_id")
@@ -103,7 +104,7 @@ fn ioa(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     }
 }
 
-fn box3(b: &EvalBox) -> Box3 {
+fn box3(b: &LabelledBox) -> Box3 {
     Box3 {
         center: b.center,
         yaw: b.yaw,
@@ -117,12 +118,12 @@ struct Gt<'a> {
     class: u8,
     occlusion: i64,
     truncation: i64,
-    b: &'a EvalBox,
+    b: &'a LabelledBox,
 }
 
 fn prepare_frame(
-    truth: &[EvalBox],
-    tracks: &[EvalBox],
+    truth: &[LabelledBox],
+    tracks: &[LabelledBox],
     cls: u8,
     distractor: u8,
     sim: KittiSimilarity,
@@ -147,11 +148,11 @@ fn prepare_frame(
             _ => {}
         }
     }
-    let tr: Vec<&EvalBox> = tracks
+    let tr: Vec<&LabelledBox> = tracks
         .iter()
         .filter(|b| class_id(&kind(b)) == Some(cls))
         .collect();
-    let img = |b: &EvalBox| b.image_box.unwrap_or([0.0; 4]);
+    let img = |b: &LabelledBox| b.image_box.unwrap_or([0.0; 4]);
     let (ng, nt) = (gt.len(), tr.len());
     let iou: Vec<f64> = gt
         .iter()
@@ -252,7 +253,7 @@ pub fn kitti_hota(
 mod tests {
     use super::*;
 
-    fn b(id: u64, kind: &str, img: [f64; 4], occluded: u8, truncated: u8) -> EvalBox {
+    fn b(id: u64, kind: &str, img: [f64; 4], occluded: u8, truncated: u8) -> LabelledBox {
         let attributes = [
             ("kitti_type", kind.to_string()),
             ("kitti_occluded", occluded.to_string()),
@@ -261,7 +262,7 @@ mod tests {
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
         .collect();
-        EvalBox {
+        LabelledBox {
             id,
             label: kind.to_lowercase(),
             center: [10.0 * id as f64, 0.0, 0.0],
@@ -270,6 +271,7 @@ mod tests {
             score: 1.0,
             attributes,
             image_box: Some(img),
+            ..Default::default()
         }
     }
 

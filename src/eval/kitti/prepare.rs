@@ -5,7 +5,8 @@ use std::collections::{HashMap, HashSet};
 
 use super::DEVKIT_EXTRA_FRAMES;
 use super::{KittiParams, ATTR_OCCLUDED, ATTR_TRACK_ID, ATTR_TRUNCATED, ATTR_TYPE};
-use crate::eval::scene::{EvalBox, Scene};
+use crate::eval::scene::Scene;
+use crate::mcapio::LabelledBox;
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
 
@@ -56,7 +57,7 @@ pub(super) struct Seq {
 }
 
 /// The lower-cased KITTI type of a box: the `kitti_type` attribute, else the label.
-fn kitti_type(b: &EvalBox) -> String {
+fn kitti_type(b: &LabelledBox) -> String {
     b.attributes
         .get(ATTR_TYPE)
         .unwrap_or(&b.label)
@@ -82,7 +83,7 @@ pub(super) fn is_neighbour(cls: &str, kind: &str) -> bool {
 }
 
 /// A numeric attribute truncated to an integer like Python's `int(float(s))`.
-fn int_attr(b: &EvalBox, key: &str, default: i64) -> i64 {
+fn int_attr(b: &LabelledBox, key: &str, default: i64) -> i64 {
     b.attributes
         .get(key)
         .and_then(|v| v.trim().parse::<f64>().ok())
@@ -90,7 +91,7 @@ fn int_attr(b: &EvalBox, key: &str, default: i64) -> i64 {
         .unwrap_or(default)
 }
 
-fn box3(b: &EvalBox) -> Box3 {
+fn box3(b: &LabelledBox) -> Box3 {
     Box3 {
         center: b.center,
         yaw: b.yaw,
@@ -207,7 +208,7 @@ pub(super) fn prepare(
 /// A truth box of the class (or its neighbour): its KITTI id and row; DontCare
 /// boxes go to `dc`; `None` for rows the class does not load and ids of -1.
 fn truth_row(
-    b: &EvalBox,
+    b: &LabelledBox,
     cls: &str,
     types: &[String],
     p: &KittiParams,

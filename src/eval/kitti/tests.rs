@@ -1,6 +1,6 @@
 use super::munkres::munkres;
 use super::*;
-use crate::eval::scene::EvalBox;
+use crate::mcapio::LabelledBox;
 
 /// A normal-sized 2D box (100 px high).
 const IMG: [f64; 4] = [100.0, 100.0, 200.0, 200.0];
@@ -15,8 +15,8 @@ fn attrs(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
 }
 
 /// A ground-truth box as `probmot import kitti` writes it: a 4 x 2 x 1.5 m box at `(x, 0)`.
-fn gt(kitti_id: i64, kind: &str, x: f64, truncated: u8, occluded: u8) -> EvalBox {
-    EvalBox {
+fn gt(kitti_id: i64, kind: &str, x: f64, truncated: u8, occluded: u8) -> LabelledBox {
+    LabelledBox {
         id: (kitti_id + 1) as u64,
         label: kind.to_lowercase(),
         center: [x, 0.0, 0.0],
@@ -30,11 +30,12 @@ fn gt(kitti_id: i64, kind: &str, x: f64, truncated: u8, occluded: u8) -> EvalBox
             (ATTR_TRACK_ID, kitti_id.to_string()),
         ]),
         image_box: Some(IMG),
+        ..Default::default()
     }
 }
 
-fn dontcare(image_box: [f64; 4]) -> EvalBox {
-    EvalBox {
+fn dontcare(image_box: [f64; 4]) -> LabelledBox {
+    LabelledBox {
         id: 0,
         attributes: attrs(&[(ATTR_TYPE, "DontCare".into()), (ATTR_TRACK_ID, "-1".into())]),
         image_box: Some(image_box),
@@ -46,8 +47,8 @@ fn dontcare(image_box: [f64; 4]) -> EvalBox {
 /// at `x` its IoU is [`IOU`]. (Not exactly on it: the reference's polygon clipping fails on
 /// collinear edges, and these scenes are also checked against the reference, see
 /// `tests/fixtures/kitti/README.md`.)
-fn trk(id: u64, kind: &str, x: f64, score: f64, image_box: [f64; 4]) -> EvalBox {
-    EvalBox {
+fn trk(id: u64, kind: &str, x: f64, score: f64, image_box: [f64; 4]) -> LabelledBox {
+    LabelledBox {
         id,
         label: kind.to_lowercase(),
         center: [x + 0.5, 0.25, 0.0],
@@ -56,10 +57,11 @@ fn trk(id: u64, kind: &str, x: f64, score: f64, image_box: [f64; 4]) -> EvalBox 
         score,
         attributes: attrs(&[(ATTR_TYPE, kind.to_string())]),
         image_box: Some(image_box),
+        ..Default::default()
     }
 }
 
-fn scene(frames: Vec<(Vec<EvalBox>, Vec<EvalBox>)>) -> Scene {
+fn scene(frames: Vec<(Vec<LabelledBox>, Vec<LabelledBox>)>) -> Scene {
     Scene {
         name: "test".into(),
         frames: frames
@@ -179,7 +181,7 @@ fn pedestrian_neighbour_and_cyclist_rows() {
 
 #[test]
 fn id_switches_and_fragmentations_along_trajectories() {
-    let f = |g: Vec<EvalBox>, t: Vec<EvalBox>| (g, t);
+    let f = |g: Vec<LabelledBox>, t: Vec<LabelledBox>| (g, t);
     let frames = vec![
         f(
             vec![
@@ -252,7 +254,7 @@ fn ids_repeated_in_another_log_are_other_objects() {
     // Two logs whose ids both start at 0: GT 0 and 1 in each, track 1 on GT 0 in the first
     // log (score 0.9) and on GT 1 in the second (score 0.1). Four trajectories, two mostly
     // tracked and two mostly lost; each track's mean score is its own log's.
-    let frames = |tracked: i64, score: f64| -> Vec<(Vec<EvalBox>, Vec<EvalBox>)> {
+    let frames = |tracked: i64, score: f64| -> Vec<(Vec<LabelledBox>, Vec<LabelledBox>)> {
         (0..4)
             .map(|_| {
                 let x = if tracked == 0 { 10.0 } else { 20.0 };
