@@ -474,21 +474,31 @@ fn nuscenes_baseline(
     Ok((pairs, Some(evaluate_columns(&scenes, params))))
 }
 
+/// Logs in columns and the filters' counts.
+type ColumnLogs = (Vec<ColumnScene>, FilterCounts);
+
+/// The logs for the nuScenes protocol: their columns and the filters' counts, and with
+/// --events (which writes copies of the truth logs with the boxes' full geometry) the whole
+/// scenes too; the metrics read the columns either way.
+fn load_nuscenes_logs(
+    a: &EvalArgs,
+    pairs: &[(PathBuf, PathBuf)],
+) -> Result<(Vec<Scene>, ColumnLogs)> {
+    if a.events.is_none() {
+        return Ok((Vec::new(), load_columns_logs(a, pairs)?));
+    }
+    let (full, removed) = load_logs(a, pairs, false)?;
+    let columns = full.par_iter().map(ColumnScene::from_scene).collect();
+    Ok((full, (columns, removed)))
+}
+
 fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let mut params = NuscenesParams::default();
     if !a.classes.is_empty() {
         params.classes = a.classes.clone();
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
-    // --events writes copies of the truth logs with the boxes' full geometry: only then are
-    // the whole boxes kept; the metrics read the columns either way.
-    let (full, (scenes, removed)) = if a.events.is_some() {
-        let (full, removed) = load_logs(&a, &pairs, false)?;
-        let columns = full.par_iter().map(ColumnScene::from_scene).collect();
-        (full, (columns, removed))
-    } else {
-        (Vec::new(), load_columns_logs(&a, &pairs)?)
-    };
+    let (full, (scenes, removed)) = load_nuscenes_logs(&a, &pairs)?;
     let spinner = scoring_spinner(&a, "nuScenes metrics and HOTA");
     let ((result, decisions), (hota, hota_notes)) = rayon::join(
         || evaluate_columns_recording(&scenes, &params, a.events.is_some()),

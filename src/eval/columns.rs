@@ -142,6 +142,9 @@ impl Stream {
     }
 }
 
+/// A file and a topic in it.
+type Topic<'a> = (&'a Path, &'a str);
+
 /// Builds a [`ColumnScene`] from messages of both channels.
 #[derive(Default)]
 struct Builder {
@@ -171,11 +174,7 @@ impl Builder {
     }
 
     /// The scene; with the files' paths and topics, checked ([`check`]).
-    fn finish(
-        self,
-        name: String,
-        files: Option<((&Path, &str), (&Path, &str))>,
-    ) -> Result<ColumnScene> {
+    fn finish(self, name: String, files: Option<(Topic<'_>, Topic<'_>)>) -> Result<ColumnScene> {
         let [truth, tracks] = self.sides;
         let (ts, mut truth) = truth.into_frames();
         let (rs, mut tracks) = tracks.into_frames();
