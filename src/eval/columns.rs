@@ -311,3 +311,53 @@ fn check_ids(path: &Path, topic: &str, stamp: u64, boxes: &[LabelledBox]) -> Res
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn b(id: u64, label: &str, x: f64) -> LabelledBox {
+        LabelledBox {
+            id,
+            label: label.into(),
+            center: [x, -x, 7.0],
+            score: 0.5,
+            ..Default::default()
+        }
+    }
+
+    #[test]
+    fn frames_are_the_stamps_of_both_channels_in_order_messages_of_a_stamp_in_reading_order() {
+        let mut s = Builder::default();
+        s.push(0, 20, &[b(1, "car", 1.0)]);
+        s.push(0, 10, &[b(2, "bus", 2.0), b(3, "car", 3.0)]);
+        s.push(0, 20, &[b(4, "car", 4.0)]);
+        s.push(1, 30, &[b(9, "pedestrian", 9.0)]);
+        s.push(1, 10, &[]);
+        let c = s.finish("x".into(), None).unwrap();
+        assert_eq!(c.stamps, vec![10, 20, 30]);
+        assert_eq!(c.labels, vec!["car", "bus", "pedestrian"]);
+        assert_eq!(c.truth.at, vec![0, 2, 4, 4]);
+        assert_eq!(c.truth.id, vec![2, 3, 1, 4]);
+        assert_eq!(c.truth.label, vec![1, 0, 0, 0]);
+        assert_eq!(c.truth.xy[1], [3.0, -3.0]);
+        assert_eq!(c.tracks.at, vec![0, 0, 0, 1]);
+        assert_eq!((c.tracks.id[0], c.tracks.score[0]), (9, 0.5));
+        assert_eq!(c.label_index("pedestrian"), Some(2));
+        assert_eq!(c.label_index("truck"), None);
+    }
+
+    #[test]
+    fn from_scene_keeps_frames_without_boxes() {
+        let scene = Scene {
+            name: "s".into(),
+            frames: vec![(5, vec![], vec![]), (6, vec![b(1, "car", 0.0)], vec![])],
+        };
+        let c = ColumnScene::from_scene(&scene);
+        assert_eq!(
+            (c.stamps.clone(), c.truth.at.clone()),
+            (vec![5, 6], vec![0, 0, 1])
+        );
+        assert_eq!(c.tracks.at, vec![0, 0, 0]);
+    }
+}
