@@ -3,8 +3,9 @@
 //! positives and identity switches.
 
 use criterion::{criterion_group, criterion_main, Criterion};
+use probmot::eval::columns::ColumnScene;
 use probmot::eval::hota::centre::centre_hota;
-use probmot::eval::nuscenes::{evaluate, NuscenesParams};
+use probmot::eval::nuscenes::{evaluate_columns, NuscenesParams};
 use probmot::eval::scene::Scene;
 use probmot::mcapio::LabelledBox;
 use probmot::tracker::config::NUSCENES_CLASSES;
@@ -95,15 +96,16 @@ pub fn val_sized(scenes: usize, frames: usize, objects: usize) -> Vec<Scene> {
 
 fn bench(c: &mut Criterion) {
     let scenes = val_sized(150, 40, 80);
+    let columns: Vec<ColumnScene> = scenes.iter().map(ColumnScene::from_scene).collect();
     let params = NuscenesParams::default();
     let mut g = c.benchmark_group("eval");
     g.sample_size(10);
     g.bench_function("nuscenes_val_sized_150x40x80", |b| {
-        b.iter(|| evaluate(&scenes, &params))
+        b.iter(|| evaluate_columns(&columns, &params))
     });
     // What `probmot eval` adds to that for HOTA (BEV centre distance, all seven classes).
     g.bench_function("hota_centre_val_sized_150x40x80", |b| {
-        b.iter(|| centre_hota(&scenes, &params.classes))
+        b.iter(|| centre_hota(&columns, &params.classes))
     });
     g.finish();
 }

@@ -6,16 +6,24 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts};
+use std::collections::BTreeMap;
+
+use probmot::eval::columns::{load_columns, ColumnScene};
+use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts, Rack};
 use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult};
-use probmot::eval::nuscenes::{evaluate, evaluate_recording, NuscenesParams, NuscenesResult};
-use probmot::eval::range::{apply_range_filter, read_ego_positions, RangeFilter, RangeRemoved};
+use probmot::eval::nuscenes::{
+    evaluate_columns, evaluate_columns_recording, NuscenesParams, NuscenesResult,
+};
+use probmot::eval::range::{
+    apply_range_filter, read_ego_positions, EgoPositions, RangeFilter, RangeRemoved,
+};
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::{load_scene_progress, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
+use probmot::mcapio::LabelledBox;
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
@@ -158,41 +166,90 @@ fn rows(r: &NuscenesResult) -> Vec<(String, Vec<f64>)> {
     out
 }
 
-/// Applies the filters that are on to one log, in the devkit's order (range, points, racks),
-/// with the ego poses and racks of its truth file.
-fn filter_log(a: &EvalArgs, truth: &Path, scene: &mut Scene) -> Result<FilterCounts> {
-    let mut counts = FilterCounts::default();
-    if let Some(filter) = &a.max_range {
-        let ego = read_ego_positions(truth, &a.ego_topic)?;
-        counts.range =
-            Some(apply_range_filter(scene, filter, &ego).with_context(|| {
-                format!("--max-range with the ego poses of {}", truth.display())
+/// The filters that are on for one log, with the ego poses and racks of its truth file.
+struct LogFilters<'a> {
+    args: &'a EvalArgs,
+    truth: &'a Path,
+    ego: Option<(&'a RangeFilter, EgoPositions)>,
+    racks: Option<BTreeMap<u64, Vec<Rack>>>,
+}
+
+impl<'a> LogFilters<'a> {
+    fn new(a: &'a EvalArgs, truth: &'a Path) -> Result<LogFilters<'a>> {
+        let ego = match &a.max_range {
+            Some(filter) => Some((filter, read_ego_positions(truth, &a.ego_topic)?)),
+            None => None,
+        };
+        let racks = if a.bike_racks {
+            Some(read_racks(truth, &a.racks_topic).with_context(|| {
+                format!(
+                    "--bike-racks needs the bicycle racks of each scene on {} (`probmot import \
+                     nuscenes` writes them from sample_annotation.json)",
+                    a.racks_topic
+                )
+            })?)
+        } else {
+            None
+        };
+        Ok(LogFilters {
+            args: a,
+            truth,
+            ego,
+            racks,
+        })
+    }
+
+    /// Applies the filters to `scene`, in the devkit's order (range, points, racks).
+    fn apply(&self, scene: &mut Scene) -> Result<FilterCounts> {
+        let mut counts = FilterCounts::default();
+        if let Some((filter, ego)) = &self.ego {
+            counts.range = Some(apply_range_filter(scene, filter, ego).with_context(|| {
+                format!("--max-range with the ego poses of {}", self.truth.display())
             })?);
+        }
+        if let Some(min) = self.args.min_points {
+            counts.points = Some(apply_min_points(scene, min).with_context(|| {
+                format!(
+                    "--min-points: {} (topic {})",
+                    self.truth.display(),
+                    self.args.truth_topic
+                )
+            })?);
+        }
+        if let Some(racks) = &self.racks {
+            counts.bike_racks = Some(apply_bike_racks(scene, racks));
+        }
+        Ok(counts)
     }
-    if let Some(min) = a.min_points {
-        counts.points = Some(apply_min_points(scene, min).with_context(|| {
-            format!(
-                "--min-points: {} (topic {})",
-                truth.display(),
-                a.truth_topic
-            )
-        })?);
+
+    /// [`LogFilters::apply`] to the boxes of one message (truth or tracks) of `scene_name` at
+    /// `stamp`: every filter is a rule per frame, so filtering message by message while the log
+    /// streams removes the same boxes.
+    fn apply_message(
+        &self,
+        scene_name: &str,
+        (stamp, boxes, truth): (u64, &mut Vec<LabelledBox>, bool),
+        counts: &mut FilterCounts,
+    ) -> Result<()> {
+        if self.ego.is_none() && self.args.min_points.is_none() && self.racks.is_none() {
+            return Ok(());
+        }
+        let mut one = Scene {
+            name: scene_name.to_string(),
+            frames: vec![(stamp, Vec::new(), Vec::new())],
+        };
+        let (_, f, t) = &mut one.frames[0];
+        std::mem::swap(boxes, if truth { f } else { t });
+        let c = self.apply(&mut one);
+        let (_, f, t) = &mut one.frames[0];
+        std::mem::swap(boxes, if truth { f } else { t });
+        counts.add(&c?);
+        Ok(())
     }
-    if a.bike_racks {
-        let racks = read_racks(truth, &a.racks_topic).with_context(|| {
-            format!(
-                "--bike-racks needs the bicycle racks of each scene on {} (`probmot import \
-                 nuscenes` writes them from sample_annotation.json)",
-                a.racks_topic
-            )
-        })?;
-        counts.bike_racks = Some(apply_bike_racks(scene, &racks));
-    }
-    Ok(counts)
 }
 
 /// Loads every log (in parallel); `kitti` allows ground-truth boxes without id (DontCare).
-/// Applies the filters that are on ([`filter_log`]) and returns how many boxes each removed.
+/// Applies the filters that are on ([`LogFilters`]) and returns how many boxes each removed.
 fn load_logs(
     a: &EvalArgs,
     pairs: &[(PathBuf, PathBuf)],
@@ -208,11 +265,16 @@ fn load_logs(
                 kitti,
                 &|n| bar.inc(n),
             )?;
-            let counts = filter_log(a, truth, &mut scene)?;
+            let counts = LogFilters::new(a, truth)?.apply(&mut scene)?;
             Ok((scene, counts))
         })
         .collect::<Result<_>>()?;
     bar.finish_and_clear();
+    Ok(sum_counts(loaded))
+}
+
+/// The scenes, and the filters' counts summed over them.
+fn sum_counts<S>(loaded: Vec<(S, FilterCounts)>) -> (Vec<S>, FilterCounts) {
     let mut total = FilterCounts::default();
     let scenes = loaded
         .into_iter()
@@ -221,7 +283,38 @@ fn load_logs(
             s
         })
         .collect();
-    Ok((scenes, total))
+    (scenes, total)
+}
+
+/// [`load_logs`] for the nuScenes protocol: each log streamed into columns
+/// ([`load_columns`]), filtered message by message.
+fn load_columns_logs(
+    a: &EvalArgs,
+    pairs: &[(PathBuf, PathBuf)],
+) -> Result<(Vec<ColumnScene>, FilterCounts)> {
+    let bar = reading_bar(a, pairs);
+    let loaded: Vec<(ColumnScene, FilterCounts)> = pairs
+        .par_iter()
+        .map(|(truth, tracks)| {
+            let filters = LogFilters::new(a, truth)?;
+            let name = tracks
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default();
+            let mut counts = FilterCounts::default();
+            let scene = load_columns(
+                (truth, &a.truth_topic),
+                (tracks, &a.tracks_topic),
+                &|n| bar.inc(n),
+                &mut |stamp, boxes, is_truth| {
+                    filters.apply_message(&name, (stamp, boxes, is_truth), &mut counts)
+                },
+            )?;
+            Ok((scene, counts))
+        })
+        .collect::<Result<_>>()?;
+    bar.finish_and_clear();
+    Ok(sum_counts(loaded))
 }
 
 /// The reading bar over the bytes of every file (a file holding both channels is read twice);
@@ -351,7 +444,7 @@ pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
 
 /// The per-log breakdown when several logs were scored together (empty for one log).
 fn per_log_json(
-    scenes: &[Scene],
+    scenes: &[ColumnScene],
     pairs: &[(PathBuf, PathBuf)],
     params: &NuscenesParams,
 ) -> Vec<serde_json::Value> {
@@ -363,9 +456,40 @@ fn per_log_json(
         .zip(pairs)
         .map(|(s, (t, r))| {
             serde_json::json!({"truth": t, "tracks": r,
-                "result": evaluate(std::slice::from_ref(s), params)})
+                "result": evaluate_columns(std::slice::from_ref(s), params)})
         })
         .collect()
+}
+
+/// The `--baseline` logs scored with the nuScenes protocol (none without `--baseline`).
+fn nuscenes_baseline(
+    a: &EvalArgs,
+    params: &NuscenesParams,
+) -> Result<(LogPairs, Option<NuscenesResult>)> {
+    if a.baseline.is_empty() {
+        return Ok((Vec::new(), None));
+    }
+    let pairs = log_pairs(&a.truth, &a.baseline)?;
+    let (scenes, _) = load_columns_logs(a, &pairs)?;
+    Ok((pairs, Some(evaluate_columns(&scenes, params))))
+}
+
+/// Logs in columns and the filters' counts.
+type ColumnLogs = (Vec<ColumnScene>, FilterCounts);
+
+/// The logs for the nuScenes protocol: their columns and the filters' counts, and with
+/// --events (which writes copies of the truth logs with the boxes' full geometry) the whole
+/// scenes too; the metrics read the columns either way.
+fn load_nuscenes_logs(
+    a: &EvalArgs,
+    pairs: &[(PathBuf, PathBuf)],
+) -> Result<(Vec<Scene>, ColumnLogs)> {
+    if a.events.is_none() {
+        return Ok((Vec::new(), load_columns_logs(a, pairs)?));
+    }
+    let (full, removed) = load_logs(a, pairs, false)?;
+    let columns = full.par_iter().map(ColumnScene::from_scene).collect();
+    Ok((full, (columns, removed)))
 }
 
 fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
@@ -374,10 +498,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         params.classes = a.classes.clone();
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
-    let (scenes, removed) = load_logs(&a, &pairs, false)?;
+    let (full, (scenes, removed)) = load_nuscenes_logs(&a, &pairs)?;
     let spinner = scoring_spinner(&a, "nuScenes metrics and HOTA");
     let ((result, decisions), (hota, hota_notes)) = rayon::join(
-        || evaluate_recording(&scenes, &params, a.events.is_some()),
+        || evaluate_columns_recording(&scenes, &params, a.events.is_some()),
         || centre_hota(&scenes, &params.classes),
     );
     spinner.finish_and_clear();
@@ -392,11 +516,11 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let events = (a.events.as_deref())
         .map(|out| {
             let logs = (EventsProtocol::Nuscenes, &decisions[..]);
-            eval_events::write(out, logs, &pairs, &scenes, &a.truth_topic)
+            eval_events::write(out, logs, &pairs, &full, &a.truth_topic)
         })
         .transpose()?;
-    let (base_pairs, base_scenes) = load_baseline(&a, false)?;
-    let baseline = base_scenes.map(|scenes| evaluate(&scenes, &params));
+    drop(full);
+    let (base_pairs, baseline) = nuscenes_baseline(&a, &params)?;
 
     // The gate, on AMOTA.
     let failures = match (&baseline, a.max_drop) {

@@ -6,15 +6,16 @@ use std::process::ExitCode;
 
 use anyhow::{ensure, Context, Result};
 use clap::Args;
-use probmot::fit::load::load_log_progress;
-use probmot::fit::{fit, fitted_config, ClassFit, FitOptions, FitReport, YawMode};
+use probmot::fit::load::stream_log;
+use probmot::fit::{
+    fit_gathered, fitted_config, ClassFit, FitAccumulator, FitOptions, FitReport, YawMode,
+};
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::tracker::{Preset, TrackerConfig};
 
 use super::config_cmd::PresetArg;
 use super::eval_cmd::bytes_bar;
 use super::show_progress;
-use rayon::prelude::*;
 
 /// Fit per-class noise (Q, R, P0) from logs with ground truth and detections, and write a
 /// tracker config.
@@ -179,11 +180,12 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
     );
     let files: Vec<&std::path::Path> = a.inputs.iter().map(PathBuf::as_path).collect();
     let bar = bytes_bar(&files, show_progress(a.quiet || a.json));
-    let logs = a
-        .inputs
-        .par_iter()
-        .map(|p| load_log_progress(p, &a.truth_topic, &a.detections_topic, &|n| bar.inc(n)))
-        .collect::<Result<Vec<_>>>()?;
+    // Log after log, frame by frame: memory bounded by a few frames, not by the logs.
+    let mut acc = FitAccumulator::new();
+    for p in &a.inputs {
+        let topics = (a.truth_topic.as_str(), a.detections_topic.as_str());
+        stream_log(&mut acc, p, topics, &|n| bar.inc(n))?;
+    }
     bar.finish_and_clear();
     let options = FitOptions {
         dt_nominal,
@@ -194,12 +196,12 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
         },
         min_samples: a.min_samples,
     };
-    let mut report = fit(&logs, &options);
+    let mut report = fit_gathered(acc, &options);
     let mut cfg = fitted_config(&base, &mut report, &options)?;
     let fitted = report.classes.iter().filter(|c| c.applied).count();
     cfg.name = format!(
         "fit of {} log(s) on {}{}",
-        logs.len(),
+        a.inputs.len(),
         base.name,
         if a.fold_yaw { " (yaw folded)" } else { "" }
     );

@@ -9,12 +9,12 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use rayon::prelude::*;
 use serde::Serialize;
 
+use super::columns::{ColumnScene, Side};
 use super::events::Collector;
 use super::mot_accumulator::{EventKind, MotAccumulator};
 use super::nan_as_null;
 use super::numpy_compat::{linspace_round12, np_interp, np_mean, np_sum};
 use super::scene::Scene;
-use crate::mcapio::LabelledBox;
 use crate::tracker::config::NUSCENES_CLASSES;
 
 /// Parameters of the protocol.
@@ -187,47 +187,51 @@ struct PBox {
 /// The label id of a box of no evaluated class.
 const NO_CLASS: u16 = u16::MAX;
 
-/// One scene after score averaging and interpolation.
-struct Prepared {
-    gt: Vec<Vec<PBox>>,
-    pred: Vec<Vec<PBox>>,
+/// One scene after score averaging and interpolation: its columns (read through
+/// `class_of`, the evaluated class of each label, and `means`, each track's mean score) and,
+/// per frame, the interpolated boxes that follow the frame's own.
+struct Prepared<'a> {
+    scene: &'a ColumnScene,
+    class_of: Vec<u16>,
+    means: HashMap<u64, f64>,
+    gt_extra: Vec<Vec<PBox>>,
+    pred_extra: Vec<Vec<PBox>>,
 }
 
-fn to_pbox(b: &LabelledBox, classes: &[String]) -> PBox {
+/// The box at row `i` of `side` as the passes see it (`score`: the one it carries).
+fn pbox(side: &Side, class_of: &[u16], i: usize, score: f64) -> PBox {
     PBox {
-        id: b.id,
-        label: classes
-            .iter()
-            .position(|c| *c == b.label)
-            .map_or(NO_CLASS, |i| i as u16),
-        x: b.center[0],
-        y: b.center[1],
-        score: b.score,
+        id: side.id[i],
+        label: class_of[side.label[i] as usize],
+        x: side.xy[i][0],
+        y: side.xy[i][1],
+        score,
     }
 }
 
-/// Fills the gaps of every track (by id, across classes) at the scene's timestamps, as the
-/// devkit's `interpolate_tracks` does: weight `r = (t_right - t) / (t_right - t_left)` on the
-/// *right* box, class and id of the right box, appended after the frame's own boxes (in the
-/// order the tracks first appear). Each track visits only the frames of its own time span.
-fn interpolate(ts: &[i64], frames: &mut [Vec<PBox>]) {
-    // Per track in order of first appearance: its (frame, box) positions in frame order.
+/// The devkit's `interpolate_tracks` on one side: the boxes that fill the gaps of every track
+/// (by id, across classes) at the scene's timestamps, per frame: weight `r = (t_right - t) /
+/// (t_right - t_left)` on the *right* box, class and id of the right box, in the order the
+/// tracks first appear (they follow the frame's own boxes). Each track visits only the frames
+/// of its own time span. `boxed(i)` is the box at row `i`.
+fn interpolate(ts: &[i64], side: &Side, boxed: impl Fn(usize) -> PBox) -> Vec<Vec<PBox>> {
+    // Per track in order of first appearance: its (frame, row) positions in frame order.
     let mut index: HashMap<u64, usize> = HashMap::new();
     let mut tracks: Vec<Vec<(u32, u32)>> = Vec::new();
-    for (fi, boxes) in frames.iter().enumerate() {
-        for (k, b) in boxes.iter().enumerate() {
-            let slot = *index.entry(b.id).or_insert_with(|| {
+    for fi in 0..ts.len() {
+        for row in side.frame(fi) {
+            let slot = *index.entry(side.id[row]).or_insert_with(|| {
                 tracks.push(Vec::new());
                 tracks.len() - 1
             });
-            tracks[slot].push((fi as u32, k as u32));
+            tracks[slot].push((fi as u32, row as u32));
         }
     }
+    drop(index);
     let sorted = ts.windows(2).all(|w| w[0] <= w[1]);
-    let mut extra: Vec<Vec<PBox>> = vec![Vec::new(); frames.len()];
+    let mut extra: Vec<Vec<PBox>> = vec![Vec::new(); ts.len()];
     for track in &tracks {
         let time = |i: usize| ts[track[i].0 as usize];
-        let boxed = |i: usize| frames[track[i].0 as usize][track[i].1 as usize];
         let (first, last) = (time(0), time(track.len() - 1));
         let span = if sorted {
             ts.partition_point(|v| *v < first)..ts.partition_point(|v| *v <= last)
@@ -247,7 +251,10 @@ fn interpolate(ts: &[i64], frames: &mut [Vec<PBox>]) {
             }
             let left = right - 1;
             let r = (time(right) - t) as f64 / (time(right) - time(left)) as f64;
-            let (lb, rb) = (boxed(left), boxed(right));
+            let (lb, rb) = (
+                boxed(track[left].1 as usize),
+                boxed(track[right].1 as usize),
+            );
             extra[fi].push(PBox {
                 id: rb.id,
                 label: rb.label,
@@ -257,41 +264,40 @@ fn interpolate(ts: &[i64], frames: &mut [Vec<PBox>]) {
             });
         }
     }
-    for (f, e) in frames.iter_mut().zip(extra) {
-        f.extend(e);
-    }
+    extra
 }
 
-fn prepare(scene: &Scene, classes: &[String]) -> Prepared {
+fn prepare<'a>(scene: &'a ColumnScene, classes: &[String]) -> Prepared<'a> {
     // The devkit's timestamps are microseconds.
-    let ts: Vec<i64> = scene.frames.iter().map(|f| (f.0 / 1000) as i64).collect();
-    let mut gt: Vec<Vec<PBox>> = scene
-        .frames
+    let ts: Vec<i64> = scene.stamps.iter().map(|s| (s / 1000) as i64).collect();
+    let class_of: Vec<u16> = scene
+        .labels
         .iter()
-        .map(|f| f.1.iter().map(|b| to_pbox(b, classes)).collect())
-        .collect();
-    let mut pred: Vec<Vec<PBox>> = scene
-        .frames
-        .iter()
-        .map(|f| f.2.iter().map(|b| to_pbox(b, classes)).collect())
+        .map(|l| {
+            classes
+                .iter()
+                .position(|c| c == l)
+                .map_or(NO_CLASS, |i| i as u16)
+        })
         .collect();
     // Each track's boxes get the track's mean score (np.mean, before interpolation).
+    let tr = &scene.tracks;
     let mut scores: HashMap<u64, Vec<f64>> = HashMap::new();
-    for frame in &pred {
-        for b in frame {
-            scores.entry(b.id).or_default().push(b.score);
-        }
+    for (id, score) in tr.id.iter().zip(&tr.score) {
+        scores.entry(*id).or_default().push(*score);
     }
     let means: HashMap<u64, f64> = scores.iter().map(|(k, v)| (*k, np_mean(v))).collect();
     drop(scores);
-    for frame in &mut pred {
-        for b in frame {
-            b.score = means[&b.id];
-        }
+    let gt = &scene.truth;
+    let gt_extra = interpolate(&ts, gt, |i| pbox(gt, &class_of, i, gt.score[i]));
+    let pred_extra = interpolate(&ts, tr, |i| pbox(tr, &class_of, i, means[&tr.id[i]]));
+    Prepared {
+        scene,
+        class_of,
+        means,
+        gt_extra,
+        pred_extra,
     }
-    interpolate(&ts, &mut gt);
-    interpolate(&ts, &mut pred);
-    Prepared { gt, pred }
 }
 
 /// One scene restricted to one class: per frame, `(id, x, y)` of the truth and
@@ -301,25 +307,38 @@ struct ClassScene {
     pred: Vec<Vec<(u64, f64, f64, f64)>>,
 }
 
-fn class_view(scene: &Prepared, class: u16) -> ClassScene {
+fn class_view(p: &Prepared, class: u16) -> ClassScene {
+    let s = p.scene;
+    let (gt, tr) = (&s.truth, &s.tracks);
+    let of_class = |side: &Side, i: usize| p.class_of[side.label[i] as usize] == class;
+    let frames = 0..s.stamps.len();
     ClassScene {
-        gt: scene
-            .gt
-            .iter()
+        gt: frames
+            .clone()
             .map(|f| {
-                f.iter()
-                    .filter(|b| b.label == class)
-                    .map(|b| (b.id, b.x, b.y))
+                gt.frame(f)
+                    .filter(|&i| of_class(gt, i))
+                    .map(|i| (gt.id[i], gt.xy[i][0], gt.xy[i][1]))
+                    .chain(
+                        p.gt_extra[f]
+                            .iter()
+                            .filter(|b| b.label == class)
+                            .map(|b| (b.id, b.x, b.y)),
+                    )
                     .collect()
             })
             .collect(),
-        pred: scene
-            .pred
-            .iter()
+        pred: frames
             .map(|f| {
-                f.iter()
-                    .filter(|b| b.label == class)
-                    .map(|b| (b.id, b.x, b.y, b.score))
+                tr.frame(f)
+                    .filter(|&i| of_class(tr, i))
+                    .map(|i| (tr.id[i], tr.xy[i][0], tr.xy[i][1], p.means[&tr.id[i]]))
+                    .chain(
+                        p.pred_extra[f]
+                            .iter()
+                            .filter(|b| b.label == class)
+                            .map(|b| (b.id, b.x, b.y, b.score)),
+                    )
                     .collect()
             })
             .collect(),
@@ -668,10 +687,25 @@ pub fn evaluate(scenes: &[Scene], p: &NuscenesParams) -> NuscenesResult {
     evaluate_recording(scenes, p, false).0
 }
 
+/// [`evaluate`] on scenes already in columns (what `eval` loads).
+pub fn evaluate_columns(scenes: &[ColumnScene], p: &NuscenesParams) -> NuscenesResult {
+    evaluate_columns_recording(scenes, p, false).0
+}
+
 /// [`evaluate`]; with `record`, also the association decisions of each class with ground truth
 /// at its best-MOTA threshold (the pass its counts come from), for `eval --events`.
 pub fn evaluate_recording(
     scenes: &[Scene],
+    p: &NuscenesParams,
+    record: bool,
+) -> (NuscenesResult, Vec<(String, Collector)>) {
+    let scenes: Vec<ColumnScene> = scenes.par_iter().map(ColumnScene::from_scene).collect();
+    evaluate_columns_recording(&scenes, p, record)
+}
+
+/// [`evaluate_recording`] on scenes already in columns.
+pub fn evaluate_columns_recording(
+    scenes: &[ColumnScene],
     p: &NuscenesParams,
     record: bool,
 ) -> (NuscenesResult, Vec<(String, Collector)>) {

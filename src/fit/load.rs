@@ -6,7 +6,8 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
-use super::data::{assemble_frames, FitLog};
+use super::accumulate::FitAccumulator;
+use super::data::{assemble_frames, FitFrame, FitLog};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
 use crate::msgs::{Detection3D, Track3D};
@@ -86,6 +87,159 @@ pub fn load_log(path: &Path, truth_topic: &str, detections_topic: &str) -> Resul
     load_log_progress(path, truth_topic, detections_topic, &|_| {})
 }
 
+/// Feeds one log to `acc` frame by frame while the file streams (one pass), holding only the
+/// frames whose stamp either channel may still reach: a frame is complete once both channels
+/// have moved past its stamp. That needs each channel's stamps in order; a log whose stamps go
+/// back is read whole instead ([`load_log_progress`]), with the same result. Errors as
+/// [`load_log`].
+pub fn stream_log(
+    acc: &mut FitAccumulator,
+    path: &Path,
+    (truth_topic, detections_topic): (&str, &str),
+    progress: &dyn Fn(u64),
+) -> Result<()> {
+    let before = acc.clone();
+    match stream_ordered(acc, path, (truth_topic, detections_topic), progress)? {
+        true => Ok(()),
+        false => {
+            *acc = before;
+            let log = load_log(path, truth_topic, detections_topic)?;
+            acc.add_log(&log);
+            Ok(())
+        }
+    }
+}
+
+/// The instances `(label, id)` of one stamp's truth so far.
+type SeenInstances = HashSet<(String, u64)>;
+
+/// Frames not yet complete in [`stream_log`]: per stamp, the truth (if any message) with the
+/// instance keys seen, the detections, and the detection messages.
+#[derive(Default)]
+struct Pending {
+    truth: Option<(Vec<LabelledBox>, SeenInstances)>,
+    detections: Vec<LabelledBox>,
+    detection_messages: u64,
+}
+
+/// [`stream_log`] while both channels' stamps are in order; `false` (and a partial feed) as
+/// soon as one goes back.
+fn stream_ordered(
+    acc: &mut FitAccumulator,
+    path: &Path,
+    (truth_topic, detections_topic): (&str, &str),
+    progress: &dyn Fn(u64),
+) -> Result<bool> {
+    let file = path.display().to_string();
+    let wanted = [
+        request(truth_topic, TopicKind::Tracks, "ground truth"),
+        request(detections_topic, TopicKind::Detections, "detections"),
+    ];
+    let mut log = acc.begin_log(&file);
+    let mut pending: BTreeMap<u64, Pending> = BTreeMap::new();
+    let mut newest: [Option<u64>; 2] = [None, None];
+    let mut found = [false; 2];
+    let mut ordered = true;
+    let mut reported = 0u64;
+    let mut flush =
+        |acc: &mut FitAccumulator, pending: &mut BTreeMap<u64, Pending>, below: Option<u64>| {
+            while let Some(entry) = pending
+                .first_entry()
+                .filter(|e| below.is_none_or(|b| *e.key() < b))
+            {
+                let (stamp, p) = entry.remove_entry();
+                match p.truth {
+                    Some((truth, _)) => {
+                        let detections = p.detections;
+                        acc.push_frame(
+                            &mut log,
+                            FitFrame {
+                                stamp,
+                                truth,
+                                detections,
+                            },
+                        );
+                    }
+                    None => acc.add_unmatched(p.detection_messages),
+                }
+            }
+        };
+    recording::for_each_frame(path, &wanted, |event, stats| {
+        progress(stats.bytes_read.saturating_sub(reported));
+        reported = reported.max(stats.bytes_read);
+        let (i, f) = match event {
+            FrameEvent::Channel(i) => {
+                found[i] = true;
+                return Ok(());
+            }
+            FrameEvent::Frame(_, _) if !ordered => return Ok(()),
+            FrameEvent::Frame(i, f) => (i, f),
+        };
+        if newest[i].is_some_and(|n| f.stamp < n) {
+            ordered = false;
+            return Ok(());
+        }
+        newest[i] = Some(f.stamp);
+        let p = pending.entry(f.stamp).or_default();
+        match f.boxes {
+            Boxes::Tracks(t) => {
+                let (boxes, seen) = p.truth.get_or_insert_with(Default::default);
+                for b in t.into_iter().map(truth_box) {
+                    if check_truth_box(&b, seen, (&file, truth_topic, f.stamp))? {
+                        boxes.push(b);
+                    }
+                }
+            }
+            Boxes::Detections(d) => {
+                p.detections.extend(d.into_iter().filter_map(detection_box));
+                p.detection_messages += 1;
+            }
+        }
+        if let [Some(a), Some(b)] = newest {
+            flush(acc, &mut pending, Some(a.min(b)));
+        }
+        Ok(())
+    })?;
+    if !ordered {
+        return Ok(false);
+    }
+    if let Some(k) = found.iter().position(|f| !f) {
+        bail!("{file}: no channel with topic {}", wanted[k].topic);
+    }
+    if newest[0].is_none() {
+        bail!("{file}: topic {truth_topic} (ground truth) has no messages");
+    }
+    flush(acc, &mut pending, None);
+    Ok(true)
+}
+
+/// Whether a truth box counts (KITTI's `dontcare` regions, id 0, hold no box); an error for a
+/// box without id or an instance given twice at one stamp.
+fn check_truth_box(
+    b: &LabelledBox,
+    seen: &mut HashSet<(String, u64)>,
+    (file, topic, stamp): (&str, &str, u64),
+) -> Result<bool> {
+    if b.id == 0 && b.label == "dontcare" {
+        return Ok(false);
+    }
+    if b.id == 0 {
+        bail!(
+            "{file}: topic {topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); the \
+             fit needs the true instance ids",
+            b.label
+        );
+    }
+    if !seen.insert((b.label.clone(), b.id)) {
+        bail!(
+            "{file}: topic {topic}, stamp {stamp}: two ground-truth boxes with label {} and id {}",
+            b.label,
+            b.id
+        );
+    }
+    Ok(true)
+}
+
 /// [`load_log`] in one pass over the file, telling `progress` the bytes read at each step.
 pub fn load_log_progress(
     path: &Path,
@@ -111,25 +265,9 @@ pub fn load_log_progress(
         let mut fb = Vec::with_capacity(boxes.len());
         for b in boxes {
             // Regions without an object (KITTI's DontCare, imported with id 0) hold no box.
-            if b.id == 0 && b.label == "dontcare" {
-                continue;
+            if check_truth_box(&b, seen, (&file, truth_topic, stamp))? {
+                fb.push(b);
             }
-            if b.id == 0 {
-                bail!(
-                    "{file}: topic {truth_topic}, stamp {stamp}: ground-truth box ({}) has no id \
-                     (id 0); the fit needs the true instance ids",
-                    b.label
-                );
-            }
-            if !seen.insert((b.label.clone(), b.id)) {
-                bail!(
-                    "{file}: topic {truth_topic}, stamp {stamp}: two ground-truth boxes with label \
-                     {} and id {}",
-                    b.label,
-                    b.id
-                );
-            }
-            fb.push(b);
         }
         truth_boxes.push((stamp, fb));
     }

@@ -10,7 +10,7 @@ use std::collections::{BTreeMap, HashMap};
 
 use serde::Serialize;
 
-use super::data::FitLog;
+use super::data::{FitFrame, FitLog};
 use super::stats::Moments;
 use crate::eval::mot_accumulator::assign_with_missing_edges;
 use crate::mcapio::LabelledBox;
@@ -127,8 +127,25 @@ type LastResidual = (usize, [f64; 4], f64);
 /// boxes with non-finite fields are ignored. The change of the residual is taken between
 /// adjacent frames of the log where the same true instance is matched in both.
 pub fn accumulate_measurement_noise(log: &FitLog, stats: &mut MeasurementStatsByLabel) {
-    let mut last: HashMap<(String, u64), LastResidual> = HashMap::new();
-    for (k, frame) in log.frames.iter().enumerate() {
+    let mut state = MeasurementState::default();
+    for frame in &log.frames {
+        state.push(frame, stats);
+    }
+}
+
+/// [`accumulate_measurement_noise`] frame by frame: what it keeps between frames is the last
+/// residual of each matched instance.
+#[derive(Default)]
+pub struct MeasurementState {
+    last: HashMap<(String, u64), LastResidual>,
+    k: usize,
+}
+
+impl MeasurementState {
+    /// Adds the matched pairs of the log's next frame.
+    pub fn push(&mut self, frame: &FitFrame, stats: &mut MeasurementStatsByLabel) {
+        let k = self.k;
+        self.k += 1;
         let mut by_label: BTreeMap<&str, (Vec<&LabelledBox>, Vec<&LabelledBox>)> = BTreeMap::new();
         for t in frame.truth.iter().filter(|b| b.is_finite()) {
             by_label.entry(&t.label).or_default().0.push(t);
@@ -149,7 +166,7 @@ pub fn accumulate_measurement_noise(log: &FitLog, stats: &mut MeasurementStatsBy
                 s.yaw_folded.push(folded);
                 let now = [r[0], r[1], r[2], r[3]];
                 let key = (label.to_string(), truth[i].id);
-                if let Some((kp, prev, prev_folded)) = last.get(&key) {
+                if let Some((kp, prev, prev_folded)) = self.last.get(&key) {
                     if *kp + 1 == k {
                         for c in 0..3 {
                             s.change[c].push(now[c] - prev[c]);
@@ -159,9 +176,11 @@ pub fn accumulate_measurement_noise(log: &FitLog, stats: &mut MeasurementStatsBy
                             .push(fold_half_turn(folded - prev_folded));
                     }
                 }
-                last.insert(key, (k, now, folded));
+                self.last.insert(key, (k, now, folded));
             }
         }
+        // A residual older than this frame can never pair again.
+        self.last.retain(|_, v| v.0 == k);
     }
 }
 

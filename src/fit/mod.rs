@@ -15,6 +15,7 @@
 //!
 //! The statistics are pure functions of [`FitLog`]s; [`load`] reads those from MCAP files.
 
+pub mod accumulate;
 pub mod apply;
 pub mod data;
 pub mod load;
@@ -32,9 +33,8 @@ pub use data::{FitFrame, FitLog};
 pub use measurement::YawMode;
 pub use timing::FramePeriod;
 
-use measurement::{accumulate_measurement_noise, MeasurementStatsByLabel};
-use process::{accumulate_process_noise, ProcessStats};
-use timing::{frame_period, q_scale, velocity_variance_scale};
+pub use accumulate::FitAccumulator;
+use timing::{period_of_intervals, q_scale, velocity_variance_scale};
 
 /// Settings of a fit.
 #[derive(Debug, Clone, PartialEq)]
@@ -125,14 +125,18 @@ fn arr<const N: usize>(f: impl Fn(usize) -> Option<f64>) -> Option<[f64; N]> {
 /// Computes the per-class statistics of the logs (pooled; instance ids and consecutive frames
 /// are only considered within a log).
 pub fn fit(logs: &[FitLog], options: &FitOptions) -> FitReport {
-    let mut warnings = Vec::new();
-    let mut pstats = ProcessStats::new();
-    let mut mstats = MeasurementStatsByLabel::new();
+    let mut acc = FitAccumulator::new();
     for log in logs {
-        accumulate_process_noise(log, &mut pstats);
-        accumulate_measurement_noise(log, &mut mstats);
+        acc.add_log(log);
     }
-    let period = frame_period(logs);
+    fit_gathered(acc, options)
+}
+
+/// [`fit`] of what an accumulator gathered (logs fed whole or frame by frame).
+pub fn fit_gathered(acc: FitAccumulator, options: &FitOptions) -> FitReport {
+    let mut warnings = Vec::new();
+    let (pstats, mstats) = (&acc.process, &acc.measurement);
+    let period = period_of_intervals(&acc.intervals);
     let data_period = match period {
         Some(p) if p.median_s > 0.0 => p.median_s,
         _ => {
@@ -183,19 +187,11 @@ pub fn fit(logs: &[FitLog], options: &FitOptions) -> FitReport {
         })
         .collect();
     FitReport {
-        logs: logs.iter().map(|l| l.name.clone()).collect(),
-        frames: logs.iter().map(|l| l.frames.len() as u64).sum(),
-        truth_boxes: logs
-            .iter()
-            .flat_map(|l| &l.frames)
-            .map(|f| f.truth.len() as u64)
-            .sum(),
-        detections: logs
-            .iter()
-            .flat_map(|l| &l.frames)
-            .map(|f| f.detections.len() as u64)
-            .sum(),
-        unmatched_detection_messages: logs.iter().map(|l| l.unmatched_detection_messages).sum(),
+        logs: acc.names,
+        frames: acc.frames,
+        truth_boxes: acc.truth_boxes,
+        detections: acc.detections,
+        unmatched_detection_messages: acc.unmatched_detection_messages,
         period,
         dt_nominal: options.dt_nominal,
         q_scale: qs,

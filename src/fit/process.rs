@@ -5,7 +5,7 @@
 //! difference `p[k+1] - 2 p[k] + p[k-1]` is exactly that step times the frame period, so its
 //! variance is the per-frame velocity noise in the state's "displacement per frame" units.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 
 use super::data::FitLog;
 use super::stats::Moments;
@@ -28,30 +28,56 @@ pub fn second_difference(a: &LabelledBox, b: &LabelledBox, c: &LabelledBox) -> [
 /// the log's frame list; an instance (same label and id) absent from a frame breaks its
 /// sequence, so no difference spans a gap. Boxes with non-finite fields are ignored.
 pub fn accumulate_process_noise(log: &FitLog, stats: &mut ProcessStats) {
-    let index: Vec<HashMap<(&str, u64), &LabelledBox>> = log
-        .frames
-        .iter()
-        .map(|f| {
-            f.truth
-                .iter()
-                .filter(|b| b.is_finite())
-                .map(|b| ((b.label.as_str(), b.id), b))
-                .collect()
-        })
-        .collect();
-    for k in 1..index.len().saturating_sub(1) {
+    let mut window = ProcessWindow::default();
+    for f in &log.frames {
+        window.push(f.truth.clone(), stats);
+    }
+}
+
+/// One frame's truth boxes and, per instance `(label, id)`, the position of the box that
+/// counts (the last finite one with that key).
+type IndexedFrame = (Vec<LabelledBox>, HashMap<(String, u64), usize>);
+
+/// [`accumulate_process_noise`] frame by frame, holding only the last three frames: each frame
+/// is the middle of a second difference when its successor arrives.
+#[derive(Default)]
+pub struct ProcessWindow {
+    frames: VecDeque<IndexedFrame>,
+}
+
+impl ProcessWindow {
+    /// Adds the next frame's truth boxes and the second differences it completes.
+    pub fn push(&mut self, truth: Vec<LabelledBox>, stats: &mut ProcessStats) {
+        let index = truth
+            .iter()
+            .enumerate()
+            .filter(|(_, b)| b.is_finite())
+            .map(|(i, b)| ((b.label.clone(), b.id), i))
+            .collect();
+        self.frames.push_back((truth, index));
+        if self.frames.len() > 3 {
+            self.frames.pop_front();
+        }
+        if self.frames.len() == 3 {
+            self.middle(stats);
+        }
+    }
+
+    /// The second differences centred on the middle frame of three.
+    fn middle(&self, stats: &mut ProcessStats) {
+        let (prev, (boxes, index), next) = (&self.frames[0].1, &self.frames[1], &self.frames[2]);
         // In the frame's box order (not the map's), so that the sums are deterministic; a key
         // given twice counts once, with the box the map kept.
-        for b in log.frames[k].truth.iter().filter(|b| b.is_finite()) {
-            let key = (b.label.as_str(), b.id);
-            if !std::ptr::eq(index[k][&key], b) {
+        for (i, b) in boxes.iter().enumerate().filter(|(_, b)| b.is_finite()) {
+            let key = (b.label.clone(), b.id);
+            if index[&key] != i {
                 continue;
             }
-            let (Some(a), Some(c)) = (index[k - 1].get(&key), index[k + 1].get(&key)) else {
+            let (Some(&a), Some(&c)) = (prev.get(&key), next.1.get(&key)) else {
                 continue;
             };
-            let d = second_difference(a, b, c);
-            let m = stats.entry(key.0.to_string()).or_default();
+            let d = second_difference(&self.frames[0].0[a], b, &next.0[c]);
+            let m = stats.entry(key.0).or_default();
             for (mi, v) in m.iter_mut().zip(d) {
                 mi.push(v);
             }

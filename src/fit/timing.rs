@@ -47,10 +47,20 @@ pub fn frame_period(logs: &[FitLog]) -> Option<FramePeriod> {
         .flat_map(|l| {
             l.frames
                 .windows(2)
-                .map(|w| (w[1].stamp - w[0].stamp) as f64 * 1e-9)
+                .map(|w| interval_s(w[0].stamp, w[1].stamp))
         })
         .collect();
-    let m = median(&dts)?;
+    period_of_intervals(&dts)
+}
+
+/// The interval between two consecutive frame stamps (ns), seconds.
+pub fn interval_s(a: u64, b: u64) -> f64 {
+    (b - a) as f64 * 1e-9
+}
+
+/// [`frame_period`] of the frame intervals `dts` (seconds) of every log.
+pub fn period_of_intervals(dts: &[f64]) -> Option<FramePeriod> {
+    let m = median(dts)?;
     let irregular = dts
         .iter()
         .filter(|d| (*d - m).abs() > IRREGULAR_FRACTION * m)

@@ -310,3 +310,71 @@ fn fit_errors_few_samples_and_rescaling() {
     assert!(cfg.classes.values().all(|c| c.samples.is_some()));
     assert!(!cfg.classes.is_empty());
 }
+
+/// A copy of the MCAP file `src` with its messages in the order `order` gives them.
+fn reordered<F>(src: &Path, dst: &Path, order: F)
+where
+    F: for<'a> Fn(Vec<mcap::Message<'a>>) -> Vec<mcap::Message<'a>>,
+{
+    let bytes = std::fs::read(src).unwrap();
+    let msgs: Vec<mcap::Message<'_>> = mcap::MessageStream::new(&bytes)
+        .unwrap()
+        .map(|m| m.unwrap())
+        .collect();
+    let file = std::fs::File::create(dst).unwrap();
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
+    for m in order(msgs) {
+        w.write(&m).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// The fit streams a log frame by frame when each channel's stamps are in order and reads it
+/// whole when they go back: the same statistics either way, whatever the interleaving of the
+/// channels (all truth first, or every message in reverse).
+#[test]
+fn streamed_and_whole_reads_give_the_same_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("log.mcap");
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--frames",
+        "60",
+        "--objects",
+        "30",
+        "-o",
+        log.to_str().unwrap(),
+    ]);
+    let truth_first = dir.path().join("truth_first.mcap");
+    reordered(&log, &truth_first, |mut m| {
+        m.sort_by_key(|m| m.channel.topic != "/ground_truth");
+        m
+    });
+    let reversed = dir.path().join("reversed.mcap");
+    reordered(&log, &reversed, |mut m| {
+        m.reverse();
+        m
+    });
+    let fit = |p: &Path| {
+        let out = dir.path().join("cfg.json");
+        let r = probmot_ok(&[
+            "fit",
+            p.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ]);
+        let mut v: Value = serde_json::from_slice(&r.stdout).unwrap();
+        for k in ["logs", "output"] {
+            v.as_object_mut().unwrap().remove(k);
+        }
+        v
+    };
+    let streamed = fit(&log);
+    assert!(streamed["frames"].as_u64().unwrap() == 60, "{streamed}");
+    assert!(streamed["classes"].as_array().unwrap().len() >= 3);
+    assert_eq!(fit(&truth_first), streamed);
+    assert_eq!(fit(&reversed), streamed);
+}

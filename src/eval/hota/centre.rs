@@ -7,8 +7,8 @@
 
 use std::collections::BTreeMap;
 
-use super::{eval_scenes, Hota};
-use crate::eval::scene::Scene;
+use super::{eval_scenes, Hota, RawFrame};
+use crate::eval::columns::ColumnScene;
 
 /// Distance (m) at which the similarity reaches 0.
 pub const ZERO_DISTANCE: f64 = 2.0;
@@ -16,38 +16,25 @@ pub const ZERO_DISTANCE: f64 = 2.0;
 /// Similarity of two BEV centres, as TrackEval computes it (`sqrt(dx^2 + dy^2)`, then
 /// `max(0, 1 - d / 2)`).
 pub fn centre_similarity(gt: &[f64; 3], tr: &[f64; 3]) -> f64 {
+    xy_similarity(&[gt[0], gt[1]], &[tr[0], tr[1]])
+}
+
+/// [`centre_similarity`] of two ground-plane points.
+fn xy_similarity(gt: &[f64; 2], tr: &[f64; 2]) -> f64 {
     let (dx, dy) = (gt[0] - tr[0], gt[1] - tr[1]);
     let d = (dx * dx + dy * dy).sqrt();
     (1.0 - d / ZERO_DISTANCE).max(0.0)
 }
 
 /// HOTA per class of `classes` (classes without any box on either side are left out).
-pub fn centre_hota(scenes: &[Scene], classes: &[String]) -> (BTreeMap<String, Hota>, Vec<String>) {
+pub fn centre_hota(
+    scenes: &[ColumnScene],
+    classes: &[String],
+) -> (BTreeMap<String, Hota>, Vec<String>) {
     let mut out = BTreeMap::new();
     let mut notes = Vec::new();
     for c in classes {
-        let prepared = eval_scenes(scenes, |scene| {
-            scene
-                .frames
-                .iter()
-                .map(|(_, g, t)| {
-                    let g: Vec<_> = g.iter().filter(|b| b.label == *c).collect();
-                    let t: Vec<_> = t.iter().filter(|b| b.label == *c).collect();
-                    let sim = g
-                        .iter()
-                        .flat_map(|a| t.iter().map(|b| centre_similarity(&a.center, &b.center)))
-                        .enumerate()
-                        .filter(|(_, v)| *v != 0.0)
-                        .map(|(k, v)| (k as u32, v))
-                        .collect();
-                    (
-                        g.iter().map(|b| b.id as i64).collect(),
-                        t.iter().map(|b| b.id as i64).collect(),
-                        sim,
-                    )
-                })
-                .collect()
-        });
+        let prepared = eval_scenes(scenes, |scene| class_frames(scene, c));
         match prepared {
             Ok((counts, true)) => {
                 out.insert(c.clone(), Hota::from_counts(&counts));
@@ -57,4 +44,35 @@ pub fn centre_hota(scenes: &[Scene], classes: &[String]) -> (BTreeMap<String, Ho
         }
     }
     (out, notes)
+}
+
+/// The frames of one class of one scene: truth and track ids and the sparse similarity.
+fn class_frames(scene: &ColumnScene, class: &str) -> Vec<RawFrame> {
+    let Some(label) = scene.label_index(class) else {
+        return vec![Default::default(); scene.stamps.len()];
+    };
+    let (gt, tr) = (&scene.truth, &scene.tracks);
+    let mut g: Vec<usize> = Vec::new();
+    let mut t: Vec<usize> = Vec::new();
+    (0..scene.stamps.len())
+        .map(|f| {
+            g.clear();
+            g.extend(gt.frame(f).filter(|&i| gt.label[i] == label));
+            t.clear();
+            t.extend(tr.frame(f).filter(|&i| tr.label[i] == label));
+            let sim = g
+                .iter()
+                .flat_map(|&a| t.iter().map(move |&b| (a, b)))
+                .map(|(a, b)| xy_similarity(&gt.xy[a], &tr.xy[b]))
+                .enumerate()
+                .filter(|(_, v)| *v != 0.0)
+                .map(|(k, v)| (k as u32, v))
+                .collect();
+            (
+                g.iter().map(|&i| gt.id[i] as i64).collect(),
+                t.iter().map(|&i| tr.id[i] as i64).collect(),
+                sim,
+            )
+        })
+        .collect()
 }

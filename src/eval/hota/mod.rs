@@ -438,12 +438,10 @@ pub type RawFrame = (Vec<i64>, Vec<i64>, SparseSim);
 /// Prepares (with `prepare`) and evaluates every scene as one sequence, in parallel, and
 /// combines them in scene order. Also says whether any box was there. `Err`: the first scene
 /// whose frames hold an id twice, as `"scene, frame F: truth/track id N occurs twice"`.
-pub fn eval_scenes<F>(
-    scenes: &[crate::eval::scene::Scene],
-    prepare: F,
-) -> Result<(HotaCounts, bool), String>
+pub fn eval_scenes<S, F>(scenes: &[S], prepare: F) -> Result<(HotaCounts, bool), String>
 where
-    F: Fn(&crate::eval::scene::Scene) -> Vec<RawFrame> + Sync,
+    S: Named + Sync,
+    F: Fn(&S) -> Vec<RawFrame> + Sync,
 {
     use rayon::prelude::*;
     let per_scene: Vec<Result<(HotaCounts, bool), String>> = scenes
@@ -453,7 +451,7 @@ where
             if let Some((frame, id, what)) = duplicate_id(&raw) {
                 return Err(format!(
                     "{}, frame {frame}: {what} id {id} occurs twice",
-                    scene.name
+                    scene.name()
                 ));
             }
             let any = raw.iter().any(|(g, t, _)| !g.is_empty() || !t.is_empty());
@@ -469,6 +467,24 @@ where
         any |= a;
     }
     Ok((combine(&seqs), any))
+}
+
+/// A scene with a name for the messages (a [`crate::eval::scene::Scene`] or its columns).
+pub trait Named {
+    /// The scene's name.
+    fn name(&self) -> &str;
+}
+
+impl Named for crate::eval::scene::Scene {
+    fn name(&self) -> &str {
+        &self.name
+    }
+}
+
+impl Named for crate::eval::columns::ColumnScene {
+    fn name(&self) -> &str {
+        &self.name
+    }
 }
 
 /// The first id that occurs twice in one frame, as `(frame index, id, "truth"/"track")`;

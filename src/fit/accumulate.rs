@@ -1,0 +1,70 @@
+//! The fit's running state over logs read frame by frame: the `Q` and `R` moments, the frame
+//! intervals and the counts of the report. A log is fed one frame at a time
+//! ([`FitAccumulator::push_frame`]) so that a long log never needs to be held whole; feeding
+//! whole [`FitLog`]s ([`FitAccumulator::add_log`]) gives the same numbers.
+
+use super::data::{FitFrame, FitLog};
+use super::measurement::{MeasurementState, MeasurementStatsByLabel};
+use super::process::{ProcessStats, ProcessWindow};
+use super::timing::interval_s;
+
+/// What the fit has gathered so far (pooled over the logs, in the order they were fed).
+#[derive(Default, Clone)]
+pub struct FitAccumulator {
+    pub(super) names: Vec<String>,
+    pub(super) frames: u64,
+    pub(super) truth_boxes: u64,
+    pub(super) detections: u64,
+    pub(super) unmatched_detection_messages: u64,
+    pub(super) intervals: Vec<f64>,
+    pub(super) process: ProcessStats,
+    pub(super) measurement: MeasurementStatsByLabel,
+}
+
+/// The state of the log being fed: instances are only followed within a log.
+#[derive(Default)]
+pub struct LogState {
+    window: ProcessWindow,
+    matched: MeasurementState,
+    last_stamp: Option<u64>,
+}
+
+impl FitAccumulator {
+    /// Nothing gathered yet.
+    pub fn new() -> FitAccumulator {
+        FitAccumulator::default()
+    }
+
+    /// Starts the log `name`; its frames go through the returned state.
+    pub fn begin_log(&mut self, name: &str) -> LogState {
+        self.names.push(name.to_string());
+        LogState::default()
+    }
+
+    /// Adds the log's next frame (frames in increasing stamp order).
+    pub fn push_frame(&mut self, log: &mut LogState, frame: FitFrame) {
+        self.frames += 1;
+        self.truth_boxes += frame.truth.len() as u64;
+        self.detections += frame.detections.len() as u64;
+        if let Some(prev) = log.last_stamp {
+            self.intervals.push(interval_s(prev, frame.stamp));
+        }
+        log.last_stamp = Some(frame.stamp);
+        log.matched.push(&frame, &mut self.measurement);
+        log.window.push(frame.truth, &mut self.process);
+    }
+
+    /// Counts detection messages of the current log whose stamp is no truth stamp.
+    pub fn add_unmatched(&mut self, messages: u64) {
+        self.unmatched_detection_messages += messages;
+    }
+
+    /// Adds a whole log.
+    pub fn add_log(&mut self, log: &FitLog) {
+        let mut state = self.begin_log(&log.name);
+        for f in &log.frames {
+            self.push_frame(&mut state, f.clone());
+        }
+        self.add_unmatched(log.unmatched_detection_messages);
+    }
+}
