@@ -346,12 +346,10 @@ pub(super) fn bytes_bar(files: &[&Path], show: bool) -> ProgressBar {
 
 /// A spinner while the metrics are computed (same visibility as [`reading_bar`]).
 fn scoring_spinner(a: &EvalArgs, what: &str) -> ProgressBar {
-    if !show_progress(a.quiet || a.json) {
-        return ProgressBar::hidden();
-    }
-    let bar = ProgressBar::new_spinner().with_message(format!("scoring ({what})"));
-    bar.enable_steady_tick(std::time::Duration::from_millis(120));
-    bar
+    super::spinner(
+        show_progress(a.quiet || a.json),
+        &format!("scoring ({what})"),
+    )
 }
 
 /// `(truth, tracks)` file pairs, one per log.

@@ -67,6 +67,16 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     }
 }
 
+/// A spinner with `message` for work whose length is not known ahead (hidden unless `show`).
+pub fn spinner(show: bool, message: &str) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new_spinner().with_message(message.to_string());
+    bar.enable_steady_tick(std::time::Duration::from_millis(120));
+    bar
+}
+
 /// Whether progress bars should be drawn: stderr is a terminal and not `--quiet`.
 pub fn show_progress(quiet: bool) -> bool {
     use std::io::IsTerminal;

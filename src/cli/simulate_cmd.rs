@@ -5,15 +5,20 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::writer::check_output_path;
-use probmot::sim::{write_simulation, Scenario, SimOptions};
+use probmot::sim::{write_simulation_progress, Scenario, SimOptions};
+
+use super::show_progress;
 
 /// Write a deterministic synthetic drive with `/detections` and `/ground_truth`.
 ///
-/// The same arguments always give a byte-identical file.
+/// The same arguments always give a byte-identical file. A progress bar counts the frames on a
+/// terminal (--quiet hides it).
 ///
-/// Example:
+/// Examples:
 ///   probmot simulate --scenario turning-car -o turning-car.mcap
+///   probmot simulate --scenario city --frames 20000 --objects 200 -o city20k.mcap
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct SimulateArgs {
@@ -44,6 +49,9 @@ pub struct SimulateArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     json: bool,
+    /// No progress bar and no summary line (--json still prints its summary).
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 pub fn run(a: SimulateArgs) -> Result<ExitCode> {
@@ -61,10 +69,12 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
         rate_hz: a.rate,
         ego_frame: a.ego_frame,
     };
-    let s = write_simulation(&opts, &a.output)?;
+    let bar = frames_bar(u64::from(a.frames), show_progress(a.quiet || a.json));
+    let s = write_simulation_progress(&opts, &a.output, &|n| bar.inc(n))?;
+    bar.finish_and_clear();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
-    } else {
+    } else if !a.quiet {
         println!(
             "{}: {} frames, {} objects, {} detections, {} ground-truth boxes",
             a.output.display(),
@@ -75,4 +85,18 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A bar over the frames to write (hidden unless `show`).
+fn frames_bar(frames: u64, show: bool) -> ProgressBar {
+    if !show {
+        return ProgressBar::hidden();
+    }
+    ProgressBar::new(frames).with_style(
+        ProgressStyle::with_template(
+            "{spinner} simulating [{bar:30}] {pos}/{len} frames ETA {eta}",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    )
 }

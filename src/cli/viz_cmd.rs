@@ -49,7 +49,7 @@ pub struct VizArgs {
     /// Rerun recording id (default: a random one).
     #[arg(long, value_name = "ID")]
     recording_id: Option<String>,
-    /// Print nothing on success.
+    /// Print nothing on success (and no spinner while it works).
     #[arg(short, long)]
     quiet: bool,
 }
@@ -105,7 +105,13 @@ fn write(a: &VizArgs) -> Result<ExitCode> {
         from_s: a.from,
         to_s: a.to,
     };
-    let s = mcap_to_rrd(&a.file, &a.output, &o)?;
+    let spinner = super::spinner(
+        super::show_progress(a.quiet),
+        &format!("writing {}", a.output.display()),
+    );
+    let s = mcap_to_rrd(&a.file, &a.output, &o);
+    spinner.finish_and_clear();
+    let s = s?;
     if !a.quiet {
         println!(
             "{}: {} frames, {} track ids, {} bytes",

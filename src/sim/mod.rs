@@ -10,7 +10,7 @@ pub mod sensor;
 pub mod write;
 
 pub use scenario::{Scenario, SimOptions};
-pub use write::write_simulation;
+pub use write::{write_simulation, write_simulation_progress};
 
 /// The true state of one object in one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]
