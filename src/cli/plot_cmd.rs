@@ -85,7 +85,7 @@ pub struct PlotArgs {
     own_colors: bool,
     #[command(flatten)]
     topics: LayerTopics,
-    /// Print nothing on success.
+    /// Print nothing on success (and no spinner while a long log is read).
     #[arg(short, long)]
     quiet: bool,
 }
@@ -324,7 +324,14 @@ pub fn run(a: PlotArgs) -> Result<ExitCode> {
     if drawn.contains(&Layer::Tracks) {
         drawn.push(Layer::GroundTruth);
     }
-    let read = read_window(&a.file, &all, &drawn, a.from, a.to)?;
+    // A whole long log takes a while to read; a window takes a fraction of a second.
+    let spinner = super::spinner(
+        super::show_progress(a.quiet),
+        &format!("reading {}", a.file.display()),
+    );
+    let read = read_window(&a.file, &all, &drawn, a.from, a.to);
+    spinner.finish_and_clear();
+    let read = read?;
     let layers = present_layers(&a, &read, asked, explicit)?;
     let (Some(t0), Some(t_end)) = (read.first_stamp(), read.last_stamp()) else {
         bail!(
