@@ -21,7 +21,12 @@
 
 use serde::{Deserialize, Serialize};
 
-use super::kalman::{State, StateCov};
+use nalgebra::{SMatrix, SVector};
+
+/// The 11-d state (as [`super::kalman::State`]).
+type State = SVector<f64, 11>;
+/// Its 11x11 Jacobian.
+type StateCov = SMatrix<f64, 11, 11>;
 
 /// Motion model of one class.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -196,115 +201,6 @@ mod tests {
                     );
                 }
             }
-        }
-    }
-
-    mod filter {
-        use rand::SeedableRng;
-        use rand_chacha::ChaCha8Rng;
-        use rand_distr::{Distribution, Normal};
-
-        use super::super::super::boxes::Box3;
-        use super::super::super::kalman::{mahalanobis_sq, KalmanState, Noise};
-        use super::*;
-
-        fn noise(motion: Motion) -> Noise {
-            let mut p0 = [1.0; 11];
-            p0[7..].iter_mut().for_each(|v| *v = 10.0);
-            let q = [
-                0.01, 0.01, 0.01, 0.01, 0.0, 0.0, 0.0, 0.001, 0.001, 0.001, 1e-4,
-            ];
-            let r = [0.04, 0.04, 0.04, 0.01, 0.01, 0.01, 0.01];
-            Noise::from_diagonals(&q, &r, &p0, true).with_motion(motion)
-        }
-
-        fn bx(x: f64, y: f64, yaw: f64) -> Box3 {
-            Box3 {
-                center: [x, y, 0.0],
-                yaw,
-                size: [4.0, 2.0, 1.5],
-            }
-        }
-
-        /// With zero yaw rate the EKF predict has the constant-velocity mean; with zero velocity
-        /// too, the same covariance.
-        #[test]
-        fn predict_matches_cv_without_turn() {
-            let (cv, ct) = (noise(Motion::Cv), noise(Motion::Ctrv));
-            let mut a = KalmanState::new(&bx(1.0, 2.0, 0.3), &cv);
-            let mut b = a.clone();
-            a.predict(1.5, &cv);
-            b.predict(1.5, &ct);
-            assert!((a.x - b.x).amax() < 1e-15);
-            assert!((a.p - b.p).amax() < 1e-12, "{} vs {}", a.p, b.p);
-            a.x[7] = 1.3;
-            a.x[8] = -0.4;
-            let mut b = a.clone();
-            a.predict(2.0, &cv);
-            b.predict(2.0, &ct);
-            assert!((a.x - b.x).amax() < 1e-14, "{} vs {}", a.x, b.x);
-        }
-
-        /// The dense update equals the structured one while `P` is block diagonal, and the
-        /// dense Mahalanobis distance equals the diagonal one.
-        #[test]
-        fn dense_update_equals_structured_on_block_diagonal_p() {
-            let (cv, ct) = (noise(Motion::Cv), noise(Motion::Ctrv));
-            let mut a = KalmanState::new(&bx(1.0, 2.0, 0.3), &cv);
-            a.predict(1.0, &cv);
-            let mut b = a.clone();
-            let det = bx(1.4, 1.7, 0.35);
-            let (ia, ib) = (a.innovation(&cv), b.innovation(&ct));
-            assert!(ib.full.is_some() && ia.full.is_none());
-            assert!((mahalanobis_sq(&ia, &det) - mahalanobis_sq(&ib, &det)).abs() < 1e-9);
-            a.update(&det, &cv);
-            b.update(&det, &ct);
-            assert!((a.x - b.x).amax() < 1e-12);
-            assert!((a.p - b.p).amax() < 1e-12);
-        }
-
-        /// A target driving a circle (8 m/s, 0.5 rad/s, 10 Hz, one nominal frame 0.1 s), measured
-        /// with 0.2 m position and 0.1 rad heading noise: after the filters settle, the one-frame
-        /// prediction error of the coordinated-turn filter is below the constant-velocity one's,
-        /// whose velocity lags behind the turn.
-        #[test]
-        fn ctrv_predicts_a_circle_better_than_cv() {
-            let (v, w) = (0.8, 0.05); // per frame
-            let mut rng = ChaCha8Rng::seed_from_u64(7);
-            let pos = Normal::new(0.0, 0.2).unwrap();
-            let ang = Normal::new(0.0, 0.1).unwrap();
-            let truth = |n: f64| {
-                let r = v / w;
-                let t = w * n;
-                (r * t.sin(), r * (1.0 - t.cos()), t)
-            };
-            let mut err = [0.0; 2];
-            for (m, motion) in [Motion::Cv, Motion::Ctrv].into_iter().enumerate() {
-                let nz = noise(motion);
-                let (x0, y0, h0) = truth(0.0);
-                let mut s = KalmanState::new(&bx(x0, y0, h0), &nz);
-                let mut sum = 0.0;
-                for n in 1..200 {
-                    s.predict(1.0, &nz);
-                    let (x, y, h) = truth(n as f64);
-                    if n >= 50 {
-                        sum += ((s.x[0] - x).powi(2) + (s.x[1] - y).powi(2)).sqrt();
-                    }
-                    let det = bx(
-                        x + pos.sample(&mut rng),
-                        y + pos.sample(&mut rng),
-                        h + ang.sample(&mut rng),
-                    );
-                    s.update(&det, &nz);
-                }
-                err[m] = sum / 150.0;
-            }
-            assert!(
-                err[1] < 0.8 * err[0],
-                "ctrv {} m vs cv {} m",
-                err[1],
-                err[0]
-            );
         }
     }
 }
