@@ -39,6 +39,13 @@ pub enum Motion {
     Ctrv,
 }
 
+impl Motion {
+    /// True for the constant-velocity default (not serialized).
+    pub fn is_cv(&self) -> bool {
+        *self == Motion::Cv
+    }
+}
+
 /// Below this turn angle the series are used instead of the closed forms.
 const SMALL_TURN: f64 = 1e-2;
 

@@ -49,7 +49,9 @@ pub struct Levers {
     /// Needs `decay > 0` so that every track eventually ends.
     pub keep_score: Option<f64>,
     /// Motion model: `cv` (constant velocity, the paper) or `ctrv` (coordinated turn, see
-    /// [`super::ctrv`]; needs `angular_velocity`).
+    /// [`super::ctrv`]; needs `angular_velocity`). Not written when `cv`, so configs written
+    /// before the option existed keep their bytes.
+    #[serde(skip_serializing_if = "Motion::is_cv")]
     pub motion: Motion,
 }
 

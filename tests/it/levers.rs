@@ -232,6 +232,12 @@ fn motion_option_round_trips_and_is_validated() {
     assert!(json.contains(r#""motion": "ctrv""#), "{json}");
     assert_eq!(TrackerConfig::from_json(&json).unwrap(), cfg);
     // An unknown model name is refused.
+    // `cv` is not written: configs with other levers keep their bytes.
+    let mean = config(Levers {
+        score: ScoreMode::Mean,
+        ..Levers::default()
+    });
+    assert!(!mean.to_json().contains("motion"));
     let bad = json.replace(r#""motion": "ctrv""#, r#""motion": "turn""#);
     assert!(TrackerConfig::from_json(&bad).is_err());
     // The coordinated turn needs the yaw rate in the state.
