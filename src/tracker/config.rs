@@ -413,6 +413,13 @@ impl ClassConfig {
                 return Err(ConfigError(format!("score_floor must be finite, got {f}")));
             }
         }
+        if self.levers.motion == super::levers::Motion::Ctrv && !self.angular_velocity {
+            return Err(ConfigError(
+                "levers.motion \"ctrv\" needs angular_velocity: true (the velocity turns with \
+                 the yaw rate)"
+                    .into(),
+            ));
+        }
         self.levers.validate()
     }
 }

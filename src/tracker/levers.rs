@@ -9,6 +9,7 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use super::ctrv::Motion;
 use super::error::ConfigError;
 
 /// Which score a track reports.
@@ -47,6 +48,11 @@ pub struct Levers {
     /// reported) while its refined score stays at or above this (`None`: delete by age only).
     /// Needs `decay > 0` so that every track eventually ends.
     pub keep_score: Option<f64>,
+    /// Motion model: `cv` (constant velocity, the paper) or `ctrv` (coordinated turn, see
+    /// [`super::ctrv`]; needs `angular_velocity`). Not written when `cv`, so configs written
+    /// before the option existed keep their bytes.
+    #[serde(skip_serializing_if = "Motion::is_cv")]
+    pub motion: Motion,
 }
 
 impl Default for Levers {
@@ -59,6 +65,7 @@ impl Default for Levers {
             birth_score: None,
             nms_iou: None,
             keep_score: None,
+            motion: Motion::Cv,
         }
     }
 }

@@ -8,6 +8,7 @@ pub mod angle;
 pub mod boxes;
 pub mod confidence;
 pub mod config;
+pub mod ctrv;
 pub mod error;
 pub mod geometry;
 pub mod kalman;

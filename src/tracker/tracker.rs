@@ -158,7 +158,8 @@ impl Tracker {
         let id = self.classes.len() as ClassId;
         self.classes.push(ClassState {
             label: label.to_string(),
-            noise: Noise::from_diagonals(&cfg.q, &cfg.r, &cfg.p0, cfg.angular_velocity),
+            noise: Noise::from_diagonals(&cfg.q, &cfg.r, &cfg.p0, cfg.angular_velocity)
+                .with_motion(cfg.levers.motion),
             cfg,
             tracks: Vec::new(),
             dets: Vec::new(),

@@ -1,7 +1,7 @@
 //! The per-class search space: dimensions with a handful of candidate values each. Candidate 0
 //! of every dimension keeps the base config's value, so the search starts at the base config.
 
-use crate::tracker::levers::ScoreMode;
+use crate::tracker::levers::{Motion, ScoreMode};
 use crate::tracker::{ClassConfig, DistanceKind, MatcherKind};
 
 /// One candidate value of a dimension.
@@ -21,6 +21,8 @@ pub enum Value {
     MaxAge(u32),
     /// Constant yaw rate in the state.
     AngularVelocity(bool),
+    /// Motion model; the coordinated turn also turns the yaw rate on (it needs it).
+    Motion(Motion),
     /// The base config's own noise (`q`, `r`, `p0`) instead of the fitted one.
     Noise([f64; 11], [f64; 7], [f64; 11]),
     /// Factor on the process noise `Q` (fitted, or the base's after [`Value::Noise`]).
@@ -151,6 +153,15 @@ pub fn shared_dims() -> Vec<Dim> {
             name: "angular_velocity",
             values: vec![Keep, AngularVelocity(true), AngularVelocity(false)],
         },
+        // After angular_velocity: `ctrv` overrides a `false` there.
+        Dim {
+            name: "motion",
+            values: vec![
+                Keep,
+                Value::Motion(crate::tracker::levers::Motion::Cv),
+                Value::Motion(crate::tracker::levers::Motion::Ctrv),
+            ],
+        },
         Dim {
             name: "q_factor",
             values: vec![
@@ -273,6 +284,10 @@ pub fn apply(cc: &mut ClassConfig, v: Value) {
         MinHits(n) => cc.min_hits = n,
         MaxAge(n) => cc.max_age = n,
         AngularVelocity(b) => cc.angular_velocity = b,
+        Motion(m) => {
+            l.motion = m;
+            cc.angular_velocity |= m == crate::tracker::levers::Motion::Ctrv;
+        }
         Noise(q, r, p0) => (cc.q, cc.r, cc.p0) = (q, r, p0),
         QFactor(f) => cc.q = cc.q.map(|x| x * f),
         RFactor(f) => cc.r = cc.r.map(|x| x * f),
@@ -342,6 +357,34 @@ mod tests {
         let mut g = cc.clone();
         g.threshold += 1.0;
         assert_ne!(key(&cc), key(&g));
+    }
+
+    /// The coordinated turn is a per-class candidate and always yields a valid config, also
+    /// where the point turns the yaw rate off.
+    #[test]
+    fn ctrv_candidate_turns_the_yaw_rate_on() {
+        let cc = TrackerConfig::preset("ab3dmot-kitti").unwrap().classes["car"].clone();
+        let d = dims(None, &cc, None);
+        let mi = d.iter().position(|d| d.name == "motion").unwrap();
+        let ai = d.iter().position(|d| d.name == "angular_velocity").unwrap();
+        assert!(ai < mi);
+        let ct = d[mi]
+            .values
+            .iter()
+            .position(|v| *v == Value::Motion(Motion::Ctrv))
+            .unwrap();
+        let off = d[ai]
+            .values
+            .iter()
+            .position(|v| *v == Value::AngularVelocity(false))
+            .unwrap();
+        let mut p = vec![0; d.len()];
+        p[ai] = off;
+        p[mi] = ct;
+        let c = at(&cc, &d, &p);
+        assert_eq!(c.levers.motion, Motion::Ctrv);
+        assert!(c.angular_velocity);
+        c.validate().unwrap();
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! The per-class options beyond the paper, each shown to change what it should (and nothing when
 //! off), through the public tracker API.
 
-use probmot::tracker::levers::{Levers, ScoreMode};
+use probmot::tracker::levers::{Levers, Motion, ScoreMode};
 use probmot::tracker::{Box3, Detection, Tracker, TrackerConfig};
 use proptest::prelude::*;
 
@@ -220,4 +220,76 @@ proptest! {
         prop_assert!(t.stats().born >= 1);
         prop_assert!(t.stats().born <= t0.stats().born);
     }
+}
+
+#[test]
+fn motion_option_round_trips_and_is_validated() {
+    let cfg = config(Levers {
+        motion: Motion::Ctrv,
+        ..Levers::default()
+    });
+    let json = cfg.to_json();
+    assert!(json.contains(r#""motion": "ctrv""#), "{json}");
+    assert_eq!(TrackerConfig::from_json(&json).unwrap(), cfg);
+    // An unknown model name is refused.
+    // `cv` is not written: configs with other levers keep their bytes.
+    let mean = config(Levers {
+        score: ScoreMode::Mean,
+        ..Levers::default()
+    });
+    assert!(!mean.to_json().contains("motion"));
+    let bad = json.replace(r#""motion": "ctrv""#, r#""motion": "turn""#);
+    assert!(TrackerConfig::from_json(&bad).is_err());
+    // The coordinated turn needs the yaw rate in the state.
+    let mut no_rate = cfg.clone();
+    no_rate.for_each_class(|c| c.angular_velocity = false);
+    let err = no_rate.validate().unwrap_err().to_string();
+    assert!(err.contains("angular_velocity"), "{err}");
+    assert!(Tracker::new(no_rate).is_err());
+}
+
+/// A car driving a circle (1 m and 0.05 rad per frame), detected exactly for 60 frames, then
+/// missed for one: the coasting prediction of the coordinated-turn model stays on the circle,
+/// the constant-velocity one leaves it along the lagging velocity.
+#[test]
+fn ctrv_coasts_along_a_turn() {
+    let (v, w) = (1.0, 0.05);
+    let truth = |n: usize| {
+        let t = w * n as f64;
+        ((v / w) * t.sin(), (v / w) * (1.0 - t.cos()), t)
+    };
+    let frames: Vec<Vec<Detection>> = (0..=60)
+        .map(|n| {
+            if n == 60 {
+                return vec![];
+            }
+            let (x, y, yaw) = truth(n);
+            let mut d = car(x, 0.9);
+            d.bbox.center[1] = y;
+            d.bbox.yaw = yaw;
+            vec![d]
+        })
+        .collect();
+    let err = |motion| {
+        let mut t = Tracker::new(config(Levers {
+            motion,
+            ..Levers::default()
+        }))
+        .unwrap();
+        let c = t.class_id("car").unwrap();
+        let mut last = None;
+        for (i, f) in frames.iter().enumerate() {
+            let dets: Vec<Detection> = f.iter().map(|d| Detection { class: c, ..*d }).collect();
+            let r = t.step(i as u64 * DT, &dets).unwrap();
+            assert_eq!(r.len(), 1, "frame {i}: one track");
+            last = Some(r[0]);
+        }
+        let r = last.unwrap();
+        assert_eq!(r.frames_since_update, 1);
+        let (x, y, _) = truth(60);
+        (r.bbox.center[0] - x).hypot(r.bbox.center[1] - y)
+    };
+    let (cv, ct) = (err(Motion::Cv), err(Motion::Ctrv));
+    assert!(cv > 0.02, "cv error {cv} m");
+    assert!(ct < 0.5 * cv, "ctrv {ct} m vs cv {cv} m");
 }
