@@ -8,7 +8,7 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use super::scene::Scene;
+use super::scene::{check, check_ids, Scene};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
 
@@ -278,38 +278,6 @@ pub fn load_columns(
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     b.finish(name, Some(((truth, truth_topic), (tracks, tracks_topic))))
-}
-
-/// The checks of [`super::scene::load_scene`] on the message stamps of truth (`ts`) and tracks
-/// (`rs`): the truth has messages, and tracks that share no time with the truth belong to
-/// another log.
-fn check(ts: &[u64], rs: &[u64], truth: (&Path, &str), tracks: (&Path, &str)) -> Result<()> {
-    let (Some(&first), Some(&last)) = (ts.first(), ts.last()) else {
-        bail!("{}: topic {} has no messages", truth.0.display(), truth.1);
-    };
-    if !rs.is_empty() && rs.iter().all(|s| *s < first || *s > last) {
-        bail!(
-            "{}: every frame of topic {} lies outside the ground truth's time range \
-             {first}..{last} ns in {}; are these the tracks of another log?",
-            tracks.0.display(),
-            tracks.1,
-            truth.0.display()
-        );
-    }
-    Ok(())
-}
-
-/// The first truth box without id (id 0; KITTI's `dontcare` regions excepted), as an error.
-fn check_ids(path: &Path, topic: &str, stamp: u64, boxes: &[LabelledBox]) -> Result<()> {
-    if let Some(b) = boxes.iter().find(|b| b.id == 0 && b.label != "dontcare") {
-        bail!(
-            "{}: topic {topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \
-             ground truth needs the true instance ids",
-            path.display(),
-            b.label
-        );
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -117,31 +117,17 @@ pub fn load_scene_progress(
 ) -> Result<Scene> {
     let gt = read_boxes(truth, truth_topic, progress, true)?;
     let tr = read_boxes(tracks, tracks_topic, progress, true)?;
-    if gt.is_empty() {
-        bail!("{}: topic {truth_topic} has no messages", truth.display());
-    }
     for (stamp, boxes) in gt.iter().filter(|_| !allow_unlabelled) {
-        if let Some(b) = boxes.iter().find(|b| b.id == 0 && b.label != "dontcare") {
-            bail!(
-                "{}: topic {truth_topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \
-                 ground truth needs the true instance ids",
-                truth.display(),
-                b.label
-            );
-        }
+        check_ids(truth, truth_topic, *stamp, boxes)?;
     }
-    // Frames are the union of both channels' stamps; tracks that share no time at all with
-    // the truth belong to another log.
-    let first = gt.iter().map(|g| g.0).min().unwrap();
-    let last = gt.iter().map(|g| g.0).max().unwrap();
-    if !tr.is_empty() && tr.iter().all(|(s, _)| *s < first || *s > last) {
-        bail!(
-            "{}: every frame of topic {tracks_topic} lies outside the ground truth's time range \
-             {first}..{last} ns in {}; are these the tracks of another log?",
-            tracks.display(),
-            truth.display()
-        );
-    }
+    // Frames are the union of both channels' stamps.
+    let stamps = |v: &[(u64, Vec<LabelledBox>)]| v.iter().map(|m| m.0).collect::<Vec<_>>();
+    check(
+        &stamps(&gt),
+        &stamps(&tr),
+        (truth, truth_topic),
+        (tracks, tracks_topic),
+    )?;
     let mut frames: BTreeMap<u64, (Vec<LabelledBox>, Vec<LabelledBox>)> = BTreeMap::new();
     for (s, b) in gt {
         frames.entry(s).or_default().0.extend(b);
@@ -156,4 +142,41 @@ pub fn load_scene_progress(
             .unwrap_or_default(),
         frames: frames.into_iter().map(|(s, (g, t))| (s, g, t)).collect(),
     })
+}
+
+/// The checks of [`load_scene`] on the message stamps of truth (`ts`) and tracks (`rs`, any
+/// order): the truth has messages, and tracks that share no time with the truth belong to
+/// another log.
+pub(super) fn check(
+    ts: &[u64],
+    rs: &[u64],
+    truth: (&Path, &str),
+    tracks: (&Path, &str),
+) -> Result<()> {
+    let (Some(&first), Some(&last)) = (ts.iter().min(), ts.iter().max()) else {
+        bail!("{}: topic {} has no messages", truth.0.display(), truth.1);
+    };
+    if !rs.is_empty() && rs.iter().all(|s| *s < first || *s > last) {
+        bail!(
+            "{}: every frame of topic {} lies outside the ground truth's time range \
+             {first}..{last} ns in {}; are these the tracks of another log?",
+            tracks.0.display(),
+            tracks.1,
+            truth.0.display()
+        );
+    }
+    Ok(())
+}
+
+/// The first truth box without id (id 0; KITTI's `dontcare` regions excepted), as an error.
+pub(super) fn check_ids(path: &Path, topic: &str, stamp: u64, boxes: &[LabelledBox]) -> Result<()> {
+    if let Some(b) = boxes.iter().find(|b| b.id == 0 && b.label != "dontcare") {
+        bail!(
+            "{}: topic {topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); \
+             ground truth needs the true instance ids",
+            path.display(),
+            b.label
+        );
+    }
+    Ok(())
 }
