@@ -18,6 +18,7 @@ use super::scene::Scene;
 use crate::mcapio::LabelledBox;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::{size3, v3, EvalEvent};
+use crate::pipeline::kitti_io::truth_track_id;
 
 /// What the evaluation decided about one box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -224,19 +225,6 @@ pub struct ClassEvents {
     pub events: Vec<Located>,
 }
 
-/// KITTI's id of a ground-truth box: the label file's track id, else the box id minus one (the
-/// rule of the KITTI evaluation's loader).
-fn kitti_truth_id(b: &LabelledBox) -> i64 {
-    match b
-        .attributes
-        .get("kitti_track_id")
-        .map(|v| v.trim().parse::<f64>())
-    {
-        Some(Ok(v)) => v.trunc() as i64,
-        _ => b.id as i64 - 1,
-    }
-}
-
 /// Looks up the boxes of events in their scene.
 struct Boxes<'a> {
     scenes: &'a [Scene],
@@ -251,7 +239,7 @@ impl Boxes<'_> {
             Protocol::Nuscenes => boxes.iter().find(|b| b.id == id && b.label == self.class),
             Protocol::Kitti => boxes
                 .iter()
-                .find(|b| b.label != "dontcare" && kitti_truth_id(b) == id as i64),
+                .find(|b| b.label != "dontcare" && truth_track_id(b) == id as i64),
         }
     }
 

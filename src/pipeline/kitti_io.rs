@@ -11,6 +11,7 @@ use crate::formats::kitti::{
 use crate::mcapio::reader::read_records;
 use crate::mcapio::recording::tracks_topic;
 use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
+use crate::mcapio::LabelledBox;
 use crate::msgs::size3;
 use crate::msgs::{self, v3, Detection3D, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::tracker::Box3;
@@ -40,6 +41,20 @@ pub mod attr {
     pub const ALPHA: &str = "kitti_alpha";
     /// Original track id (ground truth).
     pub const TRACK_ID: &str = "kitti_track_id";
+}
+
+/// KITTI's track id of a ground-truth box, as the KITTI evaluation's loader reads it: the label
+/// file's id (attribute [`attr::TRACK_ID`]), else the box id minus one (`import kitti` stores
+/// id + 1, ids being non-zero).
+pub fn truth_track_id(b: &LabelledBox) -> i64 {
+    match b
+        .attributes
+        .get(attr::TRACK_ID)
+        .map(|v| v.trim().parse::<f64>())
+    {
+        Some(Ok(v)) => v.trunc() as i64,
+        _ => b.id as i64 - 1,
+    }
 }
 
 /// Counts of an import.

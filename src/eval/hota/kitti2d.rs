@@ -17,6 +17,7 @@ use std::collections::BTreeMap;
 use super::{eval_scenes, Hota, RawFrame, EPS};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
+use crate::pipeline::kitti_io::truth_track_id;
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
 
@@ -65,18 +66,6 @@ fn int_attr(b: &LabelledBox, key: &str) -> i64 {
         .get(key)
         .and_then(|v| v.trim().parse::<f64>().ok())
         .map_or(0, |v| v.trunc() as i64)
-}
-
-/// The KITTI track id of a truth box: the `kitti_track_id` attribute, else `id - 1`.
-fn truth_id(b: &LabelledBox) -> i64 {
-    match b
-        .attributes
-        .get("kitti_track_id")
-        .map(|v| v.trim().parse::<f64>())
-    {
-        Some(Ok(v)) => v.trunc() as i64,
-        _ => b.id as i64 - 1,
-    }
 }
 
 /// 2D IoU of `x1 y1 x2 y2` boxes as TrackEval's `_calculate_box_ious`.
@@ -136,7 +125,7 @@ fn prepare_frame(
             dontcare.push(b.image_box.unwrap_or([0.0; 4]));
             continue;
         }
-        let id = truth_id(b);
+        let id = truth_track_id(b);
         match class_id(&k) {
             Some(c) if id >= 0 && (c == cls || c == distractor) => gt.push(Gt {
                 id,

@@ -47,6 +47,10 @@ use serde::Serialize;
 use super::events::Collector;
 use super::nan_as_null;
 use super::scene::Scene;
+// The attributes `probmot import kitti` writes: original type, truncation, occlusion level.
+use crate::pipeline::kitti_io::attr::{
+    OCCLUDED as ATTR_OCCLUDED, TRUNCATED as ATTR_TRUNCATED, TYPE as ATTR_TYPE,
+};
 use pass::{ClassEval, Pass};
 use prepare::loaded_types;
 pub use prepare::ClassTruth;
@@ -61,15 +65,6 @@ mod tracks;
 
 /// The classes evaluated by default.
 pub const KITTI_CLASSES: [&str; 3] = ["car", "pedestrian", "cyclist"];
-
-/// Attribute holding the original KITTI type (written by `probmot import kitti`).
-const ATTR_TYPE: &str = "kitti_type";
-/// Attribute holding the KITTI truncation.
-const ATTR_TRUNCATED: &str = "kitti_truncated";
-/// Attribute holding the KITTI occlusion level.
-const ATTR_OCCLUDED: &str = "kitti_occluded";
-/// Attribute holding the original KITTI track id of ground truth.
-const ATTR_TRACK_ID: &str = "kitti_track_id";
 
 /// The cost the reference gives forbidden pairs.
 const MAX_COST: f64 = 1e9;

@@ -5,9 +5,10 @@
 use std::collections::HashMap;
 
 use super::DEVKIT_EXTRA_FRAMES;
-use super::{KittiParams, ATTR_OCCLUDED, ATTR_TRACK_ID, ATTR_TRUNCATED, ATTR_TYPE};
+use super::{KittiParams, ATTR_OCCLUDED, ATTR_TRUNCATED, ATTR_TYPE};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
+use crate::pipeline::kitti_io::truth_track_id;
 use crate::tracker::Box3;
 
 /// A ground-truth box of the evaluated class (or its neighbour).
@@ -191,14 +192,7 @@ fn truth_row(
         dc.push(b.image_box.unwrap_or([0.0; 4]));
         return None;
     }
-    let id = match b
-        .attributes
-        .get(ATTR_TRACK_ID)
-        .map(|v| v.trim().parse::<f64>())
-    {
-        Some(Ok(v)) => v.trunc() as i64,
-        _ => b.id as i64 - 1,
-    };
+    let id = truth_track_id(b);
     if id == -1 {
         return None;
     }

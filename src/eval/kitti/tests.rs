@@ -1,6 +1,7 @@
 use super::munkres::munkres;
 use super::*;
 use crate::mcapio::LabelledBox;
+use crate::pipeline::kitti_io::attr::TRACK_ID as ATTR_TRACK_ID;
 
 /// A normal-sized 2D box (100 px high).
 const IMG: [f64; 4] = [100.0, 100.0, 200.0, 200.0];
