@@ -27,7 +27,6 @@ fn eval_box(id: u64, label: &str, x: f64, y: f64, score: f64) -> LabelledBox {
         label: label.into(),
         center: [x, y, 1.0],
         size: [4.5, 1.9, 1.6],
-        yaw: 0.0,
         score,
         ..Default::default()
     }

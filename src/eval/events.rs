@@ -413,10 +413,7 @@ mod tests {
             label: "car".into(),
             center: [x, 0.0, 0.0],
             size: [4.0, 2.0, 1.5],
-            yaw: 0.0,
             score: 1.0,
-            attributes: Default::default(),
-            image_box: None,
             ..Default::default()
         }
     }

@@ -208,10 +208,8 @@ mod tests {
             label: label.into(),
             center: c,
             size: [1.8, 0.6, 1.2],
-            yaw: 0.0,
             score: 0.5,
             attributes,
-            image_box: None,
             ..Default::default()
         }
     }

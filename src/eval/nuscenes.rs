@@ -772,10 +772,7 @@ mod tests {
             label: "bicycle".into(),
             center: [x, 0.0, 0.0],
             size: [1.7, 0.6, 1.2],
-            yaw: 0.0,
             score: 1.0,
-            attributes: Default::default(),
-            image_box: None,
             ..Default::default()
         }
     }

@@ -237,10 +237,7 @@ mod tests {
             label: label.into(),
             center: [x, y, 0.0],
             size: [4.0, 2.0, 1.5],
-            yaw: 0.0,
             score: 0.5,
-            attributes: Default::default(),
-            image_box: None,
             ..Default::default()
         }
     }

@@ -69,7 +69,6 @@ mod tests {
             label: "car".into(),
             center: [0.0; 3],
             size: [1.0; 3],
-            yaw: 0.0,
             ..Default::default()
         }
     }

@@ -228,7 +228,6 @@ mod tests {
                     label: "car".into(),
                     center: [x, 0.0, 1.0],
                     size: [4.0, 2.0, 1.5],
-                    yaw: 0.0,
                     ..Default::default()
                 };
                 let mut d = b.clone();

@@ -204,7 +204,6 @@ pub fn track_frames(
             size: r.bbox.size,
             yaw: r.bbox.yaw,
             score: r.score,
-            attributes: BTreeMap::new(),
             image_box,
             ..Default::default()
         })

@@ -271,9 +271,7 @@ mod tests {
             label: label.into(),
             center: [1.0, 2.0, 0.5],
             size: [4.0, 2.0, 1.5],
-            yaw: 0.0,
             score: 1.0,
-            velocity: [0.0; 3],
             ..Default::default()
         }
     }

@@ -174,7 +174,6 @@ mod tests {
             size: [4.5, 1.9, 1.6],
             yaw,
             score: 0.9,
-            velocity: [0.0; 3],
             ..Default::default()
         }
     }

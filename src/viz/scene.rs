@@ -179,7 +179,6 @@ mod tests {
             label: label.into(),
             center: [x, 0.0, 0.5],
             size: [4.0, 2.0, 1.5],
-            yaw: 0.0,
             score: 0.9,
             velocity: [1.0, 0.0, 0.0],
             ..Default::default()

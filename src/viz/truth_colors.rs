@@ -92,9 +92,7 @@ mod tests {
             label: "pedestrian".into(),
             center: [x, 0.0, 0.0],
             size: [0.7, 0.7, 1.8],
-            yaw: 0.0,
             score: 1.0,
-            velocity: [0.0; 3],
             ..Default::default()
         }
     }

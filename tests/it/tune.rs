@@ -22,7 +22,6 @@ fn truth(id: u64, x: f64, y: f64) -> LabelledBox {
         label: "car".into(),
         center: [x, y, 0.8],
         size: [4.5, 1.9, 1.6],
-        yaw: 0.0,
         score: 1.0,
         ..Default::default()
     }

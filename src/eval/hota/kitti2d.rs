@@ -256,7 +256,6 @@ mod tests {
             label: kind.to_lowercase(),
             center: [10.0 * id as f64, 0.0, 0.0],
             size: [4.0, 2.0, 1.5],
-            yaw: 0.0,
             score: 1.0,
             attributes,
             image_box: Some(img),

@@ -22,7 +22,6 @@ fn gt(kitti_id: i64, kind: &str, x: f64, truncated: u8, occluded: u8) -> Labelle
         label: kind.to_lowercase(),
         center: [x, 0.0, 0.0],
         size: [4.0, 2.0, 1.5],
-        yaw: 0.0,
         score: 1.0,
         attributes: attrs(&[
             (ATTR_TYPE, kind.to_string()),
@@ -54,7 +53,6 @@ fn trk(id: u64, kind: &str, x: f64, score: f64, image_box: [f64; 4]) -> Labelled
         label: kind.to_lowercase(),
         center: [x + 0.5, 0.25, 0.0],
         size: [4.0, 2.0, 1.5],
-        yaw: 0.0,
         score,
         attributes: attrs(&[(ATTR_TYPE, kind.to_string())]),
         image_box: Some(image_box),
