@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
 use probmot::pipeline::overrides::{base_config, Overrides};
+use probmot::tracker::ctrv::Motion;
 use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Print a built-in preset as JSON, or load, validate and print a config file.
@@ -16,6 +17,7 @@ use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 ///   probmot config --preset nuscenes-chiu2019 > my.json   # a preset to edit
 ///   probmot config --config my.json                      # validate the edited file, print it
 ///   probmot config --preset ab3dmot-kitti                # AB3DMOT's own KITTI settings
+///   probmot config --preset ab3dmot-kitti --motion ctrv --nms-iou 0.1   # with two levers on
 ///   probmot config --list
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -130,6 +132,28 @@ pub struct TrackerArgs {
     /// Ignore detections scoring below this.
     #[arg(long, help_heading = "Tracker")]
     pub score_floor: Option<f64>,
+    /// Motion model of every class: cv (constant velocity, the paper) or ctrv (coordinated
+    /// turn; turns the yaw rate on). See docs/tune.md. Example: --motion ctrv
+    #[arg(long, value_enum, help_heading = "Levers", conflicts_with = "no_angular_velocity")]
+    pub motion: Option<MotionArg>,
+    /// Drop a detection whose 3D IoU with a higher-scoring detection of its class exceeds this,
+    /// before association (every class). Example: --nms-iou 0.1
+    #[arg(long, value_name = "IOU", help_heading = "Levers")]
+    pub nms_iou: Option<f64>,
+    /// Two-stage association for every class: detections scoring below this cannot start a
+    /// track but may continue one the first round left unmatched (detector's score scale).
+    /// Example: --birth-score 0.5
+    #[arg(long, value_name = "SCORE", help_heading = "Levers")]
+    pub birth_score: Option<f64>,
+}
+
+/// Motion models on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum MotionArg {
+    /// Constant velocity (the paper).
+    Cv,
+    /// Coordinated turn (an extended Kalman filter; needs the yaw rate, which it turns on).
+    Ctrv,
 }
 
 impl TrackerArgs {
@@ -161,6 +185,12 @@ impl TrackerArgs {
             min_hits: self.min_hits,
             max_age: self.max_age,
             score_floor: self.score_floor,
+            motion: self.motion.map(|m| match m {
+                MotionArg::Cv => Motion::Cv,
+                MotionArg::Ctrv => Motion::Ctrv,
+            }),
+            nms_iou: self.nms_iou,
+            birth_score: self.birth_score,
         }
     }
 }

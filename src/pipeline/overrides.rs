@@ -7,6 +7,7 @@ use std::path::Path;
 use anyhow::{Context, Result};
 
 use crate::tracker::config::ab3dmot_covariances;
+use crate::tracker::ctrv::Motion;
 use crate::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Overrides applied to every class of a configuration; `None`/`false` leaves a setting as it
@@ -32,11 +33,22 @@ pub struct Overrides {
     pub max_age: Option<u32>,
     /// Score floor of every class.
     pub score_floor: Option<f64>,
+    /// Motion model of every class (`levers.motion`); `Ctrv` also turns the yaw rate on, which
+    /// the coordinated turn needs.
+    pub motion: Option<Motion>,
+    /// Non-maximum suppression IoU of every class (`levers.nms_iou`): duplicates are a property
+    /// of the detector, so one value for all classes is a sensible first try.
+    pub nms_iou: Option<f64>,
+    /// Two-stage birth score of every class (`levers.birth_score`), on the detector's scale.
+    pub birth_score: Option<f64>,
 }
 
 impl Overrides {
     /// Applies the overrides to `cfg` and validates the result.
     pub fn apply(&self, cfg: &mut TrackerConfig) -> Result<()> {
+        if self.no_angular_velocity && self.motion == Some(Motion::Ctrv) {
+            anyhow::bail!("the ctrv motion model needs the yaw rate: drop --no-angular-velocity");
+        }
         if let Some(d) = self.dt_nominal {
             cfg.dt_nominal = d;
         }
@@ -71,6 +83,18 @@ impl Overrides {
             }
             if let Some(f) = self.score_floor {
                 c.score_floor = Some(f);
+            }
+            if let Some(m) = self.motion {
+                c.levers.motion = m;
+                if m == Motion::Ctrv {
+                    c.angular_velocity = true;
+                }
+            }
+            if let Some(v) = self.nms_iou {
+                c.levers.nms_iou = Some(v);
+            }
+            if let Some(v) = self.birth_score {
+                c.levers.birth_score = Some(v);
             }
         });
         cfg.validate()?;
@@ -181,6 +205,37 @@ mod tests {
             assert_eq!((c.min_hits, c.max_age), (3, 7));
             assert_eq!(c.score_floor, Some(0.25));
         }
+    }
+
+    #[test]
+    fn the_lever_overrides_reach_every_class_and_ctrv_brings_the_yaw_rate() {
+        let mut cfg = base_config(None, Some(Preset::Ab3dmotKitti)).unwrap();
+        assert!(classes(&mut cfg).iter().any(|c| !c.angular_velocity));
+        let o = Overrides {
+            motion: Some(Motion::Ctrv),
+            nms_iou: Some(0.1),
+            birth_score: Some(0.5),
+            ..Default::default()
+        };
+        o.apply(&mut cfg).unwrap();
+        for c in classes(&mut cfg) {
+            assert_eq!(c.levers.motion, Motion::Ctrv);
+            assert!(c.angular_velocity);
+            assert_eq!(c.levers.nms_iou, Some(0.1));
+            assert_eq!(c.levers.birth_score, Some(0.5));
+        }
+        let clash = Overrides {
+            motion: Some(Motion::Ctrv),
+            no_angular_velocity: true,
+            ..Default::default()
+        };
+        let err = clash.apply(&mut preset()).unwrap_err();
+        assert!(err.to_string().contains("--no-angular-velocity"), "{err}");
+        let bad = Overrides {
+            nms_iou: Some(1.5),
+            ..Default::default()
+        };
+        assert!(bad.apply(&mut preset()).is_err());
     }
 
     #[test]

@@ -92,6 +92,20 @@ fn config_help_examples_run() {
         probmot(&["config", "--config", s(&my)]).status.code(),
         Some(2)
     );
+    // The levers example: every class gets the coordinated turn (with its yaw rate) and NMS.
+    let levers = [
+        "config", "--preset", "ab3dmot-kitti", "--motion", "ctrv", "--nms-iou", "0.1",
+    ];
+    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&levers).stdout).unwrap();
+    let classes = v["classes"].as_object().unwrap();
+    assert!(!classes.is_empty());
+    for (label, c) in classes {
+        assert_eq!(c["levers"]["motion"], "ctrv", "{label}");
+        assert_eq!(c["levers"]["nms_iou"], 0.1, "{label}");
+        assert_eq!(c["angular_velocity"], true, "{label}");
+    }
+    let clash = ["config", "--motion", "ctrv", "--no-angular-velocity"];
+    assert_eq!(probmot(&clash).status.code(), Some(2));
 }
 
 #[test]
