@@ -85,6 +85,9 @@ struct Scratch {
     nms: NmsScratch,
 }
 
+/// Up to this many classes, [`Tracker::class_id`] scans the labels instead of hashing.
+const LINEAR_LABEL_LOOKUP: usize = 16;
+
 /// The probabilistic 3D multi-object tracker of Chiu et al. (2019), as a sans-I/O state machine.
 ///
 /// ```
@@ -151,8 +154,15 @@ impl Tracker {
     /// The class id of a label, registering it on first use. `None` when the label is not in the
     /// config and the config has no `default` entry.
     pub fn class_id(&mut self, label: &str) -> Option<ClassId> {
-        if let Some(&id) = self.by_label.get(label) {
-            return Some(id);
+        // With a handful of classes, comparing the labels is cheaper than hashing one (the hash
+        // showed in profiles of `track`); the map serves logs with many labels.
+        let known = if self.classes.len() <= LINEAR_LABEL_LOOKUP {
+            self.classes.iter().position(|c| c.label == label).map(|i| i as ClassId)
+        } else {
+            self.by_label.get(label).copied()
+        };
+        if known.is_some() {
+            return known;
         }
         let cfg = self.config.class(label)?.clone();
         let id = self.classes.len() as ClassId;

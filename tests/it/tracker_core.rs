@@ -330,6 +330,21 @@ fn irregular_gaps_scale_the_prediction() {
 // 2. Ids and classes
 // ---------------------------------------------------------------------------------------------
 
+/// Class ids stay stable and distinct past the few classes looked up by a scan (labels beyond
+/// the preset's use its `default` entry, each as a class of its own).
+#[test]
+fn class_ids_are_stable_for_many_labels() {
+    let mut t = tracker("nuscenes-chiu2019");
+    let labels: Vec<String> = (0..40).map(|i| format!("label{i}")).collect();
+    let first: Vec<u32> = labels.iter().map(|l| t.class_id(l).unwrap()).collect();
+    let again: Vec<u32> = labels.iter().rev().map(|l| t.class_id(l).unwrap()).collect();
+    assert_eq!(first, again.into_iter().rev().collect::<Vec<_>>());
+    assert_eq!(first.iter().collect::<HashSet<_>>().len(), labels.len());
+    for (l, id) in labels.iter().zip(&first) {
+        assert_eq!(t.label(*id), l);
+    }
+}
+
 /// A car and a pedestrian detection with the same box give two tracks; each keeps matching only
 /// detections of its own class.
 #[test]
