@@ -134,7 +134,12 @@ pub struct TrackerArgs {
     pub score_floor: Option<f64>,
     /// Motion model of every class: cv (constant velocity, the paper) or ctrv (coordinated
     /// turn; turns the yaw rate on). See docs/tune.md. Example: --motion ctrv
-    #[arg(long, value_enum, help_heading = "Levers", conflicts_with = "no_angular_velocity")]
+    #[arg(
+        long,
+        value_enum,
+        help_heading = "Levers",
+        conflicts_with = "no_angular_velocity"
+    )]
     pub motion: Option<MotionArg>,
     /// Drop a detection whose 3D IoU with a higher-scoring detection of its class exceeds this,
     /// before association (every class). Example: --nms-iou 0.1

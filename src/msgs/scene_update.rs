@@ -181,20 +181,28 @@ pub struct SceneEncoder {
     shown: Vec<u64>,
     /// Ids to delete this frame (reused buffer).
     gone: Vec<u64>,
+    /// Ids of this frame's tracks (sorted; reused buffer).
+    now: Vec<u64>,
 }
 
 impl SceneEncoder {
     /// Encodes the update of the next frame of tracks into `buf` (protobuf).
     pub fn encode_frame(&mut self, tracks: &Tracks3D, buf: &mut Vec<u8>) {
+        self.now.clear();
+        self.now.extend(tracks.tracks.iter().map(|t| t.id));
+        self.now.sort_unstable();
+        // Both lists are sorted: one merge finds the ids shown before and missing now.
         self.gone.clear();
+        let mut k = 0;
         for &old in &self.shown {
-            if !tracks.tracks.iter().any(|t| t.id == old) {
+            while k < self.now.len() && self.now[k] < old {
+                k += 1;
+            }
+            if self.now.get(k) != Some(&old) {
                 self.gone.push(old);
             }
         }
-        self.shown.clear();
-        self.shown.extend(tracks.tracks.iter().map(|t| t.id));
-        self.shown.sort_unstable();
+        std::mem::swap(&mut self.shown, &mut self.now);
         super::encode_into(&scene_update(tracks, &self.gone), buf);
     }
 }
@@ -249,5 +257,31 @@ mod tests {
         assert!(u.entities[1].arrows.is_empty());
         // Stable colours: the same id gets the same colour, always.
         assert_eq!(e.cubes[0].color, Some(track_color(7, CUBE_ALPHA)));
+    }
+
+    proptest::proptest! {
+        /// Each frame deletes exactly the ids shown in the previous frame and missing now,
+        /// whatever the order of the tracks.
+        #[test]
+        fn deletions_are_the_ids_shown_before_and_missing_now(
+            frames in proptest::collection::vec(proptest::collection::vec(0u64..12, 0..8), 1..10)
+        ) {
+            let mut enc = SceneEncoder::default();
+            let mut before = std::collections::BTreeSet::new();
+            for ids in frames {
+                let now: std::collections::BTreeSet<u64> = ids.iter().copied().collect();
+                let tracks = Tracks3D {
+                    tracks: now.iter().rev().map(|&id| Track3D { id, ..Default::default() }).collect(),
+                    ..Default::default()
+                };
+                let mut buf = Vec::new();
+                enc.encode_frame(&tracks, &mut buf);
+                let u = <SceneUpdate as prost::Message>::decode(buf.as_slice()).unwrap();
+                let deleted: Vec<String> = u.deletions.iter().map(|d| d.id.clone()).collect();
+                let expected: Vec<String> = before.difference(&now).map(|&id| entity_id(id)).collect();
+                proptest::prop_assert_eq!(deleted, expected);
+                before = now;
+            }
+        }
     }
 }

@@ -157,7 +157,10 @@ impl Tracker {
         // With a handful of classes, comparing the labels is cheaper than hashing one (the hash
         // showed in profiles of `track`); the map serves logs with many labels.
         let known = if self.classes.len() <= LINEAR_LABEL_LOOKUP {
-            self.classes.iter().position(|c| c.label == label).map(|i| i as ClassId)
+            self.classes
+                .iter()
+                .position(|c| c.label == label)
+                .map(|i| i as ClassId)
         } else {
             self.by_label.get(label).copied()
         };

@@ -94,7 +94,13 @@ fn config_help_examples_run() {
     );
     // The levers example: every class gets the coordinated turn (with its yaw rate) and NMS.
     let levers = [
-        "config", "--preset", "ab3dmot-kitti", "--motion", "ctrv", "--nms-iou", "0.1",
+        "config",
+        "--preset",
+        "ab3dmot-kitti",
+        "--motion",
+        "ctrv",
+        "--nms-iou",
+        "0.1",
     ];
     let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&levers).stdout).unwrap();
     let classes = v["classes"].as_object().unwrap();

@@ -337,7 +337,11 @@ fn class_ids_are_stable_for_many_labels() {
     let mut t = tracker("nuscenes-chiu2019");
     let labels: Vec<String> = (0..40).map(|i| format!("label{i}")).collect();
     let first: Vec<u32> = labels.iter().map(|l| t.class_id(l).unwrap()).collect();
-    let again: Vec<u32> = labels.iter().rev().map(|l| t.class_id(l).unwrap()).collect();
+    let again: Vec<u32> = labels
+        .iter()
+        .rev()
+        .map(|l| t.class_id(l).unwrap())
+        .collect();
     assert_eq!(first, again.into_iter().rev().collect::<Vec<_>>());
     assert_eq!(first.iter().collect::<HashSet<_>>().len(), labels.len());
     for (l, id) in labels.iter().zip(&first) {
