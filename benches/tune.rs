@@ -53,6 +53,7 @@ fn bench(c: &mut Criterion) {
         dt_nominal: None,
         min_samples: 50,
         classes: vec![],
+        search: vec![],
     };
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     let fitted = fit_noise(&base, &refs, &o).unwrap();

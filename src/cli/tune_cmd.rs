@@ -44,6 +44,7 @@ use rayon::prelude::*;
 ///   probmot tune logs/*.mcap -o tuned.json
 ///   probmot tune logs/*.mcap -o tuned.json --folds 2 --budget 100 --jobs 2 --json
 ///   probmot tune logs/*.mcap -o tuned.json --min-tracks 20 --margin 0.01
+///   probmot tune logs/*.mcap -o nms.json --search nms_iou     # what NMS alone gives
 ///   probmot track drive.mcap -o out.mcap --config tuned.json
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -72,6 +73,12 @@ pub struct TuneArgs {
     /// Classes to tune and score, comma-separated (default: the protocol's classes).
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     classes: Vec<String>,
+    /// Search only these options, comma-separated (default: all): noise, gate, matcher,
+    /// min_hits, max_age, angular_velocity, motion, q_factor, r_factor, nms_iou, score, blend,
+    /// score_floor, birth_score, boost, decay, keep_score. One option gives its ablation
+    /// (scripts/kitti_levers.sh). Example: --search nms_iou
+    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    search: Vec<String>,
     /// Largest number of configurations evaluated per class in one search.
     #[arg(long, default_value_t = 100, value_name = "N")]
     budget: usize,
@@ -183,6 +190,7 @@ pub fn run(a: TuneArgs) -> Result<ExitCode> {
         "--iou must lie in (0, 1], got {}",
         a.iou
     );
+    tune::space::check_names(&a.search).map_err(anyhow::Error::msg)?;
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
     }
@@ -218,6 +226,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         dt_nominal: a.dt_nominal,
         min_samples: a.min_samples,
         classes: a.classes.iter().map(|c| c.to_lowercase()).collect(),
+        search: a.search.clone(),
     };
     let all: Vec<&TuneLog> = logs.iter().collect();
     let n_classes = tune::classes(&all, &o).len();

@@ -23,7 +23,7 @@ use crate::eval::scene::Scene;
 use crate::fit::{fit, fitted_config, timing::frame_period, FitOptions, YawMode};
 use crate::tracker::{ClassConfig, TrackerConfig};
 use cache::ScoreCache;
-use space::{dims, ScoreStats};
+use space::{dims, restrict, ScoreStats};
 
 /// Settings of a tune.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -38,6 +38,9 @@ pub struct TuneOptions {
     pub min_samples: u64,
     /// Classes to tune and score; empty: every class of the protocol.
     pub classes: Vec<String>,
+    /// Search dimensions to search ([`space::DIM_NAMES`]); empty: all. One option at a time
+    /// gives the ablation of that option.
+    pub search: Vec<String>,
 }
 
 /// The shared stage of a tune (see [`shared`]).
@@ -150,14 +153,15 @@ pub fn tune(
         .cloned()
         .collect();
     let cache = ScoreCache::new(logs, &fitted, o.scoring);
-    let (sd, shared) = shared::tune_shared(&cache, &starts, &signal, o.limits, progress)?;
+    let (sd, shared) =
+        shared::tune_shared(&cache, &starts, &signal, o.limits, &o.search, progress)?;
     let mut tuned = fitted.clone();
     let mut out = Vec::new();
     for (label, start) in &starts {
         let refined = signal.contains(label);
         let (d, config) = if refined {
             let stats = ScoreStats::of(logs.iter().flat_map(|l| l.scores(label)).collect());
-            let space = dims(stats, &shared[label], base.class(label));
+            let space = restrict(dims(stats, &shared[label], base.class(label)), &o.search);
             let (d, cc) =
                 search::tune_class(&cache, label, &shared[label], &space, o.limits, progress)?;
             (Some(d), cc)

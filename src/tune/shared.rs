@@ -10,19 +10,21 @@ use indicatif::ProgressBar;
 
 use super::cache::ScoreCache;
 use super::search::{descend, Descent, SearchLimits};
-use super::space::{at, shared_dims};
+use super::space::{at, restrict, shared_dims};
 use crate::tracker::ClassConfig;
 
 /// The shared settings applied to every class of `starts`, chosen on the mean score of the
-/// `signal` classes. Without a signal class, or with `limits.shared` off, nothing moves.
+/// `signal` classes, over the dimensions named in `only` (empty: all). Without a signal class,
+/// or with `limits.shared` off, nothing moves.
 pub fn tune_shared(
     cache: &ScoreCache,
     starts: &BTreeMap<String, ClassConfig>,
     signal: &[String],
     limits: SearchLimits,
+    only: &[String],
     progress: &ProgressBar,
 ) -> Result<(Descent, BTreeMap<String, ClassConfig>)> {
-    let dims = shared_dims();
+    let dims = restrict(shared_dims(), only);
     let limits = if signal.is_empty() || !limits.shared {
         SearchLimits {
             rounds: 0,

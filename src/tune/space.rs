@@ -43,8 +43,9 @@ pub enum Value {
     Boost(f64),
     /// Refinement decay while coasting.
     Decay(f64),
-    /// Life cycle by confidence: keep score.
-    KeepScore(Option<f64>),
+    /// Life cycle by confidence: keep score, and the decay it brings when the class has none
+    /// (the life cycle needs one; without it the candidate could never be valid on its own).
+    KeepScore(Option<f64>, f64),
 }
 
 /// A dimension: its name and candidates (the first is [`Value::Keep`]).
@@ -81,6 +82,45 @@ impl ScoreStats {
             std: var.sqrt().max(1e-6),
         })
     }
+}
+
+/// Names of every search dimension, in search order (what `probmot tune --search` accepts).
+pub const DIM_NAMES: [&str; 17] = [
+    "noise",
+    "gate",
+    "matcher",
+    "min_hits",
+    "max_age",
+    "angular_velocity",
+    "motion",
+    "q_factor",
+    "r_factor",
+    "nms_iou",
+    "score",
+    "blend",
+    "score_floor",
+    "birth_score",
+    "boost",
+    "decay",
+    "keep_score",
+];
+
+/// Checks that every name of `only` is a dimension ([`DIM_NAMES`]).
+pub fn check_names(only: &[String]) -> Result<(), String> {
+    match only.iter().find(|n| !DIM_NAMES.contains(&n.as_str())) {
+        Some(n) => Err(format!(
+            "unknown search option '{n}' (options: {})",
+            DIM_NAMES.join(", ")
+        )),
+        None => Ok(()),
+    }
+}
+
+/// `dims` without the dimensions not named in `only` (empty `only`: all of them).
+pub fn restrict(dims: Vec<Dim>, only: &[String]) -> Vec<Dim> {
+    dims.into_iter()
+        .filter(|d| only.is_empty() || only.iter().any(|n| n == d.name))
+        .collect()
 }
 
 /// The search space of one class: the choice between the fitted noise and the base config's own
@@ -260,10 +300,10 @@ fn score_dims(s: ScoreStats) -> Vec<Dim> {
         name: "keep_score",
         values: vec![
             Keep,
-            KeepScore(None),
-            KeepScore(q(4)),
-            KeepScore(q(5)),
-            KeepScore(q(6)),
+            KeepScore(None, 0.0),
+            KeepScore(q(4), 0.2 * sd),
+            KeepScore(q(5), 0.2 * sd),
+            KeepScore(q(6), 0.2 * sd),
         ],
     });
     d
@@ -298,7 +338,12 @@ pub fn apply(cc: &mut ClassConfig, v: Value) {
         Blend(b) => l.blend = b,
         Boost(b) => l.boost = b,
         Decay(d) => l.decay = d,
-        KeepScore(k) => l.keep_score = k,
+        KeepScore(k, decay) => {
+            l.keep_score = k;
+            if k.is_some() && l.decay == 0.0 {
+                l.decay = decay;
+            }
+        }
     }
 }
 
@@ -385,6 +430,46 @@ mod tests {
         assert_eq!(c.levers.motion, Motion::Ctrv);
         assert!(c.angular_velocity);
         c.validate().unwrap();
+    }
+
+    /// A keep-score candidate is valid from a class without decay (it brings one) and keeps
+    /// a decay the search chose before.
+    #[test]
+    fn keep_score_candidates_bring_their_decay() {
+        let cc = TrackerConfig::preset("ab3dmot-kitti").unwrap().classes["car"].clone();
+        let stats = ScoreStats::of((0..100).map(|i| i as f64 / 100.0).collect());
+        let d = dims(stats, &cc, None);
+        let ki = d.iter().position(|d| d.name == "keep_score").unwrap();
+        let di = d.iter().position(|d| d.name == "decay").unwrap();
+        let mut p = vec![0; d.len()];
+        p[ki] = 2;
+        let c = at(&cc, &d, &p);
+        assert!(c.levers.keep_score.is_some() && c.levers.decay > 0.0);
+        c.validate().unwrap();
+        p[di] = d[di].values.len() - 1;
+        let chosen = at(&cc, &d, &p);
+        let Value::Decay(want) = d[di].values[p[di]] else {
+            panic!("decay candidates are Decay values")
+        };
+        assert_eq!(chosen.levers.decay, want);
+    }
+
+    /// The names list is the space, in order, and a restriction keeps only the named ones.
+    #[test]
+    fn dimension_names_are_the_space_and_restrict_filters() {
+        let own = TrackerConfig::preset("nuscenes-chiu2019").unwrap().classes["car"].clone();
+        let mut fitted = own.clone();
+        fitted.q = own.q.map(|x| 2.0 * x);
+        let stats = ScoreStats::of(vec![0.1, 0.5, 0.9]);
+        let d = dims(stats, &fitted, Some(&own));
+        let names: Vec<&str> = d.iter().map(|d| d.name).collect();
+        assert_eq!(names, DIM_NAMES);
+        let only = vec!["nms_iou".to_string(), "gate".to_string()];
+        let r: Vec<&str> = restrict(d, &only).iter().map(|d| d.name).collect();
+        assert_eq!(r, ["gate", "nms_iou"]);
+        assert!(check_names(&only).is_ok());
+        let err = check_names(&["nsm".to_string()]).unwrap_err();
+        assert!(err.contains("'nsm'") && err.contains("keep_score"), "{err}");
     }
 
     #[test]

@@ -104,6 +104,7 @@ fn options(budget: usize) -> TuneOptions {
         dt_nominal: None,
         min_samples: 10,
         classes: vec![],
+        search: vec![],
     }
 }
 
@@ -163,6 +164,31 @@ fn classes_with_too_few_trajectories_keep_the_base_settings() {
     o.limits.min_tracks = 6;
     let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
     assert!(t.classes[0].refined && !t.classes[0].steps.is_empty());
+}
+
+/// `--search noise,nms_iou`: only those options move (the fitted noise of this synthetic log is
+/// too tight to track with, so the choice of noise is needed for any gain).
+#[test]
+fn a_restricted_search_moves_only_the_named_options() {
+    let logs: Vec<TuneLog> = (1..=2).map(synthetic_log).collect();
+    let refs: Vec<&TuneLog> = logs.iter().collect();
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let mut o = options(40);
+    o.search = vec!["noise".into(), "nms_iou".into()];
+    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let car = &t.classes[0];
+    let dims: Vec<&str> = car.steps.iter().map(|s| s.dim.as_str()).collect();
+    assert!(dims.contains(&"noise"), "{car:?}");
+    assert!(
+        dims.iter().all(|d| ["noise", "nms_iou"].contains(d)),
+        "{dims:?}"
+    );
+    assert!(car.score > car.base_score + 0.01);
+    // Apart from the noise and NMS, the tuned entry is the fitted one.
+    let (mut tuned, fitted) = (t.tuned.classes["car"].clone(), &t.fitted.classes["car"]);
+    (tuned.q, tuned.r, tuned.p0) = (fitted.q, fitted.r, fitted.p0);
+    tuned.levers.nms_iou = None;
+    assert_eq!(&tuned, fitted);
 }
 
 #[test]
@@ -265,6 +291,11 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     ]);
     assert!(!r.status.success());
     assert!(String::from_utf8_lossy(&r.stderr).contains("t.mcap"));
+    // An unknown search option is refused with the list of options.
+    let r = common::probmot(&["tune", l0, "-o", o, "--search", "nsm", "--quiet"]);
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("'nsm'") && err.contains("nms_iou"), "{err}");
 }
 
 /// The acceptance run, reduced to fit CI time: 2-fold cross-validation of the car class on the
@@ -313,6 +344,7 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
         dt_nominal: None,
         min_samples: 50,
         classes: vec!["car".into()],
+        search: vec![],
     };
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     // Scoring a class on only the truth its evaluation reads gives the score of the full truth
