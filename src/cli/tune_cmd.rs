@@ -278,6 +278,19 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         }
     }
     report(a, &o, cv.as_ref(), &t)?;
+    for l in cv.iter().flat_map(|cv| cv.losses(o.limits.margin)) {
+        eprintln!(
+            "warning: {} on fold {}: the settings tuned on its {} training trajectories scored {} \
+             held-out against the base's {}; too few to tune it? (--min-tracks above {} keeps \
+             the base's settings)",
+            l.label,
+            l.fold,
+            l.trajectories,
+            pct(l.tuned),
+            pct(l.base),
+            l.trajectories
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 
@@ -288,6 +301,7 @@ fn report(a: &TuneArgs, o: &TuneOptions, cv: Option<&CvReport>, t: &tune::Tuned)
             "output": a.output.display().to_string(),
             "options": o,
             "cross_validation": cv,
+            "held_out_losses": cv.map(|cv| cv.losses(o.limits.margin)),
             "final": { "shared": t.shared, "classes": t.classes, "scored": t.scored },
         });
         println!("{}", serde_json::to_string_pretty(&v)?);

@@ -251,6 +251,47 @@ pub struct CvReport {
     pub fold_configs: Vec<TrackerConfig>,
 }
 
+/// A class searched on a fold's training logs whose tuned settings scored below the base on the
+/// held-out fold: the sign that its training logs were too few to tune it (see `--min-tracks`).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct HeldOutLoss {
+    /// Fold (1-based, as the table prints it).
+    pub fold: usize,
+    /// Class label.
+    pub label: String,
+    /// Its ground-truth trajectories in the fold's training logs.
+    pub trajectories: usize,
+    /// Held-out score of the base config.
+    pub base: f64,
+    /// Held-out score of the tuned config.
+    pub tuned: f64,
+}
+
+impl CvReport {
+    /// The (fold, searched class) pairs whose tuned held-out score is below the base's by more
+    /// than `margin`, in fold and class order. Classes that kept the base config's own settings
+    /// (too few trajectories) are not listed: nothing was tuned on them.
+    pub fn losses(&self, margin: f64) -> Vec<HeldOutLoss> {
+        let mut out = Vec::new();
+        for (i, f) in self.folds.iter().enumerate() {
+            for c in f.search.iter().filter(|c| c.refined) {
+                let base = f.base.get(&c.label).copied().unwrap_or(f64::NAN);
+                let tuned = f.tuned.get(&c.label).copied().unwrap_or(f64::NAN);
+                if base.is_finite() && tuned.is_finite() && tuned < base - margin {
+                    out.push(HeldOutLoss {
+                        fold: i + 1,
+                        label: c.label.clone(),
+                        trajectories: c.trajectories,
+                        base,
+                        tuned,
+                    });
+                }
+            }
+        }
+        out
+    }
+}
+
 /// Mean over the classes with a value (the protocol's overall figure for sAMOTA and AMOTA).
 pub fn overall(scores: &BTreeMap<String, f64>) -> f64 {
     let v: Vec<f64> = scores.values().copied().filter(|v| v.is_finite()).collect();
@@ -317,6 +358,71 @@ pub fn cross_validate(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn losses_are_the_searched_classes_tuned_below_the_base_held_out() {
+        let scores = |v: &[(&str, f64)]| -> BTreeMap<String, f64> {
+            v.iter().map(|(k, x)| (k.to_string(), *x)).collect()
+        };
+        let searched = |label: &str, refined: bool| ClassTune {
+            label: label.into(),
+            trajectories: 17,
+            base_score: 0.0,
+            shared_score: 0.0,
+            refined,
+            score: 0.0,
+            evaluations: 0,
+            steps: vec![],
+            config: TrackerConfig::preset("ab3dmot-kitti").unwrap().classes["car"].clone(),
+        };
+        let fold = |base: &[(&str, f64)], tuned: &[(&str, f64)], search| FoldReport {
+            held_out: vec![],
+            base: scores(base),
+            tuned: scores(tuned),
+            shared: SharedTune {
+                classes: vec![],
+                base_score: 0.0,
+                score: 0.0,
+                evaluations: 0,
+                steps: vec![],
+            },
+            search,
+        };
+        let cv = CvReport {
+            folds: vec![
+                fold(
+                    &[("car", 0.7), ("pedestrian", 0.58)],
+                    &[("car", 0.77), ("pedestrian", 0.06)],
+                    vec![searched("car", true), searched("pedestrian", true)],
+                ),
+                fold(
+                    &[("car", 0.9), ("pedestrian", 0.65), ("cyclist", f64::NAN)],
+                    &[("car", 0.898), ("pedestrian", 0.62), ("cyclist", 0.0)],
+                    vec![
+                        searched("car", true),
+                        searched("pedestrian", false),
+                        searched("cyclist", true),
+                    ],
+                ),
+            ],
+            base: BTreeMap::new(),
+            tuned: BTreeMap::new(),
+            fold_configs: vec![],
+        };
+        let l = cv.losses(0.005);
+        assert_eq!(l.len(), 1, "{l:?}");
+        assert_eq!(
+            (l[0].fold, l[0].label.as_str(), l[0].trajectories),
+            (1, "pedestrian", 17)
+        );
+        // Without a margin the small car loss counts; the unsearched pedestrian never does.
+        let l0: Vec<_> = cv
+            .losses(0.0)
+            .into_iter()
+            .map(|l| (l.fold, l.label))
+            .collect();
+        assert_eq!(l0, [(1, "pedestrian".to_string()), (2, "car".to_string())]);
+    }
 
     #[test]
     fn folds_are_contiguous_and_cover() {
