@@ -153,13 +153,23 @@ fn table(cv: &CvReport, metric: &str) -> String {
     let _ = writeln!(s, "held-out {metric} (x100): base (fitted noise) vs tuned");
     let _ = writeln!(
         s,
-        "{:<28} {:<12} {:>8} {:>8}",
-        "held-out logs", "class", "base", "tuned"
+        "{:<28} {:<12} {:>8} {:>8}  {}",
+        "held-out logs", "class", "base", "tuned", "training trajectories"
     );
-    let mut rows = |name: &str, base: &BTreeMap<String, f64>, tuned: &BTreeMap<String, f64>| {
+    let mut rows = |name: &str,
+                    base: &BTreeMap<String, f64>,
+                    tuned: &BTreeMap<String, f64>,
+                    search: &[tune::ClassTune]| {
         for (c, b) in base {
             let t = tuned.get(c).copied().unwrap_or(f64::NAN);
-            let _ = writeln!(s, "{name:<28} {c:<12} {:>8} {:>8}", pct(*b), pct(t));
+            let note = match search.iter().find(|x| &x.label == c) {
+                Some(x) if x.refined => format!("{} (searched)", x.trajectories),
+                Some(x) => format!("{} (too few: not searched)", x.trajectories),
+                None if search.is_empty() => String::new(),
+                None => "none (no training detections)".into(),
+            };
+            let line = format!("{name:<28} {c:<12} {:>8} {:>8}  {note}", pct(*b), pct(t));
+            let _ = writeln!(s, "{}", line.trim_end());
         }
         let _ = writeln!(
             s,
@@ -171,9 +181,9 @@ fn table(cv: &CvReport, metric: &str) -> String {
     };
     for (i, f) in cv.folds.iter().enumerate() {
         let name = format!("fold {} ({} logs)", i + 1, f.held_out.len());
-        rows(&name, &f.base, &f.tuned);
+        rows(&name, &f.base, &f.tuned, &f.search);
     }
-    rows("all held-out together", &cv.base, &cv.tuned);
+    rows("all held-out together", &cv.base, &cv.tuned, &[]);
     s
 }
 

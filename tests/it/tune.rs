@@ -266,6 +266,21 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     let r = common::probmot_ok(&args);
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     assert_eq!(v["cross_validation"]["folds"].as_array().unwrap().len(), 2);
+    // The table says, per fold and class, how many trajectories trained it and whether it was
+    // searched.
+    let text = common::probmot_ok(&args[..args.len() - 1]);
+    let text = String::from_utf8_lossy(&text.stdout);
+    assert!(text.contains("training trajectories"), "{text}");
+    let fold_rows = text
+        .lines()
+        .filter(|l| l.starts_with("fold ") && !l.contains("overall"));
+    assert!(
+        fold_rows.clone().count() > 0
+            && fold_rows
+                .clone()
+                .all(|l| l.ends_with("searched)") || l.ends_with("detections)")),
+        "{text}"
+    );
     let cfg = TrackerConfig::from_json(&std::fs::read_to_string(&out).unwrap()).unwrap();
     assert!(cfg.name.starts_with("tune of 2 log(s)"));
     let tracked = dir.path().join("t.mcap");
