@@ -153,8 +153,8 @@ fn table(cv: &CvReport, metric: &str) -> String {
     let _ = writeln!(s, "held-out {metric} (x100): base (fitted noise) vs tuned");
     let _ = writeln!(
         s,
-        "{:<28} {:<12} {:>8} {:>8}  {}",
-        "held-out logs", "class", "base", "tuned", "training trajectories"
+        "{:<28} {:<12} {:>8} {:>8}  training trajectories",
+        "held-out logs", "class", "base", "tuned"
     );
     let mut rows = |name: &str,
                     base: &BTreeMap<String, f64>,
