@@ -54,6 +54,7 @@ fn bench(c: &mut Criterion) {
         min_samples: 50,
         classes: vec![],
         search: vec![],
+        keep_base: vec![],
     };
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     let fitted = fit_noise(&base, &refs, &o).unwrap();

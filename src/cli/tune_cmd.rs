@@ -96,6 +96,12 @@ pub struct TuneArgs {
     /// mean score of the classes with enough trajectories; classes with too few keep them).
     #[arg(long)]
     shared: bool,
+    /// After the cross-validation, keep the base config's own settings in the written config
+    /// for every class whose tuned settings scored below the base on a held-out fold (the
+    /// classes the warning names). The cross-validation's scores are of the search without
+    /// this rule. Example: probmot tune logs/*.mcap -o tuned.json --keep-base-on-loss
+    #[arg(long)]
+    keep_base_on_loss: bool,
     /// Worker threads (default: all cores).
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
@@ -237,6 +243,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         min_samples: a.min_samples,
         classes: a.classes.iter().map(|c| c.to_lowercase()).collect(),
         search: a.search.clone(),
+        keep_base: Vec::new(),
     };
     let all: Vec<&TuneLog> = logs.iter().collect();
     let n_classes = tune::classes(&all, &o).len();
@@ -265,7 +272,15 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         None
     };
     pb.set_message("tuning on all logs");
-    let t = tune::tune(base, &all, &o, &pb)?;
+    let mut final_options = o.clone();
+    if a.keep_base_on_loss {
+        final_options.keep_base = cv
+            .iter()
+            .flat_map(|cv| cv.losses(o.limits.margin))
+            .map(|l| l.label)
+            .collect();
+    }
+    let t = tune::tune(base, &all, &final_options, &pb)?;
     pb.finish_and_clear();
     let mut cfg = t.tuned.clone();
     cfg.name = format!(
@@ -287,12 +302,12 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
             write_file_atomic(&p, format!("{}\n", c.to_json()).as_bytes())?;
         }
     }
-    report(a, &o, cv.as_ref(), &t)?;
+    report(a, &final_options, cv.as_ref(), &t)?;
     for l in cv.iter().flat_map(|cv| cv.losses(o.limits.margin)) {
         eprintln!(
             "warning: {} on fold {}: the settings tuned on its {} training trajectories scored {} \
-             held-out against the base's {}; too few to tune it? (--min-tracks above {} keeps \
-             the base's settings)",
+             held-out against the base's {}; too few to tune it? (--min-tracks above {}, or \
+             --keep-base-on-loss, keeps the base's settings)",
             l.label,
             l.fold,
             l.trajectories,
@@ -330,6 +345,8 @@ fn report(a: &TuneArgs, o: &TuneOptions, cv: Option<&CvReport>, t: &tune::Tuned)
                 pct(c.score),
                 if c.refined {
                     "searched"
+                } else if o.keep_base.contains(&c.label) {
+                    "lost held-out (--keep-base-on-loss): the base's own settings"
                 } else if o.limits.shared {
                     "too few trajectories: shared settings"
                 } else {

@@ -41,6 +41,9 @@ pub struct TuneOptions {
     /// Search dimensions to search ([`space::DIM_NAMES`]); empty: all. One option at a time
     /// gives the ablation of that option.
     pub search: Vec<String>,
+    /// Classes kept at the base config's own settings whatever their trajectories (as under
+    /// `min_tracks`), e.g. those whose tuning lost held-out in a cross-validation.
+    pub keep_base: Vec<String>,
 }
 
 /// The shared stage of a tune (see [`shared`]).
@@ -149,7 +152,7 @@ pub fn tune(
         .collect();
     let signal: Vec<String> = starts
         .keys()
-        .filter(|l| traj[l.as_str()] >= o.limits.min_tracks)
+        .filter(|l| traj[l.as_str()] >= o.limits.min_tracks && !o.keep_base.contains(l))
         .cloned()
         .collect();
     let cache = ScoreCache::new(logs, &fitted, o.scoring);
