@@ -291,6 +291,7 @@ fn sum_counts<S>(loaded: Vec<(S, FilterCounts)>) -> (Vec<S>, FilterCounts) {
 fn load_columns_logs(
     a: &EvalArgs,
     pairs: &[(PathBuf, PathBuf)],
+    geometry: bool,
 ) -> Result<(Vec<ColumnScene>, FilterCounts)> {
     let bar = reading_bar(a, pairs);
     let loaded: Vec<(ColumnScene, FilterCounts)> = pairs
@@ -309,6 +310,7 @@ fn load_columns_logs(
                 &mut |stamp, boxes, is_truth| {
                     filters.apply_message(&name, (stamp, boxes, is_truth), &mut counts)
                 },
+                geometry,
             )?;
             Ok((scene, counts))
         })
@@ -468,26 +470,8 @@ fn nuscenes_baseline(
         return Ok((Vec::new(), None));
     }
     let pairs = log_pairs(&a.truth, &a.baseline)?;
-    let (scenes, _) = load_columns_logs(a, &pairs)?;
+    let (scenes, _) = load_columns_logs(a, &pairs, false)?;
     Ok((pairs, Some(evaluate_columns(&scenes, params))))
-}
-
-/// Logs in columns and the filters' counts.
-type ColumnLogs = (Vec<ColumnScene>, FilterCounts);
-
-/// The logs for the nuScenes protocol: their columns and the filters' counts, and with
-/// --events (which writes copies of the truth logs with the boxes' full geometry) the whole
-/// scenes too; the metrics read the columns either way.
-fn load_nuscenes_logs(
-    a: &EvalArgs,
-    pairs: &[(PathBuf, PathBuf)],
-) -> Result<(Vec<Scene>, ColumnLogs)> {
-    if a.events.is_none() {
-        return Ok((Vec::new(), load_columns_logs(a, pairs)?));
-    }
-    let (full, removed) = load_logs(a, pairs, false)?;
-    let columns = full.par_iter().map(ColumnScene::from_scene).collect();
-    Ok((full, (columns, removed)))
 }
 
 fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
@@ -496,7 +480,8 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         params.classes = a.classes.clone();
     }
     let pairs = log_pairs(&a.truth, &a.tracks)?;
-    let (full, (scenes, removed)) = load_nuscenes_logs(&a, &pairs)?;
+    // With --events the columns keep the boxes' geometry too, to place the events.
+    let (scenes, removed) = load_columns_logs(&a, &pairs, a.events.is_some())?;
     let spinner = scoring_spinner(&a, "nuScenes metrics and HOTA");
     let ((result, decisions), (hota, hota_notes)) = rayon::join(
         || evaluate_columns_recording(&scenes, &params, a.events.is_some()),
@@ -514,10 +499,9 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     let events = (a.events.as_deref())
         .map(|out| {
             let logs = (EventsProtocol::Nuscenes, &decisions[..]);
-            eval_events::write(out, logs, &pairs, &full, &a.truth_topic)
+            eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;
-    drop(full);
     let (base_pairs, baseline) = nuscenes_baseline(&a, &params)?;
 
     // The gate, on AMOTA.
@@ -711,7 +695,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let events = (a.events.as_deref())
         .map(|out| {
             let logs = (EventsProtocol::Kitti, &decisions[..]);
-            eval_events::write(out, logs, &pairs, &scenes, &a.truth_topic)
+            eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;
     let (base_pairs, base_scenes) = load_baseline(&a, true)?;

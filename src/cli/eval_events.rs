@@ -6,9 +6,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Result};
-use probmot::eval::events::{resolve, ClassEvents, Collector, Counts, Protocol};
+use probmot::eval::events::{resolve, ClassEvents, Collector, Counts, EventBoxes, Protocol};
 use probmot::eval::events_log::{write_events_log, LogEvents};
-use probmot::eval::scene::Scene;
 use probmot::mcapio::writer::check_output_path;
 use probmot::msgs::eval_event::Kind;
 use probmot::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
@@ -107,11 +106,11 @@ fn output_paths(out: &Path, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<PathBuf>
 /// Turns the decisions each class's evaluation recorded at its best-MOTA threshold (`logs`,
 /// from `evaluate_recording` of `protocol`) into events, writes one copy of each truth log with
 /// the events channels and returns the report.
-pub fn write(
+pub fn write<B: EventBoxes + ?Sized>(
     out: &Path,
     (protocol, logs): (Protocol, &[(String, Collector)]),
     pairs: &[(PathBuf, PathBuf)],
-    scenes: &[Scene],
+    scenes: &B,
     truth_topic: &str,
 ) -> Result<EventsReport> {
     let dests = output_paths(out, pairs)?;
@@ -123,35 +122,41 @@ pub fn write(
         .iter()
         .map(|(c, log)| resolve(scenes, c, log, protocol))
         .collect();
+    // The report first, so that the events can then move to their logs (a long log has
+    // millions of them; no second copy).
+    let summary = report(dests.clone(), &classes, scenes);
     let mut per_log: Vec<LogEvents> = vec![LogEvents::new(); scenes.len()];
-    for ce in &classes {
-        for e in &ce.events {
-            let stamp = scenes[e.scene].frames[e.frame].0;
+    for ce in classes {
+        for e in ce.events {
+            let stamp = scenes.stamp(e.scene, e.frame);
             let frame = per_log[e.scene].entry(stamp).or_insert_with(|| EvalEvents {
                 stamp,
                 protocol: name.to_string(),
                 ..Default::default()
             });
-            frame.events.push(e.event.clone());
+            frame.events.push(e.event);
         }
     }
     for (((truth, _), dest), events) in pairs.iter().zip(&dests).zip(&per_log) {
         write_events_log(truth, dest, truth_topic, events, false)?;
     }
-    Ok(report(dests, &classes, scenes))
+    Ok(summary)
 }
 
-fn report(outputs: Vec<PathBuf>, classes: &[ClassEvents], scenes: &[Scene]) -> EventsReport {
+fn report<B: EventBoxes + ?Sized>(
+    outputs: Vec<PathBuf>,
+    classes: &[ClassEvents],
+    scenes: &B,
+) -> EventsReport {
     let mut worst = Vec::new();
     for kind in [Kind::Switch, Kind::Fragmentation] {
         let start = worst.len();
         for ce in classes {
             for e in ce.events.iter().filter(|e| e.event.kind() == kind) {
-                let frames = &scenes[e.scene].frames;
-                let stamp = frames[e.frame].0;
-                let time_s = (stamp - frames[0].0) as f64 / 1e9;
+                let stamp = scenes.stamp(e.scene, e.frame);
+                let time_s = (stamp - scenes.stamp(e.scene, 0)) as f64 / 1e9;
                 worst.push(Moment {
-                    log: scenes[e.scene].name.clone(),
+                    log: scenes.name(e.scene).to_string(),
                     time_s,
                     stamp_ns: stamp,
                     class: ce.class.clone(),

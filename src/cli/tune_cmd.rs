@@ -217,21 +217,16 @@ pub fn run(a: TuneArgs) -> Result<ExitCode> {
     pool.install(|| run_in_pool(&a, &base))
 }
 
-fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
-    let logs = a
-        .inputs
-        .par_iter()
-        .map(|p| TuneLog::load(p, &a.truth_topic, &a.detections_topic))
-        .collect::<Result<Vec<_>>>()?;
-    let scoring = Scoring {
-        protocol: match a.protocol {
-            ProtocolArg::Kitti => Protocol::Kitti,
-            ProtocolArg::Nuscenes => Protocol::Nuscenes,
+/// The tune's options from the flags (`keep_base` empty: the final tune sets it).
+fn options(a: &TuneArgs) -> TuneOptions {
+    TuneOptions {
+        scoring: Scoring {
+            protocol: match a.protocol {
+                ProtocolArg::Kitti => Protocol::Kitti,
+                ProtocolArg::Nuscenes => Protocol::Nuscenes,
+            },
+            iou: a.iou,
         },
-        iou: a.iou,
-    };
-    let o = TuneOptions {
-        scoring,
         limits: SearchLimits {
             budget: a.budget,
             rounds: a.rounds,
@@ -244,7 +239,30 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         classes: a.classes.iter().map(|c| c.to_lowercase()).collect(),
         search: a.search.clone(),
         keep_base: Vec::new(),
-    };
+    }
+}
+
+/// Writes the final config to -o and, with --fold-configs, each fold's config.
+fn write_configs(a: &TuneArgs, cfg: &TrackerConfig, cv: Option<&CvReport>) -> Result<()> {
+    write_file_atomic(&a.output, format!("{}\n", cfg.to_json()).as_bytes())?;
+    if let (Some(dir), Some(cv)) = (&a.fold_configs, cv) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+        for (i, c) in cv.fold_configs.iter().enumerate() {
+            let p = dir.join(format!("fold_{}.json", i + 1));
+            write_file_atomic(&p, format!("{}\n", c.to_json()).as_bytes())?;
+        }
+    }
+    Ok(())
+}
+
+fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
+    let logs = a
+        .inputs
+        .par_iter()
+        .map(|p| TuneLog::load(p, &a.truth_topic, &a.detections_topic))
+        .collect::<Result<Vec<_>>>()?;
+    let o = options(a);
+    let scoring = o.scoring;
     let all: Vec<&TuneLog> = logs.iter().collect();
     let n_classes = tune::classes(&all, &o).len();
     if n_classes == 0 {
@@ -294,14 +312,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         scoring.metric(),
         a.budget
     );
-    write_file_atomic(&a.output, format!("{}\n", cfg.to_json()).as_bytes())?;
-    if let (Some(dir), Some(cv)) = (&a.fold_configs, &cv) {
-        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-        for (i, c) in cv.fold_configs.iter().enumerate() {
-            let p = dir.join(format!("fold_{}.json", i + 1));
-            write_file_atomic(&p, format!("{}\n", c.to_json()).as_bytes())?;
-        }
-    }
+    write_configs(a, &cfg, cv.as_ref())?;
     report(a, &final_options, cv.as_ref(), &t)?;
     for l in cv.iter().flat_map(|cv| cv.losses(o.limits.margin)) {
         eprintln!(

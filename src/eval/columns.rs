@@ -25,6 +25,9 @@ pub struct Side {
     pub xy: Vec<[f64; 2]>,
     /// Score (tracks) or what the truth message says (1).
     pub score: Vec<f64>,
+    /// Height of the centre, length, width, height and yaw, for `eval --events` (empty unless
+    /// loaded with `geometry`).
+    pub geometry: Vec<[f64; 5]>,
 }
 
 impl Side {
@@ -43,11 +46,15 @@ impl Side {
         self.id.is_empty()
     }
 
-    fn push(&mut self, b: &LabelledBox, label: u16) {
+    fn push(&mut self, b: &LabelledBox, label: u16, geometry: bool) {
         self.id.push(b.id);
         self.label.push(label);
         self.xy.push([b.center[0], b.center[1]]);
         self.score.push(b.score);
+        if geometry {
+            let [l, w, h] = b.size;
+            self.geometry.push([b.center[2], l, w, h, b.yaw]);
+        }
     }
 
     /// The boxes at `rows`, in that order (offsets left empty).
@@ -58,6 +65,9 @@ impl Side {
             out.label.push(self.label[i]);
             out.xy.push(self.xy[i]);
             out.score.push(self.score[i]);
+            if let Some(g) = self.geometry.get(i) {
+                out.geometry.push(*g);
+            }
         }
         out
     }
@@ -87,7 +97,19 @@ impl ColumnScene {
 
     /// The columns of a [`Scene`] (the same frames and boxes, in the same order).
     pub fn from_scene(scene: &Scene) -> ColumnScene {
-        let mut b = Builder::default();
+        Self::of_scene(scene, false)
+    }
+
+    /// [`ColumnScene::from_scene`] with the boxes' geometry ([`Side::geometry`]).
+    pub fn from_scene_with_geometry(scene: &Scene) -> ColumnScene {
+        Self::of_scene(scene, true)
+    }
+
+    fn of_scene(scene: &Scene, geometry: bool) -> ColumnScene {
+        let mut b = Builder {
+            geometry,
+            ..Builder::default()
+        };
         for (stamp, truth, tracks) in &scene.frames {
             b.push(0, *stamp, truth);
             b.push(1, *stamp, tracks);
@@ -150,6 +172,8 @@ type Topic<'a> = (&'a Path, &'a str);
 struct Builder {
     labels: Vec<String>,
     sides: [Stream; 2],
+    /// Whether to keep the boxes' geometry ([`Side::geometry`]).
+    geometry: bool,
 }
 
 impl Builder {
@@ -169,7 +193,7 @@ impl Builder {
         self.sides[s].messages.push((stamp, start));
         for b in boxes {
             let l = self.label(&b.label);
-            self.sides[s].cols.push(b, l);
+            self.sides[s].cols.push(b, l, self.geometry);
         }
     }
 
@@ -219,13 +243,18 @@ pub type MessageFilter<'a> = dyn FnMut(u64, &mut Vec<LabelledBox>, bool) -> Resu
 /// are in the same file), each message filtered by `filter`, checked as
 /// [`super::scene::load_scene`] checks (truth boxes need ids, tracks must share time with the
 /// truth). `progress` is told the bytes read (a shared file counts twice, as two reads would).
+/// With `geometry` the boxes' geometry is kept too ([`Side::geometry`], for `eval --events`).
 pub fn load_columns(
     (truth, truth_topic): (&Path, &str),
     (tracks, tracks_topic): (&Path, &str),
     progress: &dyn Fn(u64),
     filter: &mut MessageFilter<'_>,
+    geometry: bool,
 ) -> Result<ColumnScene> {
-    let mut b = Builder::default();
+    let mut b = Builder {
+        geometry,
+        ..Builder::default()
+    };
     let request = |topic: &str| TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,

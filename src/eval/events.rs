@@ -14,11 +14,8 @@ use std::collections::HashMap;
 use serde::Serialize;
 
 use super::mot_accumulator::EventKind;
-use super::scene::Scene;
-use crate::mcapio::LabelledBox;
 use crate::msgs::eval_event::Kind;
 use crate::msgs::{size3, v3, EvalEvent};
-use crate::pipeline::kitti_io::truth_track_id;
 
 /// What the evaluation decided about one box.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -225,36 +222,53 @@ pub struct ClassEvents {
     pub events: Vec<Located>,
 }
 
-/// Looks up the boxes of events in their scene.
-struct Boxes<'a> {
-    scenes: &'a [Scene],
+/// The geometry and id of one box.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoxAt {
+    /// The box's id as its message has it.
+    pub id: u64,
+    /// Centre, metres.
+    pub center: [f64; 3],
+    /// Length, width, height, metres.
+    pub size: [f64; 3],
+    /// Heading, radians.
+    pub yaw: f64,
+}
+
+/// The evaluated logs as the events read them: names, frame stamps and box lookups
+/// (implemented for whole scenes and for columns in [`super::event_boxes`]).
+pub trait EventBoxes {
+    /// Name of log `scene` (for the report).
+    fn name(&self, scene: usize) -> &str;
+    /// Stamp of frame `frame` of log `scene`, ns.
+    fn stamp(&self, scene: usize, frame: usize) -> u64;
+    /// Number of logs.
+    fn len(&self) -> usize;
+    /// Whether there is no log.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// The truth box the protocol knows as `id` of `class` at `(scene, frame)` (KITTI: its
+    /// KITTI track id, any class but DontCare).
+    fn truth(&self, at: (usize, usize), id: u64, class: &str, p: Protocol) -> Option<BoxAt>;
+    /// The track `id` at `(scene, frame)` (nuScenes: of `class`).
+    fn track(&self, at: (usize, usize), id: u64, class: &str, p: Protocol) -> Option<BoxAt>;
+}
+
+/// Looks up the boxes of events in their logs.
+struct Boxes<'a, B: EventBoxes + ?Sized> {
+    logs: &'a B,
     class: &'a str,
     protocol: Protocol,
 }
 
-impl Boxes<'_> {
-    fn truth(&self, scene: usize, frame: usize, id: u64) -> Option<&LabelledBox> {
-        let boxes = &self.scenes.get(scene)?.frames.get(frame)?.1;
-        match self.protocol {
-            Protocol::Nuscenes => boxes.iter().find(|b| b.id == id && b.label == self.class),
-            Protocol::Kitti => boxes
-                .iter()
-                .find(|b| b.label != "dontcare" && truth_track_id(b) == id as i64),
-        }
-    }
-
-    fn track(&self, scene: usize, frame: usize, id: u64) -> Option<&LabelledBox> {
-        let boxes = &self.scenes.get(scene)?.frames.get(frame)?.2;
-        boxes
-            .iter()
-            .find(|b| b.id == id && (self.protocol == Protocol::Kitti || b.label == self.class))
-    }
-
+impl<B: EventBoxes + ?Sized> Boxes<'_, B> {
     /// The event of kind `kind` at `(scene, frame)`, its geometry from the truth box (else the
     /// track box, else the recorded position).
     fn event(&self, d: &Decision, kind: Kind, previous: u64) -> Located {
-        let truth = d.truth.and_then(|id| self.truth(d.scene, d.frame, id));
-        let track = d.track.and_then(|id| self.track(d.scene, d.frame, id));
+        let (at, class, p) = ((d.scene, d.frame), self.class, self.protocol);
+        let truth = d.truth.and_then(|id| self.logs.truth(at, id, class, p));
+        let track = d.track.and_then(|id| self.logs.track(at, id, class, p));
         let (center, size, yaw) = match truth.or(track) {
             Some(b) => (b.center, b.size, b.yaw),
             None => ([d.xy[0], d.xy[1], 0.0], [1.0; 3], 0.0),
@@ -282,9 +296,14 @@ impl Boxes<'_> {
 }
 
 /// Turns one class's record into located events (sorted by scene and frame) and counts them.
-pub fn resolve(scenes: &[Scene], class: &str, log: &Collector, protocol: Protocol) -> ClassEvents {
+pub fn resolve<B: EventBoxes + ?Sized>(
+    logs: &B,
+    class: &str,
+    log: &Collector,
+    protocol: Protocol,
+) -> ClassEvents {
     let boxes = Boxes {
-        scenes,
+        logs,
         class,
         protocol,
     };
@@ -346,8 +365,8 @@ pub fn resolve(scenes: &[Scene], class: &str, log: &Collector, protocol: Protoco
 /// The devkit's fragmentations: along each object's sequence, between its first and last tracked
 /// frame, every frame where it is missed right after being tracked; the event names the track
 /// it was paired with just before.
-fn nuscenes_fragmentations(
-    boxes: &Boxes<'_>,
+fn nuscenes_fragmentations<B: EventBoxes + ?Sized>(
+    boxes: &Boxes<'_, B>,
     log: &Collector,
     order: &[(usize, u64)],
     seqs: &HashMap<(usize, u64), Vec<(usize, bool)>>,
@@ -372,8 +391,8 @@ fn nuscenes_fragmentations(
 }
 
 /// KITTI's switches and fragmentations, placed at the frame of their trajectory position.
-fn kitti_marks(
-    boxes: &Boxes<'_>,
+fn kitti_marks<B: EventBoxes + ?Sized>(
+    boxes: &Boxes<'_, B>,
     log: &Collector,
     seqs: &HashMap<(usize, u64), Vec<(usize, bool)>>,
     out: &mut ClassEvents,
@@ -406,6 +425,8 @@ fn kitti_marks(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::eval::scene::Scene;
+    use crate::mcapio::LabelledBox;
 
     fn gt(id: u64, x: f64) -> LabelledBox {
         LabelledBox {
@@ -433,7 +454,7 @@ mod tests {
         let metrics = result.classes["car"];
         assert_eq!(metrics.fn_, 5.0);
         let (_, log) = logs.iter().find(|(c, _)| c == "car").unwrap();
-        let c = resolve(&scenes, "car", log, Protocol::Nuscenes).counts;
+        let c = resolve(&scenes[..], "car", log, Protocol::Nuscenes).counts;
         assert_eq!((c.tp, c.ids, c.frag, c.fp, c.fn_), (0, 0, 0, 0, 5));
     }
 
@@ -451,7 +472,7 @@ mod tests {
         log.record_association(0, 2, EventKind::Switch, g, t(11));
         log.record_association(0, 3, EventKind::Miss, g, None);
         log.record_association(0, 4, EventKind::FalsePositive, None, t(12));
-        let r = resolve(&[scene], "car", &log, Protocol::Nuscenes);
+        let r = resolve(&[scene][..], "car", &log, Protocol::Nuscenes);
         let c = r.counts;
         assert_eq!((c.tp, c.ids, c.frag, c.fp, c.fn_), (1, 1, 1, 1, 2));
         let sw = r.events.iter().find(|e| e.event.kind() == Kind::Switch);

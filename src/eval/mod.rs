@@ -2,6 +2,7 @@
 //! KITTI-style 3D MOT metrics, on probmot's `Tracks3D` channels.
 
 pub mod columns;
+pub mod event_boxes;
 pub mod events;
 pub mod events_log;
 pub mod filters;
