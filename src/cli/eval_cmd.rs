@@ -248,13 +248,10 @@ impl<'a> LogFilters<'a> {
     }
 }
 
-/// Loads every log (in parallel); `kitti` allows ground-truth boxes without id (DontCare).
+/// Loads every log whole (in parallel), for the KITTI protocol: ground-truth boxes without id
+/// (DontCare) are allowed.
 /// Applies the filters that are on ([`LogFilters`]) and returns how many boxes each removed.
-fn load_logs(
-    a: &EvalArgs,
-    pairs: &[(PathBuf, PathBuf)],
-    kitti: bool,
-) -> Result<(Vec<Scene>, FilterCounts)> {
+fn load_logs(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> Result<(Vec<Scene>, FilterCounts)> {
     let bar = reading_bar(a, pairs);
     let loaded: Vec<(Scene, FilterCounts)> = pairs
         .par_iter()
@@ -262,7 +259,7 @@ fn load_logs(
             let mut scene = load_scene_progress(
                 (truth, &a.truth_topic),
                 (tracks, &a.tracks_topic),
-                kitti,
+                true,
                 &|n| bar.inc(n),
             )?;
             let counts = LogFilters::new(a, truth)?.apply(&mut scene)?;
@@ -357,14 +354,14 @@ fn scoring_spinner(a: &EvalArgs, what: &str) -> ProgressBar {
 /// `(truth, tracks)` file pairs, one per log.
 type LogPairs = Vec<(PathBuf, PathBuf)>;
 
-/// The `--baseline` logs, paired with the truth like `--tracks`, loaded as [`load_logs`] does;
-/// no pairs and `None` without `--baseline`.
-fn load_baseline(a: &EvalArgs, kitti: bool) -> Result<(LogPairs, Option<Vec<Scene>>)> {
+/// The `--baseline` logs of the KITTI protocol, paired with the truth like `--tracks`, loaded as
+/// [`load_logs`] does; no pairs and `None` without `--baseline`.
+fn load_baseline(a: &EvalArgs) -> Result<(LogPairs, Option<Vec<Scene>>)> {
     if a.baseline.is_empty() {
         return Ok((Vec::new(), None));
     }
     let pairs = log_pairs(&a.truth, &a.baseline)?;
-    let (scenes, _) = load_logs(a, &pairs, kitti)?;
+    let (scenes, _) = load_logs(a, &pairs)?;
     Ok((pairs, Some(scenes)))
 }
 
@@ -677,7 +674,7 @@ fn kitti_params(a: &EvalArgs) -> Result<KittiParams> {
 fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let params = kitti_params(&a)?;
     let pairs = log_pairs(&a.truth, &a.tracks)?;
-    let (scenes, _) = load_logs(&a, &pairs, true)?;
+    let (scenes, _) = load_logs(&a, &pairs)?;
     let spinner = scoring_spinner(&a, "KITTI metrics");
     let (result, decisions) = kitti::evaluate_recording(&scenes, &params, a.events.is_some());
     spinner.finish_and_clear();
@@ -698,7 +695,7 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;
-    let (base_pairs, base_scenes) = load_baseline(&a, true)?;
+    let (base_pairs, base_scenes) = load_baseline(&a)?;
     let baseline = base_scenes.map(|scenes| kitti::evaluate(&scenes, &params));
 
     // The gate, on sAMOTA.
