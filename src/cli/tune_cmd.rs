@@ -11,7 +11,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::tracker::TrackerConfig;
 use probmot::tune::{
-    self, cross_validate, overall, CvReport, Protocol, Scoring, SearchLimits, TuneLog, TuneOptions,
+    self, cross_validate, overall, CvReport, HeldOutLoss, Protocol, Scoring, SearchLimits, TuneLog,
+    TuneOptions,
 };
 use rayon::prelude::*;
 
@@ -290,13 +291,10 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         None
     };
     pb.set_message("tuning on all logs");
+    let losses = cv.as_ref().map(|cv| cv.losses(o.limits.margin));
     let mut final_options = o.clone();
     if a.keep_base_on_loss {
-        final_options.keep_base = cv
-            .iter()
-            .flat_map(|cv| cv.losses(o.limits.margin))
-            .map(|l| l.label)
-            .collect();
+        final_options.keep_base = losses.iter().flatten().map(|l| l.label.clone()).collect();
     }
     let t = tune::tune(base, &all, &final_options, &pb)?;
     pb.finish_and_clear();
@@ -313,8 +311,8 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         a.budget
     );
     write_configs(a, &cfg, cv.as_ref())?;
-    report(a, &final_options, cv.as_ref(), &t)?;
-    for l in cv.iter().flat_map(|cv| cv.losses(o.limits.margin)) {
+    report(a, &final_options, (cv.as_ref(), losses.as_deref()), &t)?;
+    for l in losses.iter().flatten() {
         eprintln!(
             "warning: {} on fold {}: the settings tuned on its {} training trajectories scored {} \
              held-out against the base's {}; too few to tune it? (--min-tracks above {}, or \
@@ -330,14 +328,20 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Prints the cross-validation table and the final tune's per-class summary (or all as JSON).
-fn report(a: &TuneArgs, o: &TuneOptions, cv: Option<&CvReport>, t: &tune::Tuned) -> Result<()> {
+/// Prints the cross-validation table and the final tune's per-class summary, or all as JSON
+/// (the held-out losses included).
+fn report(
+    a: &TuneArgs,
+    o: &TuneOptions,
+    (cv, losses): (Option<&CvReport>, Option<&[HeldOutLoss]>),
+    t: &tune::Tuned,
+) -> Result<()> {
     if a.json {
         let v = serde_json::json!({
             "output": a.output.display().to_string(),
             "options": o,
             "cross_validation": cv,
-            "held_out_losses": cv.map(|cv| cv.losses(o.limits.margin)),
+            "held_out_losses": losses,
             "final": { "shared": t.shared, "classes": t.classes, "scored": t.scored },
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
