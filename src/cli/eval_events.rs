@@ -125,7 +125,7 @@ pub fn write<B: EventBoxes + ?Sized>(
     // The report first, so that the events can then move to their logs (a long log has
     // millions of them; no second copy).
     let summary = report(dests.clone(), &classes, scenes);
-    let mut per_log: Vec<LogEvents> = vec![LogEvents::new(); scenes.len()];
+    let mut per_log: Vec<LogEvents> = vec![LogEvents::new(); scenes.logs()];
     for ce in classes {
         for e in ce.events {
             let stamp = scenes.stamp(e.scene, e.frame);

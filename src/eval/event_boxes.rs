@@ -26,8 +26,8 @@ impl EventBoxes for [Scene] {
         self[scene].frames[frame].0
     }
 
-    fn len(&self) -> usize {
-        <[Scene]>::len(self)
+    fn logs(&self) -> usize {
+        self.len()
     }
 
     fn truth(&self, (s, f): (usize, usize), id: u64, class: &str, p: Protocol) -> Option<BoxAt> {
@@ -61,8 +61,8 @@ impl EventBoxes for [ColumnScene] {
         self[scene].stamps[frame]
     }
 
-    fn len(&self) -> usize {
-        <[ColumnScene]>::len(self)
+    fn logs(&self) -> usize {
+        self.len()
     }
 
     fn truth(&self, (s, f): (usize, usize), id: u64, class: &str, _: Protocol) -> Option<BoxAt> {
@@ -127,7 +127,7 @@ mod tests {
         let columns = [ColumnScene::from_scene_with_geometry(&scenes[0])];
         let (s, c) = (&scenes[..], &columns[..]);
         let p = Protocol::Nuscenes;
-        assert_eq!((c.len(), c.name(0), c.stamp(0, 1)), (1, "log.mcap", 20));
+        assert_eq!((c.logs(), c.name(0), c.stamp(0, 1)), (1, "log.mcap", 20));
         for f in 0..3 {
             for id in [1, 7, 8, 9] {
                 for class in ["car", "bus", "pedestrian", "truck"] {

@@ -243,11 +243,7 @@ pub trait EventBoxes {
     /// Stamp of frame `frame` of log `scene`, ns.
     fn stamp(&self, scene: usize, frame: usize) -> u64;
     /// Number of logs.
-    fn len(&self) -> usize;
-    /// Whether there is no log.
-    fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
+    fn logs(&self) -> usize;
     /// The truth box the protocol knows as `id` of `class` at `(scene, frame)` (KITTI: its
     /// KITTI track id, any class but DontCare).
     fn truth(&self, at: (usize, usize), id: u64, class: &str, p: Protocol) -> Option<BoxAt>;
