@@ -9,6 +9,7 @@ use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
 use probmot::pipeline::overrides::{base_config, Overrides};
 use probmot::tracker::ctrv::Motion;
+use probmot::tracker::levers::Coast;
 use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Print a built-in preset as JSON, or load, validate and print a config file.
@@ -18,6 +19,7 @@ use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 ///   probmot config --config my.json                      # validate the edited file, print it
 ///   probmot config --preset ab3dmot-kitti                # AB3DMOT's own KITTI settings
 ///   probmot config --preset ab3dmot-kitti --motion ctrv --nms-iou 0.1   # with two levers on
+///   probmot config --preset ab3dmot-kitti --coast gaps --backfill        # offline reporting
 ///   probmot config --list
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -150,6 +152,26 @@ pub struct TrackerArgs {
     /// Example: --birth-score 0.5
     #[arg(long, value_name = "SCORE", help_heading = "Levers")]
     pub birth_score: Option<f64>,
+    /// Which coasted frames (predictions without a detection) every class reports: all (the
+    /// paper, up to max_age), gaps (only those a later match bridges) or none. Offline: the
+    /// output waits a few frames to know. Example: --coast gaps
+    #[arg(long, value_enum, help_heading = "Levers")]
+    pub coast: Option<CoastArg>,
+    /// Offline: once a track reaches min_hits, also report its earlier frames (every class),
+    /// so tracks start at their first detection. Example: --backfill
+    #[arg(long, help_heading = "Levers")]
+    pub backfill: bool,
+}
+
+/// Coasted-frame reporting on the command line.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum CoastArg {
+    /// Every coasted frame up to max_age (the paper).
+    All,
+    /// Only coasted frames followed by a match of the same track.
+    Gaps,
+    /// Only frames with a matched detection.
+    None,
 }
 
 /// Motion models on the command line.
@@ -196,6 +218,12 @@ impl TrackerArgs {
             }),
             nms_iou: self.nms_iou,
             birth_score: self.birth_score,
+            coast: self.coast.map(|c| match c {
+                CoastArg::All => Coast::All,
+                CoastArg::Gaps => Coast::Gaps,
+                CoastArg::None => Coast::None,
+            }),
+            backfill: self.backfill,
         }
     }
 }

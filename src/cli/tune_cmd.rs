@@ -75,9 +75,9 @@ pub struct TuneArgs {
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     classes: Vec<String>,
     /// Search only these options, comma-separated (default: all): noise, gate, matcher,
-    /// min_hits, max_age, angular_velocity, motion, q_factor, r_factor, nms_iou, score, blend,
-    /// score_floor, birth_score, boost, decay, keep_score. One option gives its ablation
-    /// (scripts/kitti_levers.sh). Example: --search nms_iou
+    /// min_hits, max_age, coast, backfill, angular_velocity, motion, q_factor, r_factor,
+    /// nms_iou, score, blend, score_floor, birth_score, boost, decay, keep_score. One option
+    /// gives its ablation (scripts/kitti_levers.sh). Example: --search nms_iou
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     search: Vec<String>,
     /// Largest number of configurations evaluated per class in one search.

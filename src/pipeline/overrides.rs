@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 
 use crate::tracker::config::ab3dmot_covariances;
 use crate::tracker::ctrv::Motion;
+use crate::tracker::levers::Coast;
 use crate::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Overrides applied to every class of a configuration; `None`/`false` leaves a setting as it
@@ -41,6 +42,10 @@ pub struct Overrides {
     pub nms_iou: Option<f64>,
     /// Two-stage birth score of every class (`levers.birth_score`), on the detector's scale.
     pub birth_score: Option<f64>,
+    /// Coasted frames every class reports (`levers.coast`).
+    pub coast: Option<Coast>,
+    /// Every class reports a confirmed track from its birth (`levers.backfill`).
+    pub backfill: bool,
 }
 
 impl Overrides {
@@ -96,6 +101,10 @@ impl Overrides {
             if let Some(v) = self.birth_score {
                 c.levers.birth_score = Some(v);
             }
+            if let Some(v) = self.coast {
+                c.levers.coast = v;
+            }
+            c.levers.backfill |= self.backfill;
         });
         cfg.validate()?;
         Ok(())
@@ -215,6 +224,8 @@ mod tests {
             motion: Some(Motion::Ctrv),
             nms_iou: Some(0.1),
             birth_score: Some(0.5),
+            coast: Some(Coast::Gaps),
+            backfill: true,
             ..Default::default()
         };
         o.apply(&mut cfg).unwrap();
@@ -223,6 +234,8 @@ mod tests {
             assert!(c.angular_velocity);
             assert_eq!(c.levers.nms_iou, Some(0.1));
             assert_eq!(c.levers.birth_score, Some(0.5));
+            assert_eq!(c.levers.coast, Coast::Gaps);
+            assert!(c.levers.backfill);
         }
         let clash = Overrides {
             motion: Some(Motion::Ctrv),

@@ -4,7 +4,7 @@
 //! frame as soon as the [`Schedule`] says it is complete, and writes the tracks (and the extra
 //! channels of [`ExtraOutputs`]). [`super::track::track_file`] is the file adapter around it.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, VecDeque};
 
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
@@ -22,7 +22,7 @@ use crate::msgs::detection_frame::DetectionFrame;
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::track_encode::fill_track3d;
 use crate::msgs::{ImageBox, Track3D, Tracks3D};
-use crate::tracker::{Detection, Tracker};
+use crate::tracker::{Detection, Lookback, TrackReport, Tracker};
 
 /// The error of a detection message that does not decode.
 pub(super) fn undecodable(
@@ -116,6 +116,8 @@ pub struct TrackSession<'a, S: RecordSink> {
     pub(super) pending: BTreeMap<u64, Vec<Pending>>,
     pub(super) next_frame: usize,
     pub(super) frame_state: FrameState,
+    /// Per frame tracked and not yet written, the latest log time of its detection messages.
+    pub(super) frame_latest: VecDeque<u64>,
     /// Holds input messages until the tracks before them (in log time) are written.
     pub(super) order: LogTimeOrder,
     pub(super) summary: TrackSummary,
@@ -236,20 +238,24 @@ impl<S: RecordSink> TrackSession<'_, S> {
                 }
             }
         }
+        // The offline options' undecided reports are not shown: every held frame is written.
+        if let Some(held) = &mut self.frame_state.held {
+            held.lookback.finish();
+            self.write_held()?;
+        }
         self.order.release(&mut self.out)?;
         debug_assert!(self.order.is_empty(), "every held message is written");
         Ok(())
     }
 
-    /// Tracks the complete frame at `stamp` and writes its outputs.
+    /// Tracks the complete frame at `stamp` and writes its outputs (with the offline options,
+    /// those of the earlier frames that are now decided).
     fn track_frame(&mut self, stamp: u64, frames: Option<usize>) -> Result<()> {
         let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
         msgs_of_frame.sort_by_key(|p| p.ordinal);
-        let (_, channel_id) = self.ids.expect("ids exist with detections");
         let latest = msgs_of_frame.iter().map(|p| p.log_time).max();
-        let log_time = self
-            .order
-            .tracks_time(&mut self.out, latest.expect("a frame has a message"))?;
+        self.frame_latest
+            .push_back(latest.expect("a frame has a message"));
         self.frame_state.run(
             stamp,
             &mut msgs_of_frame,
@@ -259,27 +265,12 @@ impl<S: RecordSink> TrackSession<'_, S> {
             self.file,
             &self.topics,
         )?;
-        self.format
-            .encode_into(&self.frame_state.out, &mut self.frame_state.buf);
-        let sequence = self.next_frame as u32;
-        self.out.write_to_known_channel(
-            &MessageHeader {
-                channel_id,
-                sequence,
-                log_time,
-                publish_time: log_time,
-            },
-            &self.frame_state.buf,
-        )?;
-        self.extra.write_frame(
-            &mut self.out,
-            &self.frame_state.out,
-            self.ego.take_ego(stamp),
-            sequence,
-            log_time,
-        )?;
+        if self.frame_state.held.is_none() {
+            self.write_tracks()?;
+        } else {
+            self.write_held()?;
+        }
         self.frame_state.finish(self.tracker.deleted());
-        self.summary.tracks_messages += 1;
         self.next_frame += 1;
         if self.next_frame.is_multiple_of(64) {
             let text = match frames {
@@ -288,6 +279,39 @@ impl<S: RecordSink> TrackSession<'_, S> {
             };
             (self.progress)(Progress::Message(&text));
         }
+        Ok(())
+    }
+
+    /// Writes the frames the offline options have decided.
+    fn write_held(&mut self) -> Result<()> {
+        while self.frame_state.next_held(&self.tracker).is_some() {
+            self.write_tracks()?;
+        }
+        Ok(())
+    }
+
+    /// Writes the tracks in `frame_state.out` (the oldest frame not yet written) and the extra
+    /// channels, at the log time of that frame.
+    fn write_tracks(&mut self) -> Result<()> {
+        let (_, channel_id) = self.ids.expect("ids exist with detections");
+        let latest = self.frame_latest.pop_front().expect("a frame to write");
+        let log_time = self.order.tracks_time(&mut self.out, latest)?;
+        let state = &mut self.frame_state;
+        self.format.encode_into(&state.out, &mut state.buf);
+        let sequence = self.summary.tracks_messages as u32;
+        self.out.write_to_known_channel(
+            &MessageHeader {
+                channel_id,
+                sequence,
+                log_time,
+                publish_time: log_time,
+            },
+            &state.buf,
+        )?;
+        let ego = self.ego.take_ego(state.out.stamp);
+        self.extra
+            .write_frame(&mut self.out, &state.out, ego, sequence, log_time)?;
+        self.summary.tracks_messages += 1;
         Ok(())
     }
 
@@ -345,6 +369,46 @@ struct Extra {
     attributes: BTreeMap<String, String>,
 }
 
+/// The side-table entry of report `r`'s track after this frame: a match moves its detection's
+/// image box and attributes in (or clears the entry when the detection has none).
+fn take_extra<'a>(
+    last_extra: &'a mut HashMap<u64, Extra>,
+    src: &[(u32, u32)],
+    frame: &mut [Pending],
+    r: &TrackReport,
+) -> Option<&'a mut Extra> {
+    if let Some(i) = r.detection {
+        let (mi, di) = src[i as usize];
+        let d = &mut frame[mi as usize].msg.boxes[di as usize];
+        if d.image_box.is_some() || !d.attributes.is_empty() {
+            let e = last_extra.entry(r.id).or_default();
+            e.image_box = d.image_box;
+            std::mem::swap(&mut e.attributes, &mut d.attributes);
+        } else {
+            last_extra.remove(&r.id);
+        }
+    }
+    last_extra.get_mut(&r.id)
+}
+
+/// A report held by the offline options, with the extras its track had in its frame.
+#[derive(Default)]
+struct HeldTrack {
+    report: TrackReport,
+    image_box: Option<ImageBox>,
+    attributes: BTreeMap<String, String>,
+}
+
+/// The frames held while the offline options (`backfill`, `coast: gaps`) decide their reports,
+/// with each frame's frame id. The attributes of a held report are a copy (the only allocation
+/// per report, and only for detections that carry attributes).
+#[derive(Default)]
+pub(super) struct HeldFrames {
+    lookback: Lookback<HeldTrack>,
+    frame_ids: VecDeque<String>,
+    shown: Vec<HeldTrack>,
+}
+
 /// Per-frame buffers reused across frames, and the attributes of each track's last matched
 /// detection. Nothing is allocated per detection in steady state: the output message's tracks
 /// are overwritten in place, and a track's attributes are moved (not copied) from its detection
@@ -357,9 +421,22 @@ pub(super) struct FrameState {
     last_extra: HashMap<u64, Extra>,
     out: Tracks3D,
     buf: Vec<u8>,
+    /// Present when a class reports offline (see [`crate::tracker::lookback`]).
+    held: Option<HeldFrames>,
 }
 
 impl FrameState {
+    /// The buffers for a run with `config`: frames are held when a class reports offline.
+    pub(super) fn new(config: &crate::tracker::TrackerConfig) -> FrameState {
+        let mut classes = config.classes.values().chain(config.default.iter());
+        FrameState {
+            held: classes
+                .any(|c| c.levers.holds_frames())
+                .then(HeldFrames::default),
+            ..FrameState::default()
+        }
+    }
+
     /// Tracks one frame and fills `self.out`. Call [`FrameState::finish`] after encoding it.
     #[allow(clippy::too_many_arguments)]
     fn run(
@@ -404,21 +481,31 @@ impl FrameState {
         if let Some(p) = frame.first() {
             self.out.frame_id.push_str(&p.msg.frame_id);
         }
+        if let Some(held) = &mut self.held {
+            // Offline options: the reports wait in the lookback with a copy of their extras.
+            let mut fill = |v: &mut HeldTrack, r: &TrackReport| {
+                v.report = *r;
+                match take_extra(&mut self.last_extra, &self.src, frame, r) {
+                    Some(e) => {
+                        v.image_box = e.image_box;
+                        v.attributes.clone_from(&e.attributes);
+                    }
+                    None => {
+                        v.image_box = None;
+                        v.attributes.clear();
+                    }
+                }
+            };
+            held.lookback.push(stamp, reports, &mut fill);
+            held.frame_ids
+                .push_back(std::mem::take(&mut self.out.frame_id));
+            return Ok(());
+        }
         self.out.tracks.resize_with(reports.len(), Track3D::default);
         for (t, r) in self.out.tracks.iter_mut().zip(reports) {
-            if let Some(i) = r.detection {
-                let (mi, di) = self.src[i as usize];
-                let d = &mut frame[mi as usize].msg.boxes[di as usize];
-                if d.image_box.is_some() || !d.attributes.is_empty() {
-                    let e = self.last_extra.entry(r.id).or_default();
-                    e.image_box = d.image_box;
-                    std::mem::swap(&mut e.attributes, &mut d.attributes);
-                } else {
-                    self.last_extra.remove(&r.id);
-                }
-            }
+            let extra = take_extra(&mut self.last_extra, &self.src, frame, r);
             fill_track3d(t, r, tracker.label(r.class));
-            match self.last_extra.get_mut(&r.id) {
+            match extra {
                 Some(e) => {
                     t.image_box = e.image_box;
                     std::mem::swap(&mut t.attributes, &mut e.attributes);
@@ -432,10 +519,34 @@ impl FrameState {
         Ok(())
     }
 
+    /// With the offline options: the next frame whose reports are all decided, in
+    /// `self.out` (its tracks own their attributes; [`FrameState::finish`] is not needed).
+    fn next_held(&mut self, tracker: &Tracker) -> Option<u64> {
+        let held = self.held.as_mut()?;
+        let stamp = held.lookback.pop_into(&mut held.shown)?;
+        self.out.stamp = stamp;
+        self.out.frame_id = held
+            .frame_ids
+            .pop_front()
+            .expect("a frame id per held frame");
+        self.out
+            .tracks
+            .resize_with(held.shown.len(), Track3D::default);
+        for (t, v) in self.out.tracks.iter_mut().zip(&mut held.shown) {
+            fill_track3d(t, &v.report, tracker.label(v.report.class));
+            t.image_box = v.image_box;
+            std::mem::swap(&mut t.attributes, &mut v.attributes);
+        }
+        Some(stamp)
+    }
+
     /// Gives the attributes lent to the encoded message back to the side table and forgets the
     /// tracks deleted in this frame.
     fn finish(&mut self, deleted: &[u64]) {
         for t in &mut self.out.tracks {
+            if self.held.is_some() {
+                break;
+            }
             if let Some(e) = self.last_extra.get_mut(&t.id) {
                 std::mem::swap(&mut t.attributes, &mut e.attributes);
             }
@@ -528,7 +639,8 @@ mod tests {
             last_stamp: HashMap::new(),
             pending: BTreeMap::new(),
             next_frame: 0,
-            frame_state: FrameState::default(),
+            frame_state: FrameState::new(&opts.config),
+            frame_latest: Default::default(),
             order: LogTimeOrder::default(),
             summary: TrackSummary::default(),
             progress: &no_progress,

@@ -9,7 +9,7 @@ use super::config::BoxOrigin;
 pub type ClassId = u32;
 
 /// An oriented 3D box: centre, heading about +z and size. Units: metres and radians.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Box3 {
     /// Centre `[x, y, z]` of the box.
     pub center: [f64; 3],

@@ -1,6 +1,7 @@
 //! Per-class options beyond the paper: track confidence, two-stage association, non-maximum
-//! suppression of duplicate detections and a life cycle by confidence. All are off by default,
-//! so a config without them runs the method of Chiu et al. (2019) exactly.
+//! suppression of duplicate detections, a life cycle by confidence, and which frames of a track
+//! are reported (offline: from its first detection, coasted frames only inside gaps). All are
+//! off by default, so a config without them runs the method of Chiu et al. (2019) exactly.
 //!
 //! Sources of the ideas (own implementation): CBMOT (Benbarka et al. 2021) for score refinement,
 //! SimpleTrack (Pang et al. 2021) and ByteTrack (Zhang et al. 2022) for two-stage association and
@@ -23,6 +24,28 @@ pub enum ScoreMode {
     Mean,
     /// The refined score (see [`Levers::blend`], [`Levers::boost`], [`Levers::decay`]).
     Refined,
+}
+
+/// Which coasted frames (predictions without a matched detection) of a shown track are reported.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Coast {
+    /// Every coasted frame while the track lives (`max_age`), as the paper does.
+    #[default]
+    All,
+    /// Only the coasted frames of a gap the track bridges, i.e. followed by a match: the
+    /// predictions after a track's last match are not reported. Known only later, so the
+    /// frames are held (see [`super::lookback`]).
+    Gaps,
+    /// None: only the frames with a matched detection.
+    None,
+}
+
+impl Coast {
+    /// True for the paper's behaviour (not serialized, so older configs keep their bytes).
+    pub fn is_all(&self) -> bool {
+        *self == Coast::All
+    }
 }
 
 /// The options beyond the paper of one class. Every field's default is "off".
@@ -53,6 +76,14 @@ pub struct Levers {
     /// before the option existed keep their bytes.
     #[serde(skip_serializing_if = "Motion::is_cv")]
     pub motion: Motion,
+    /// Which coasted frames are reported (offline option; `all` is the paper).
+    #[serde(skip_serializing_if = "Coast::is_all")]
+    pub coast: Coast,
+    /// Offline: once a track reaches `min_hits`, its earlier frames (from its birth) are
+    /// reported too, so a track is not missing its first detections. Known only later, so the
+    /// frames are held (see [`super::lookback`]).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub backfill: bool,
 }
 
 impl Default for Levers {
@@ -66,6 +97,8 @@ impl Default for Levers {
             nms_iou: None,
             keep_score: None,
             motion: Motion::Cv,
+            coast: Coast::All,
+            backfill: false,
         }
     }
 }
@@ -74,6 +107,12 @@ impl Levers {
     /// True when every option is off (the paper's method); such levers are not serialized.
     pub fn is_off(&self) -> bool {
         *self == Levers::default()
+    }
+
+    /// True when the class's reports may have to wait for later frames (see
+    /// [`super::lookback`]).
+    pub fn holds_frames(&self) -> bool {
+        self.backfill || self.coast == Coast::Gaps
     }
 
     /// Checks the values; see the field docs.

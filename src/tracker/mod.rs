@@ -2,7 +2,9 @@
 //! cycle and the configuration with its presets.
 //!
 //! The entry point is [`Tracker`]: create it from a [`TrackerConfig`], map labels to class ids
-//! with [`Tracker::class_id`], and call [`Tracker::step`] once per frame.
+//! with [`Tracker::class_id`], and call [`Tracker::step`] once per frame. With the offline
+//! options (`backfill`, `coast: gaps`) some reports wait for later frames: pass them through a
+//! [`Lookback`].
 
 pub mod angle;
 pub mod boxes;
@@ -13,6 +15,7 @@ pub mod error;
 pub mod geometry;
 pub mod kalman;
 pub mod levers;
+pub mod lookback;
 pub mod matching;
 pub mod nms;
 pub mod presets;
@@ -23,6 +26,7 @@ pub mod two_stage;
 
 pub use boxes::{Box3, ClassId, Detection};
 pub use config::{BoxOrigin, ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
+pub use lookback::Lookback;
 pub use presets::Preset;
-pub use track::TrackReport;
+pub use track::{ReportStatus, TrackReport};
 pub use tracker::{StepError, Tracker, TrackerStats};

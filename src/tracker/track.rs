@@ -32,8 +32,22 @@ pub struct Track {
     pub conf: Confidence,
 }
 
+/// Whether a report is shown now or waits for later frames to decide (the offline options
+/// [`super::levers::Levers::backfill`] and [`super::levers::Coast::Gaps`]; without them every
+/// report is `Final`). [`super::lookback::Lookback`] makes the decisions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ReportStatus {
+    /// Shown.
+    #[default]
+    Final,
+    /// A track that has not reached `min_hits`: shown if it reaches it later (backfill).
+    Tentative,
+    /// A coasted frame: shown if the track is matched again before it stops being reported.
+    Coasting,
+}
+
 /// What the tracker reports for one track in one frame.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct TrackReport {
     /// Track id.
     pub id: u64,
@@ -59,6 +73,8 @@ pub struct TrackReport {
     pub frames_since_update: u32,
     /// Index (into the detections passed to this step) of the detection matched this frame.
     pub detection: Option<u32>,
+    /// Shown now, or to be decided by later frames.
+    pub status: ReportStatus,
 }
 
 impl Track {
@@ -85,6 +101,7 @@ impl Track {
             hits: self.hits,
             frames_since_update: self.time_since_update,
             detection,
+            status: ReportStatus::Final,
         }
     }
 }

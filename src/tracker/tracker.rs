@@ -7,9 +7,10 @@ use super::confidence::Confidence;
 use super::config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
 use super::geometry::{giou3d, iou3d};
 use super::kalman::{mahalanobis_sq, mahalanobis_sq_xy, KalmanState, Noise};
+use super::levers::{Coast, Levers};
 use super::matching::{greedy, hungarian, Pair, NOT_A_CANDIDATE};
 use super::nms::{suppress, NmsScratch};
-use super::track::{Track, TrackReport};
+use super::track::{ReportStatus, Track, TrackReport};
 use super::two_stage::split;
 
 /// Why a frame was refused. The tracker state is unchanged when an error is returned.
@@ -415,10 +416,15 @@ fn report_and_delete(
             t.confirmed = true;
             stats.confirmed += 1;
         }
-        if t.time_since_update < max_age && (t.hits >= min_hits || frame_count <= min_hits as u64) {
+        if t.time_since_update >= max_age {
+            continue;
+        }
+        let shown = t.hits >= min_hits || frame_count <= min_hits as u64;
+        if let Some(status) = report_status(levers, shown, m.is_none()) {
             t.reported_frames += 1;
             let mut r = t.report(dt_nominal, c.cfg.origin, *m);
             r.score = t.conf.reported(t.score, levers);
+            r.status = status;
             reports.push(r);
         }
     }
@@ -433,6 +439,21 @@ fn report_and_delete(
         }
         keep
     });
+}
+
+/// How a live track within `max_age` is reported this frame: `shown` is the paper's rule
+/// (`min_hits` reached, or one of the first `min_hits` frames), `coasted` a frame without a
+/// match. `None`: not reported.
+fn report_status(levers: &Levers, shown: bool, coasted: bool) -> Option<ReportStatus> {
+    if coasted && levers.coast == Coast::None {
+        None
+    } else if !shown {
+        levers.backfill.then_some(ReportStatus::Tentative)
+    } else if coasted && levers.coast == Coast::Gaps {
+        Some(ReportStatus::Coasting)
+    } else {
+        Some(ReportStatus::Final)
+    }
 }
 
 /// One association round: detections `lo..hi` of the class against the tracks not matched by an

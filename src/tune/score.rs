@@ -10,7 +10,7 @@ use crate::eval::kitti::{self, KittiParams, RowKind, TrackRow};
 use crate::eval::nuscenes::{self, NuscenesParams};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
-use crate::tracker::{ClassConfig, Detection, TrackReport, Tracker, TrackerConfig};
+use crate::tracker::{ClassConfig, Detection, Lookback, TrackReport, Tracker, TrackerConfig};
 
 /// The benchmark protocol whose headline metric a tune maximises.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
@@ -144,8 +144,9 @@ fn kitti_params(label: &str, scoring: &Scoring) -> KittiParams {
     }
 }
 
-/// Runs the tracker over `log` as [`track_log`] describes, handing every reported track to
-/// `emit` with its frame index, class label and 2D box.
+/// Runs the tracker over `log` as [`track_log`] describes, handing every shown track to `emit`
+/// with its frame index, class label and 2D box (frames in order, each once its reports are
+/// decided: see [`Lookback`]).
 fn run_tracker(
     log: &TuneLog,
     cfg: &TrackerConfig,
@@ -156,6 +157,9 @@ fn run_tracker(
     let mut src: Vec<usize> = Vec::new();
     // Image box of each track's last matched detection, by track id.
     let mut image: Vec<Option<[f64; 4]>> = Vec::new();
+    // Frames wait here while the offline options decide their reports.
+    let mut lookback: Lookback<(TrackReport, Option<[f64; 4]>)> = Lookback::default();
+    let mut shown = Vec::new();
     for (fi, f) in log.frames.iter().enumerate() {
         if !f.has_detections {
             continue;
@@ -183,7 +187,21 @@ fn run_tracker(
             if let Some(d) = r.detection {
                 image[id] = f.detections[src[d as usize]].image_box;
             }
-            emit(fi, r, tracker.label(r.class), image[id]);
+        }
+        // The frame index stands for the stamp: the reports come out with their frame.
+        lookback.push(fi as u64, tracker.reports(), |v, r| {
+            *v = (*r, image[r.id as usize])
+        });
+        while let Some(fi) = lookback.pop_into(&mut shown) {
+            for (r, image_box) in &shown {
+                emit(fi as usize, r, tracker.label(r.class), *image_box);
+            }
+        }
+    }
+    lookback.finish();
+    while let Some(fi) = lookback.pop_into(&mut shown) {
+        for (r, image_box) in &shown {
+            emit(fi as usize, r, tracker.label(r.class), *image_box);
         }
     }
     Ok(())

@@ -1,7 +1,7 @@
 //! The per-class search space: dimensions with a handful of candidate values each. Candidate 0
 //! of every dimension keeps the base config's value, so the search starts at the base config.
 
-use crate::tracker::levers::{Motion, ScoreMode};
+use crate::tracker::levers::{Coast, Motion, ScoreMode};
 use crate::tracker::{ClassConfig, DistanceKind, MatcherKind};
 
 /// One candidate value of a dimension.
@@ -19,6 +19,10 @@ pub enum Value {
     MinHits(u32),
     /// `max_age`.
     MaxAge(u32),
+    /// Which coasted frames are reported (offline).
+    Coast(Coast),
+    /// Report a confirmed track's frames from its birth (offline).
+    Backfill(bool),
     /// Constant yaw rate in the state.
     AngularVelocity(bool),
     /// Motion model; the coordinated turn also turns the yaw rate on (it needs it).
@@ -85,12 +89,14 @@ impl ScoreStats {
 }
 
 /// Names of every search dimension, in search order (what `probmot tune --search` accepts).
-pub const DIM_NAMES: [&str; 17] = [
+pub const DIM_NAMES: [&str; 19] = [
     "noise",
     "gate",
     "matcher",
     "min_hits",
     "max_age",
+    "coast",
+    "backfill",
     "angular_velocity",
     "motion",
     "q_factor",
@@ -155,7 +161,7 @@ pub fn shared_dims() -> Vec<Dim> {
     gate.extend([-0.6, -0.4, -0.2, 0.0, 0.2].map(|t| Gate(Giou3d, t)));
     gate.extend([0.01, 0.1, 0.25].map(|t| Gate(Iou3d, t)));
     gate.extend([1.0, 2.0, 4.0].map(|t| Gate(Center, t)));
-    let d = vec![
+    let mut d = vec![
         Dim {
             name: "gate",
             values: gate,
@@ -189,6 +195,9 @@ pub fn shared_dims() -> Vec<Dim> {
                 },
             ),
         },
+    ];
+    d.extend(reporting_dims());
+    d.extend([
         Dim {
             name: "angular_velocity",
             values: vec![Keep, AngularVelocity(true), AngularVelocity(false)],
@@ -241,8 +250,29 @@ pub fn shared_dims() -> Vec<Dim> {
             name: "blend",
             values: vec![Keep, Blend(0.1), Blend(0.3), Blend(0.5), Blend(1.0)],
         },
-    ];
+    ]);
     d
+}
+
+/// Which frames a track reports (offline options, see [`crate::tracker::lookback`]).
+fn reporting_dims() -> [Dim; 2] {
+    use crate::tracker::levers::Coast;
+    use Value::{Backfill, Keep};
+    [
+        Dim {
+            name: "coast",
+            values: vec![
+                Keep,
+                Value::Coast(Coast::All),
+                Value::Coast(Coast::Gaps),
+                Value::Coast(Coast::None),
+            ],
+        },
+        Dim {
+            name: "backfill",
+            values: vec![Keep, Backfill(false), Backfill(true)],
+        },
+    ]
 }
 
 /// The dimensions placed by one class's detection scores: thresholds at quantiles, refinement
@@ -323,6 +353,8 @@ pub fn apply(cc: &mut ClassConfig, v: Value) {
         Matcher(m) => cc.matcher = m,
         MinHits(n) => cc.min_hits = n,
         MaxAge(n) => cc.max_age = n,
+        Value::Coast(c) => l.coast = c,
+        Backfill(b) => l.backfill = b,
         AngularVelocity(b) => cc.angular_velocity = b,
         Motion(m) => {
             l.motion = m;

@@ -1,8 +1,8 @@
 //! The per-class options beyond the paper, each shown to change what it should (and nothing when
 //! off), through the public tracker API.
 
-use probmot::tracker::levers::{Levers, Motion, ScoreMode};
-use probmot::tracker::{Box3, Detection, Tracker, TrackerConfig};
+use probmot::tracker::levers::{Coast, Levers, Motion, ScoreMode};
+use probmot::tracker::{Box3, Detection, Lookback, Tracker, TrackerConfig};
 use proptest::prelude::*;
 
 const DT: u64 = 100_000_000;
@@ -292,4 +292,156 @@ fn ctrv_coasts_along_a_turn() {
     let (cv, ct) = (err(Motion::Cv), err(Motion::Ctrv));
     assert!(cv > 0.02, "cv error {cv} m");
     assert!(ct < 0.5 * cv, "ctrv {ct} m vs cv {cv} m");
+}
+
+/// Runs frames through the tracker and a [`Lookback`], as `probmot track` does; per frame the
+/// `(id, x)` of every shown track.
+fn run_offline(cfg: TrackerConfig, frames: &[Vec<Detection>]) -> Vec<Vec<(u64, f64)>> {
+    let mut t = Tracker::new(cfg).unwrap();
+    let c = t.class_id("car").unwrap();
+    let mut lookback: Lookback<(u64, f64)> = Lookback::default();
+    let (mut out, mut shown) = (vec![], vec![]);
+    for (i, f) in frames.iter().enumerate() {
+        let dets: Vec<Detection> = f.iter().map(|d| Detection { class: c, ..*d }).collect();
+        let r = t.step(i as u64 * DT + 1, &dets).unwrap();
+        lookback.push(i as u64, r, |v, r| *v = (r.id, r.bbox.center[0]));
+        while let Some(frame) = lookback.pop_into(&mut shown) {
+            assert_eq!(frame as usize, out.len(), "frames come out in order");
+            out.push(shown.clone());
+        }
+    }
+    lookback.finish();
+    while let Some(frame) = lookback.pop_into(&mut shown) {
+        assert_eq!(frame as usize, out.len(), "frames come out in order");
+        out.push(shown.clone());
+    }
+    out
+}
+
+fn offline_config(levers: Levers, min_hits: u32, max_age: u32) -> TrackerConfig {
+    let mut cfg = config(levers);
+    cfg.for_each_class(|c| {
+        c.min_hits = min_hits;
+        c.max_age = max_age;
+    });
+    cfg
+}
+
+fn ids(frames: &[Vec<(u64, f64)>]) -> Vec<Vec<u64>> {
+    frames
+        .iter()
+        .map(|f| f.iter().map(|r| r.0).collect())
+        .collect()
+}
+
+#[test]
+fn backfill_shows_a_confirmed_track_from_its_first_detection() {
+    // Four empty frames (past the first min_hits frames, which show every track), a car seen
+    // in frames 4 to 7, and a second car seen only twice (frames 5 and 6: never confirmed).
+    let frames: Vec<Vec<Detection>> = (0..9)
+        .map(|i| {
+            let mut f = vec![];
+            if (4..8).contains(&i) {
+                f.push(car(0.5 * i as f64, 0.9));
+            }
+            if (5..7).contains(&i) {
+                f.push(car(40.0, 0.9));
+            }
+            f
+        })
+        .collect();
+    let paper = run_offline(offline_config(Levers::default(), 3, 1), &frames);
+    let back = Levers {
+        backfill: true,
+        ..Levers::default()
+    };
+    let backfilled = run_offline(offline_config(back, 3, 1), &frames);
+    let empty: Vec<u64> = vec![];
+    assert_eq!(
+        ids(&paper)[4..8],
+        [empty.clone(), empty.clone(), vec![1], vec![1]]
+    );
+    assert_eq!(ids(&backfilled)[4..8], [vec![1], vec![1], vec![1], vec![1]]);
+    // The backfilled frames carry the boxes the track had then.
+    assert_eq!(backfilled[4][0].1, 2.0);
+}
+
+#[test]
+fn coast_modes_report_every_prediction_only_gaps_or_none() {
+    // A car in frames 0, 1 and 3 (a one-frame gap), then gone; max_age 3 keeps it coasting
+    // through frames 4 and 5.
+    let frames: Vec<Vec<Detection>> = (0..7)
+        .map(|i| match i {
+            0 | 1 | 3 => vec![car(0.3 * i as f64, 0.9)],
+            _ => vec![],
+        })
+        .collect();
+    let run_with = |coast| {
+        let l = Levers {
+            coast,
+            ..Levers::default()
+        };
+        ids(&run_offline(offline_config(l, 1, 3), &frames))
+    };
+    let one = || vec![1u64];
+    let none: Vec<u64> = vec![];
+    let all = [one(), one(), one(), one(), one(), one(), none.clone()];
+    assert_eq!(run_with(Coast::All), all);
+    let gaps = [
+        one(),
+        one(),
+        one(),
+        one(),
+        none.clone(),
+        none.clone(),
+        none.clone(),
+    ];
+    assert_eq!(run_with(Coast::Gaps), gaps);
+    let matched = [
+        one(),
+        one(),
+        none.clone(),
+        one(),
+        none.clone(),
+        none.clone(),
+        none,
+    ];
+    assert_eq!(run_with(Coast::None), matched);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// The reporting options change which frames are shown, never the tracking: per frame,
+    /// coast none ⊆ gaps ⊆ all, the paper ⊆ backfill, and a track shown in two runs has the
+    /// same box in both.
+    #[test]
+    fn reporting_options_only_choose_frames(
+        xs in prop::collection::vec((prop::option::of(0.0f64..0.5), 0.0f64..1.0), 1..25),
+        min_hits in 1u32..4,
+        max_age in 1u32..4,
+    ) {
+        let frames: Vec<Vec<Detection>> = xs
+            .iter()
+            .enumerate()
+            .map(|(i, (seen, s))| seen.map(|dx| car(0.4 * i as f64 + dx, *s)).into_iter().collect())
+            .collect();
+        let run_with = |coast, backfill| {
+            let l = Levers { coast, backfill, ..Levers::default() };
+            run_offline(offline_config(l, min_hits, max_age), &frames)
+        };
+        let within = |a: &[Vec<(u64, f64)>], b: &[Vec<(u64, f64)>]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(fa, fb)| fa.iter().all(|r| fb.contains(r)))
+        };
+        for backfill in [false, true] {
+            let (n, g, a) = (
+                run_with(Coast::None, backfill),
+                run_with(Coast::Gaps, backfill),
+                run_with(Coast::All, backfill),
+            );
+            prop_assert!(within(&n, &g) && within(&g, &a));
+        }
+        for coast in [Coast::All, Coast::Gaps, Coast::None] {
+            prop_assert!(within(&run_with(coast, false), &run_with(coast, true)));
+        }
+    }
 }

@@ -208,3 +208,86 @@ fn ros2_tracks_get_no_scene_unless_asked_and_asking_is_refused() {
     );
     assert_eq!(topics(&out), ["/detections", "/tracks", "/tracks/scene"]);
 }
+
+/// A frame's stamp and its tracks' ids and positions (micrometres).
+type ShownFrame = (u64, Vec<(u64, [i64; 2])>);
+
+/// The offline options (`--coast gaps --backfill`) hold frames back: the output keeps its
+/// order and every input message, has one tracks message per frame, and shows exactly what
+/// the library's tracker and lookback show (which differs from the online output here).
+#[test]
+fn offline_reporting_keeps_the_order_and_shows_what_the_library_shows() {
+    use probmot::tracker::TrackerConfig;
+    use probmot::tune::score::track_log;
+    use probmot::tune::TuneLog;
+
+    let dir = tempfile::tempdir().unwrap();
+    let city = dir.path().join("city.mcap");
+    let city = city.to_str().unwrap();
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--frames",
+        "40",
+        "-o",
+        city,
+    ]);
+    let run = |name: &str, offline: bool| {
+        let out = dir.path().join(name);
+        let mut args = vec!["track", city, "-o", out.to_str().unwrap(), "--quiet"];
+        if offline {
+            args.extend(["--coast", "gaps", "--backfill"]);
+        }
+        probmot_ok(&args);
+        out
+    };
+    let online = run("online.mcap", false);
+    let offline = run("offline.mcap", true);
+    assert_ordered(Path::new(city), &offline, "offline city");
+    let shown = |frames: Vec<msgs::Tracks3D>| -> Vec<ShownFrame> {
+        let at = |v: Option<msgs::Vector3>| {
+            let v = v.unwrap();
+            [(v.x * 1e6).round() as i64, (v.y * 1e6).round() as i64]
+        };
+        frames
+            .into_iter()
+            .map(|f| {
+                (
+                    f.stamp,
+                    f.tracks.into_iter().map(|t| (t.id, at(t.center))).collect(),
+                )
+            })
+            .collect()
+    };
+    let got = shown(tracks(&offline, "/tracks"));
+    assert_eq!(got.len(), 40);
+    assert_ne!(
+        got,
+        shown(tracks(&online, "/tracks")),
+        "the options change this log"
+    );
+
+    let mut cfg = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    cfg.for_each_class(|c| {
+        c.levers.coast = probmot::tracker::levers::Coast::Gaps;
+        c.levers.backfill = true;
+    });
+    let log = TuneLog::load(Path::new(city), "/ground_truth", "/detections").unwrap();
+    let scene = track_log(&log, &cfg).unwrap();
+    let want: Vec<ShownFrame> = scene
+        .frames
+        .iter()
+        .map(|(stamp, _, tracks)| {
+            let boxes = tracks.iter().map(|t| {
+                let c = t.center;
+                (
+                    t.id,
+                    [(c[0] * 1e6).round() as i64, (c[1] * 1e6).round() as i64],
+                )
+            });
+            (*stamp, boxes.collect())
+        })
+        .collect();
+    assert_eq!(got, want);
+}
