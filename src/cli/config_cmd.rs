@@ -174,6 +174,17 @@ pub enum CoastArg {
     None,
 }
 
+impl CoastArg {
+    /// The library's value.
+    pub fn mode(self) -> Coast {
+        match self {
+            CoastArg::All => Coast::All,
+            CoastArg::Gaps => Coast::Gaps,
+            CoastArg::None => Coast::None,
+        }
+    }
+}
+
 /// Motion models on the command line.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum MotionArg {
@@ -218,11 +229,7 @@ impl TrackerArgs {
             }),
             nms_iou: self.nms_iou,
             birth_score: self.birth_score,
-            coast: self.coast.map(|c| match c {
-                CoastArg::All => Coast::All,
-                CoastArg::Gaps => Coast::Gaps,
-                CoastArg::None => Coast::None,
-            }),
+            coast: self.coast.map(CoastArg::mode),
             backfill: self.backfill,
         }
     }

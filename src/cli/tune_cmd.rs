@@ -9,7 +9,10 @@ use anyhow::{bail, ensure, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
+use probmot::pipeline::overrides::Overrides;
 use probmot::tracker::TrackerConfig;
+
+use super::config_cmd::CoastArg;
 use probmot::tune::{
     self, cross_validate, overall, CvReport, HeldOutLoss, Protocol, Scoring, SearchLimits, TuneLog,
     TuneOptions,
@@ -29,8 +32,8 @@ use rayon::prelude::*;
 /// Search: coordinate descent (classes are tracked and scored independently). Each round tries
 /// every candidate value of one option at a time and keeps the best when it raises the training
 /// score (sAMOTA for kitti, AMOTA for nuscenes) by more than --margin. Options: fitted or the
-/// base config's own noise, gate and distance, matcher, min_hits, max_age, yaw rate, Q and R
-/// factors, NMS, reported score and its refinement, score floor, two-stage birth score, life
+/// base config's own noise, gate and distance, matcher, min_hits, max_age, which frames are
+/// reported (coast, backfill), yaw rate, Q and R factors, NMS, reported score and its refinement, score floor, two-stage birth score, life
 /// cycle by confidence. Only classes with at least --min-tracks ground-truth trajectories in the
 /// training logs are searched (from the base with fitted noise); the others keep the base
 /// config's own settings, as a handful of trajectories supports no data-driven choice. With
@@ -46,6 +49,7 @@ use rayon::prelude::*;
 ///   probmot tune logs/*.mcap -o tuned.json --folds 2 --budget 100 --jobs 2 --json
 ///   probmot tune logs/*.mcap -o tuned.json --min-tracks 20 --margin 0.01
 ///   probmot tune logs/*.mcap -o nms.json --search nms_iou     # what NMS alone gives
+///   probmot tune logs/*.mcap -o tuned.json --preset ab3dmot-kitti --coast gaps   # offline base
 ///   probmot track drive.mcap -o out.mcap --config tuned.json
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -71,6 +75,13 @@ pub struct TuneArgs {
     /// Base preset (default nuscenes-chiu2019).
     #[arg(long, value_name = "NAME")]
     preset: Option<String>,
+    /// Set the base's coasted-frame reporting for every class, as `track --coast` (all, gaps,
+    /// none); classes that are not searched keep it. Example: --coast gaps
+    #[arg(long, value_enum)]
+    coast: Option<CoastArg>,
+    /// Set backfill on every class of the base, as `track --backfill`.
+    #[arg(long)]
+    backfill: bool,
     /// Classes to tune and score, comma-separated (default: the protocol's classes).
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     classes: Vec<String>,
@@ -97,6 +108,13 @@ pub struct TuneArgs {
     /// mean score of the classes with enough trajectories; classes with too few keep them).
     #[arg(long)]
     shared: bool,
+    /// First choose which frames every class reports (coast, backfill) once, on the mean
+    /// training score of the searched classes; classes with too few trajectories get that
+    /// choice too (with the base's other settings). These options follow how the ground truth
+    /// is labelled more than the class. Example: probmot tune logs/*.mcap -o t.json
+    /// --pool-reporting
+    #[arg(long)]
+    pool_reporting: bool,
     /// After the cross-validation, keep the base config's own settings in the written config
     /// for every class whose tuned settings scored below the base on a held-out fold (the
     /// classes the warning names). The cross-validation's scores are of the search without
@@ -136,15 +154,36 @@ enum ProtocolArg {
     Nuscenes,
 }
 
+/// The base config: the file or preset, with `--coast` and `--backfill` applied.
 fn base_config(a: &TuneArgs) -> Result<TrackerConfig> {
-    Ok(match &a.base {
+    let mut cfg = match &a.base {
         Some(p) => {
             let text = std::fs::read_to_string(p)
                 .with_context(|| format!("cannot read base config {}", p.display()))?;
             TrackerConfig::from_json(&text).with_context(|| format!("{}", p.display()))?
         }
         None => TrackerConfig::preset(a.preset.as_deref().unwrap_or("nuscenes-chiu2019"))?,
-    })
+    };
+    let reporting = Overrides {
+        coast: a.coast.map(CoastArg::mode),
+        backfill: a.backfill,
+        ..Overrides::default()
+    };
+    reporting.apply(&mut cfg)?;
+    let mut set = Vec::new();
+    if let Some(c) = a.coast {
+        set.push(format!(
+            "coast {}",
+            c.to_possible_value().expect("a value").get_name()
+        ));
+    }
+    if a.backfill {
+        set.push("backfill".to_string());
+    }
+    if !set.is_empty() {
+        cfg.name = format!("{} with {}", cfg.name, set.join(", "));
+    }
+    Ok(cfg)
 }
 
 fn pct(v: f64) -> String {
@@ -234,6 +273,7 @@ fn options(a: &TuneArgs) -> TuneOptions {
             margin: a.margin,
             min_tracks: a.min_tracks,
             shared: a.shared,
+            pool_reporting: a.pool_reporting,
         },
         dt_nominal: a.dt_nominal,
         min_samples: a.min_samples,
@@ -310,6 +350,11 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         scoring.metric(),
         a.budget
     );
+    if a.pool_reporting {
+        cfg.name = cfg
+            .name
+            .replace(" per class,", " per class, reporting pooled,");
+    }
     write_configs(a, &cfg, cv.as_ref())?;
     report(a, &final_options, (cv.as_ref(), losses.as_deref()), &t)?;
     for l in losses.iter().flatten() {

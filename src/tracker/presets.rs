@@ -60,8 +60,8 @@ impl Preset {
                  for every class, 0.5 s frames (old name: ab3dmot)"
             }
             Preset::KittiPointrcnn => {
-                "made by `probmot tune --preset ab3dmot-kitti` on the ten KITTI train sequences \
-                 only (PointRCNN; in-sample there, see docs/tune.md), 0.1 s frames"
+                "made by `probmot tune --preset ab3dmot-kitti --pool-reporting` on the ten KITTI \
+                 train sequences only (PointRCNN; in-sample there, see docs/tune.md), 0.1 s frames"
             }
         }
     }
@@ -109,11 +109,13 @@ impl Preset {
                 classes: BTreeMap::new(),
                 default: Some(ab3dmot_class()),
             },
-            // Made by `probmot tune --preset ab3dmot-kitti` (default budget; AB3DMOT's published
-            // settings as the start, car and pedestrian tuned, cyclist with too few trajectories
-            // kept at AB3DMOT's) on the ten KITTI tracking train sequences in
-            // ../shared/data/kitti-tracking-train only (PointRCNN detections); see docs/tune.md. In-sample on those sequences: use the
-            // cross-validated numbers of docs/tune.md to judge it.
+            // Made by `probmot tune --preset ab3dmot-kitti --pool-reporting` (default budget;
+            // AB3DMOT's published settings as the start, the reporting options chosen for all
+            // classes on cars and pedestrians, car and pedestrian tuned, cyclist with too few
+            // trajectories kept at AB3DMOT's other settings) on the ten KITTI tracking train
+            // sequences in
+            // ../shared/data/kitti-tracking-train only (PointRCNN detections); see docs/tune.md.
+            // In-sample on those sequences: use the cross-validated numbers of docs/tune.md.
             Preset::KittiPointrcnn => {
                 let mut cfg =
                     TrackerConfig::from_json(include_str!("presets/kitti-pointrcnn.json"))?;

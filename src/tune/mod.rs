@@ -23,7 +23,7 @@ use crate::eval::scene::Scene;
 use crate::fit::{fit, fitted_config, timing::frame_period, FitOptions, YawMode};
 use crate::tracker::{ClassConfig, TrackerConfig};
 use cache::ScoreCache;
-use space::{dims, restrict, ScoreStats};
+use space::{at, dims, restrict, ScoreStats};
 
 /// Settings of a tune.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -156,8 +156,18 @@ pub fn tune(
         .cloned()
         .collect();
     let cache = ScoreCache::new(logs, &fitted, o.scoring);
+    // The reporting options pooled over the searched classes (none chosen: every point keeps).
+    let (reporting, point) = pooled_reporting(&cache, &starts, &signal, o, progress)?;
+    let keep = |label: &str| {
+        let own = base.class(label).unwrap_or(&starts[label]);
+        at(own, &reporting, &point)
+    };
+    let pooled: BTreeMap<String, ClassConfig> = starts
+        .iter()
+        .map(|(l, c)| (l.clone(), at(c, &reporting, &point)))
+        .collect();
     let (sd, shared) =
-        shared::tune_shared(&cache, &starts, &signal, o.limits, &o.search, progress)?;
+        shared::tune_shared(&cache, &pooled, &signal, o.limits, &o.search, progress)?;
     let mut tuned = fitted.clone();
     let mut out = Vec::new();
     for (label, start) in &starts {
@@ -171,7 +181,7 @@ pub fn tune(
         } else if o.limits.shared {
             (None, shared[label].clone())
         } else {
-            (None, base.class(label).unwrap_or(start).clone())
+            (None, keep(label))
         };
         let shared_score = cache.score(label, &shared[label])?;
         tuned.classes.insert(label.clone(), config.clone());
@@ -205,6 +215,29 @@ pub fn tune(
         classes: out,
         scored,
     })
+}
+
+/// With `limits.pool_reporting`: the reporting dimensions and the point of them chosen on the
+/// mean training score of the `signal` classes (within `o.search` when it is given). Without:
+/// no dimension.
+fn pooled_reporting(
+    cache: &ScoreCache,
+    starts: &BTreeMap<String, ClassConfig>,
+    signal: &[String],
+    o: &TuneOptions,
+    progress: &ProgressBar,
+) -> Result<(Vec<space::Dim>, Vec<usize>)> {
+    let mut names: Vec<String> = space::REPORTING_NAMES.map(String::from).to_vec();
+    names.retain(|n| o.search.is_empty() || o.search.contains(n));
+    if !o.limits.pool_reporting || names.is_empty() {
+        return Ok((Vec::new(), Vec::new()));
+    }
+    let limits = SearchLimits {
+        shared: true,
+        ..o.limits
+    };
+    let (d, _) = shared::tune_shared(cache, starts, signal, limits, &names, progress)?;
+    Ok((restrict(space::shared_dims(), &names), d.point))
 }
 
 /// The folds of `n` logs: `k` contiguous chunks in input order, sizes differing by at most one

@@ -26,6 +26,9 @@ pub struct SearchLimits {
     pub min_tracks: usize,
     /// Run the shared stage (class-agnostic settings chosen jointly) before the per-class search.
     pub shared: bool,
+    /// Choose the reporting options (`coast`, `backfill`) once for every class first, on the
+    /// mean training score of the searched classes; the other classes get them too.
+    pub pool_reporting: bool,
 }
 
 impl Default for SearchLimits {
@@ -36,6 +39,7 @@ impl Default for SearchLimits {
             margin: 0.005,
             min_tracks: 10,
             shared: false,
+            pool_reporting: false,
         }
     }
 }

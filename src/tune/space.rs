@@ -254,13 +254,16 @@ pub fn shared_dims() -> Vec<Dim> {
     d
 }
 
+/// Names of the reporting dimensions ([`reporting_dims`]).
+pub const REPORTING_NAMES: [&str; 2] = ["coast", "backfill"];
+
 /// Which frames a track reports (offline options, see [`crate::tracker::lookback`]).
 fn reporting_dims() -> [Dim; 2] {
     use crate::tracker::levers::Coast;
     use Value::{Backfill, Keep};
     [
         Dim {
-            name: "coast",
+            name: REPORTING_NAMES[0],
             values: vec![
                 Keep,
                 Value::Coast(Coast::All),
@@ -269,7 +272,7 @@ fn reporting_dims() -> [Dim; 2] {
             ],
         },
         Dim {
-            name: "backfill",
+            name: REPORTING_NAMES[1],
             values: vec![Keep, Backfill(false), Backfill(true)],
         },
     ]

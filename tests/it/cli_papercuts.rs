@@ -59,6 +59,7 @@ fn every_help_has_an_example() {
         &["export", "nuscenes"],
         &["plot"],
         &["viz"],
+        &["tune"],
     ];
     for c in commands {
         let mut args = c.to_vec();
@@ -109,6 +110,20 @@ fn config_help_examples_run() {
         assert_eq!(c["levers"]["motion"], "ctrv", "{label}");
         assert_eq!(c["levers"]["nms_iou"], 0.1, "{label}");
         assert_eq!(c["angular_velocity"], true, "{label}");
+    }
+    // The offline example: every class reports coasted frames inside gaps only, and backfills.
+    let offline = [
+        "config",
+        "--preset",
+        "ab3dmot-kitti",
+        "--coast",
+        "gaps",
+        "--backfill",
+    ];
+    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&offline).stdout).unwrap();
+    for (label, c) in v["classes"].as_object().unwrap() {
+        assert_eq!(c["levers"]["coast"], "gaps", "{label}");
+        assert_eq!(c["levers"]["backfill"], true, "{label}");
     }
     let clash = ["config", "--motion", "ctrv", "--no-angular-velocity"];
     assert_eq!(probmot(&clash).status.code(), Some(2));

@@ -99,7 +99,7 @@ fn options(budget: usize) -> TuneOptions {
             rounds: 2,
             margin: 0.0,
             min_tracks: 1,
-            shared: false,
+            ..SearchLimits::default()
         },
         dt_nominal: None,
         min_samples: 10,
@@ -165,6 +165,73 @@ fn classes_with_too_few_trajectories_keep_the_base_settings() {
     o.limits.min_tracks = 6;
     let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
     assert!(t.classes[0].refined && !t.classes[0].steps.is_empty());
+}
+
+/// Cars (and one truck) that leave the scene mid-log: the tracker keeps coasting past each
+/// object's last detection, so the predictions after it are false positives.
+fn leaving_log(seed: u64) -> TuneLog {
+    let mut rng = Lcg(seed);
+    let visible = |k: u64, i: u64| (4 * k..4 * k + 12).contains(&i);
+    let frames = (0..30u64)
+        .map(|i| {
+            let mut f = TuneFrame {
+                stamp: (i + 1) * PERIOD,
+                has_truth: true,
+                has_detections: true,
+                ..Default::default()
+            };
+            for k in 0..5u64 {
+                let n = |r: &mut Lcg| 0.4 * (r.next() - 0.5);
+                // Jitter in the true path too, so that the fitted process noise can track it.
+                let (x, y) = (2.5 * i as f64 + n(&mut rng), 6.0 * k as f64 + n(&mut rng));
+                let label = if k == 4 { "truck" } else { "car" };
+                if visible(k, i) {
+                    let mut t = truth(k + 1, x, y);
+                    t.label = label.into();
+                    f.truth.push(t);
+                    let (dx, dy) = (n(&mut rng), n(&mut rng));
+                    let mut d = det(x + dx, y + dy, 0.6 + 0.3 * rng.next());
+                    d.label = label.into();
+                    f.detections.push(d);
+                }
+            }
+            f
+        })
+        .collect();
+    TuneLog {
+        name: format!("leaving_{seed}"),
+        frames,
+    }
+}
+
+/// `--pool-reporting`: the reporting options are chosen once on the searched classes (cars)
+/// and reach the class with too few trajectories (the truck), whose other settings stay the
+/// base's own.
+#[test]
+fn pooled_reporting_reaches_the_classes_that_are_not_searched() {
+    use probmot::tracker::levers::Coast;
+    let logs: Vec<TuneLog> = (1..=2).map(leaving_log).collect();
+    let refs: Vec<&TuneLog> = logs.iter().collect();
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let mut o = options(20);
+    o.limits.min_tracks = 3;
+    o.search = vec!["coast".into(), "backfill".into()];
+    let plain = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    assert_eq!(plain.tuned.classes["truck"], base.classes["truck"]);
+    o.limits.pool_reporting = true;
+    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let (car, truck) = (&t.tuned.classes["car"], &t.tuned.classes["truck"]);
+    assert_ne!(car.levers.coast, Coast::All, "{car:?}");
+    assert_eq!(truck.levers.coast, car.levers.coast);
+    let mut own = truck.clone();
+    own.levers = base.classes["truck"].levers.clone();
+    assert_eq!(own, base.classes["truck"]);
+    // The truck's held-out-free check: the pooled choice also scores it better here.
+    let score = |cc: &probmot::tracker::ClassConfig| {
+        let cfg = single_class(&base, "truck", cc.clone());
+        score_class(&refs, &cfg, "truck", &o.scoring).unwrap()
+    };
+    assert!(score(truck) > score(&base.classes["truck"]));
 }
 
 /// `--search noise,nms_iou`: only those options move (the fitted noise of this synthetic log is
@@ -312,6 +379,49 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     assert_eq!(r.status.code(), Some(2));
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(err.contains("'nsm'") && err.contains("nms_iou"), "{err}");
+}
+
+/// `tune --coast gaps --backfill` sets the base's reporting for every class, and a class the
+/// search does not move keeps it in the written config.
+#[test]
+fn cli_tune_base_reporting_flags_reach_the_written_config() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tuned.json");
+    let log = common::repo("sample_logs/pedestrians.mcap");
+    let args = [
+        "tune",
+        log.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--protocol",
+        "nuscenes",
+        "--folds",
+        "0",
+        "--search",
+        "min_hits",
+        "--budget",
+        "3",
+        "--coast",
+        "gaps",
+        "--backfill",
+        "--quiet",
+    ];
+    common::probmot_ok(&args);
+    let cfg = TrackerConfig::from_json(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    assert!(!cfg.classes.is_empty());
+    assert!(
+        cfg.name.contains("with coast gaps, backfill"),
+        "{}",
+        cfg.name
+    );
+    for (label, c) in &cfg.classes {
+        assert_eq!(
+            c.levers.coast,
+            probmot::tracker::levers::Coast::Gaps,
+            "{label}"
+        );
+        assert!(c.levers.backfill, "{label}");
+    }
 }
 
 /// The acceptance run, reduced to fit CI time: 2-fold cross-validation of the car class on the
