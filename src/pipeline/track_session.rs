@@ -543,10 +543,13 @@ impl FrameState {
     /// Gives the attributes lent to the encoded message back to the side table and forgets the
     /// tracks deleted in this frame.
     fn finish(&mut self, deleted: &[u64]) {
-        for t in &mut self.out.tracks {
-            if self.held.is_some() {
-                break;
-            }
+        // Held frames copied their attributes: nothing was lent.
+        let lent = if self.held.is_none() {
+            &mut self.out.tracks[..]
+        } else {
+            &mut []
+        };
+        for t in lent {
             if let Some(e) = self.last_extra.get_mut(&t.id) {
                 std::mem::swap(&mut t.attributes, &mut e.attributes);
             }
@@ -574,42 +577,50 @@ mod tests {
     use crate::tracker::TrackerConfig;
     use crate::transforms::TransformCollector;
 
-    fn detections(stamp: u64, x: f64) -> Vec<u8> {
+    /// A detection message: a car at `x` (when given, with the attribute `frame` = `frame`) and
+    /// a box without a size.
+    fn detections(stamp: u64, car: Option<(f64, usize)>) -> Vec<u8> {
+        let mut detections = Vec::new();
+        if let Some((x, frame)) = car {
+            detections.push(Detection3D {
+                center: Some(v3([x, 0.0, 0.0])),
+                size: Some(Size3 {
+                    length: 4.0,
+                    width: 2.0,
+                    height: 1.5,
+                }),
+                label: "car".into(),
+                score: 0.9,
+                attributes: [("frame".to_string(), frame.to_string())].into(),
+                ..Default::default()
+            });
+        }
+        // No size: rejected when decoded, counted when its frame is tracked.
+        detections.push(Detection3D {
+            center: Some(v3([50.0, 0.0, 0.0])),
+            label: "car".into(),
+            ..Default::default()
+        });
         let m = Detections3D {
             stamp: Some(stamp),
             frame_id: "map".into(),
-            detections: vec![
-                Detection3D {
-                    center: Some(v3([x, 0.0, 0.0])),
-                    size: Some(Size3 {
-                        length: 4.0,
-                        width: 2.0,
-                        height: 1.5,
-                    }),
-                    label: "car".into(),
-                    score: 0.9,
-                    ..Default::default()
-                },
-                // No size: rejected when decoded, counted when its frame is tracked.
-                Detection3D {
-                    center: Some(v3([50.0, 0.0, 0.0])),
-                    label: "car".into(),
-                    ..Default::default()
-                },
-            ],
+            detections,
         };
         m.encode_to_vec()
     }
 
-    /// Two frames of one car fed as records, with no file anywhere: every record is copied to
-    /// the sink, a tracks message follows each frame, and the summary counts what happened.
-    #[test]
-    fn a_session_copies_records_and_writes_a_tracks_message_per_frame() {
+    /// Feeds one detection message per frame (stamps 100, 200, ...; `cars[i]`: the car's x in
+    /// frame i, if seen) as records to a session with `config`, with no file anywhere. Returns
+    /// the sink, the tracks messages with their log times, and the summary.
+    fn run_session(
+        config: TrackerConfig,
+        cars: &[Option<f64>],
+    ) -> (MemorySink, Vec<(u64, Tracks3D)>, TrackSummary) {
         let opts = TrackOptions {
             detection_topics: vec![],
             tracks_topic: "/tracks".into(),
             tracks_format: None,
-            config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
+            config,
             no_track: false,
             strict: false,
             max_detections_per_message: 10,
@@ -623,6 +634,7 @@ mod tests {
             tracks_in_ego_frame: false,
             scene_topic: None,
         };
+        let stamps: Vec<u64> = (1..=cars.len() as u64).map(|i| 100 * i).collect();
         let mut session = TrackSession {
             opts: &opts,
             file: "memory",
@@ -635,7 +647,7 @@ mod tests {
             ego: EgoMotion::new(TransformCollector::new(), &opts.ego, false).unwrap(),
             tracker: Tracker::new(opts.config.clone()).unwrap(),
             counters: InputCounters::default(),
-            schedule: Schedule::Known(vec![(100, 1), (200, 1)]),
+            schedule: Schedule::Known(stamps.iter().map(|&s| (s, 1)).collect()),
             last_stamp: HashMap::new(),
             pending: BTreeMap::new(),
             next_frame: 0,
@@ -663,14 +675,14 @@ mod tests {
             metadata: BTreeMap::new(),
         };
         session.on_record(Record::Channel(channel), 0).unwrap();
-        for (i, stamp) in [100u64, 200].into_iter().enumerate() {
+        for (i, (&stamp, car)) in stamps.iter().zip(cars).enumerate() {
             let header = MessageHeader {
                 channel_id: 1,
                 sequence: i as u32,
                 log_time: stamp + 1,
                 publish_time: stamp + 1,
             };
-            let data = detections(stamp, i as f64);
+            let data = detections(stamp, car.map(|x| (x, i)));
             let rec = Record::Message {
                 header,
                 data: Cow::Owned(data),
@@ -689,6 +701,15 @@ mod tests {
                 _ => None,
             })
             .collect();
+        (sink, tracks, summary)
+    }
+
+    /// Two frames of one car: every record is copied to the sink, a tracks message follows each
+    /// frame, and the summary counts what happened.
+    #[test]
+    fn a_session_copies_records_and_writes_a_tracks_message_per_frame() {
+        let config = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+        let (sink, tracks, summary) = run_session(config, &[Some(0.0), Some(1.0)]);
         let stamps: Vec<u64> = tracks.iter().map(|(t, m)| (*t).min(m.stamp)).collect();
         assert_eq!(
             stamps,
@@ -707,5 +728,35 @@ mod tests {
             2,
             "the boxes without size"
         );
+    }
+
+    /// With backfill, the frames written late show the car from its first detection, each with
+    /// the attributes of that frame's detection; one tracks message per frame, in order.
+    #[test]
+    fn held_frames_carry_the_attributes_of_their_own_frame() {
+        // Four frames without the car (past the first min_hits frames), then four with it.
+        let cars: Vec<Option<f64>> = (0..8).map(|i| (i >= 4).then_some(0.3 * i as f64)).collect();
+        let shown = |backfill: bool| {
+            let mut config = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+            config.for_each_class(|c| c.levers.backfill = backfill);
+            let (_, tracks, summary) = run_session(config, &cars);
+            assert_eq!(summary.tracks_messages, 8);
+            let stamps: Vec<u64> = tracks.iter().map(|(_, m)| m.stamp).collect();
+            assert_eq!(stamps, (1..=8).map(|i| 100 * i).collect::<Vec<u64>>());
+            let frames: Vec<Vec<String>> = tracks
+                .iter()
+                .map(|(_, m)| {
+                    m.tracks
+                        .iter()
+                        .map(|t| t.attributes["frame"].clone())
+                        .collect()
+                })
+                .collect();
+            frames
+        };
+        let none: Vec<String> = vec![];
+        let one = |i: usize| vec![i.to_string()];
+        assert_eq!(shown(false)[4..], [none.clone(), none, one(6), one(7)]);
+        assert_eq!(shown(true)[4..], [one(4), one(5), one(6), one(7)]);
     }
 }

@@ -52,6 +52,16 @@ impl Lcg {
     }
 }
 
+/// Frame `i` of a synthetic log (stamps every [`PERIOD`]), with truth and detections to add.
+fn frame(i: u64) -> TuneFrame {
+    TuneFrame {
+        stamp: (i + 1) * PERIOD,
+        has_truth: true,
+        has_detections: true,
+        ..Default::default()
+    }
+}
+
 /// Three cars driving along x at 5 m/s, detected every frame (small noise, score ~0.8) and
 /// each also detected a second time half a metre off with a low score (a duplicate the base
 /// config turns into a false track), plus low-scoring clutter.
@@ -59,12 +69,7 @@ fn synthetic_log(seed: u64) -> TuneLog {
     let mut rng = Lcg(seed);
     let frames = (0..30u64)
         .map(|i| {
-            let mut f = TuneFrame {
-                stamp: (i + 1) * PERIOD,
-                has_truth: true,
-                has_detections: true,
-                ..Default::default()
-            };
+            let mut f = frame(i);
             for car in 0..3u64 {
                 let (x, y) = (2.5 * i as f64 + 10.0 * car as f64, 6.0 * car as f64);
                 f.truth.push(truth(car + 1, x, y));
@@ -174,12 +179,7 @@ fn leaving_log(seed: u64) -> TuneLog {
     let visible = |k: u64, i: u64| (4 * k..4 * k + 12).contains(&i);
     let frames = (0..30u64)
         .map(|i| {
-            let mut f = TuneFrame {
-                stamp: (i + 1) * PERIOD,
-                has_truth: true,
-                has_detections: true,
-                ..Default::default()
-            };
+            let mut f = frame(i);
             for k in 0..5u64 {
                 let n = |r: &mut Lcg| 0.4 * (r.next() - 0.5);
                 // Jitter in the true path too, so that the fitted process noise can track it.
