@@ -428,11 +428,8 @@ pub(super) struct FrameState {
 impl FrameState {
     /// The buffers for a run with `config`: frames are held when a class reports offline.
     pub(super) fn new(config: &crate::tracker::TrackerConfig) -> FrameState {
-        let mut classes = config.classes.values().chain(config.default.iter());
         FrameState {
-            held: classes
-                .any(|c| c.levers.holds_frames())
-                .then(HeldFrames::default),
+            held: config.holds_frames().then(HeldFrames::default),
             ..FrameState::default()
         }
     }

@@ -327,6 +327,13 @@ impl TrackerConfig {
         }
     }
 
+    /// True when some class reports offline, so that frames must pass through a
+    /// [`super::Lookback`] (without, every report is final when it is made).
+    pub fn holds_frames(&self) -> bool {
+        let mut classes = self.classes.values().chain(self.default.iter());
+        classes.any(|c| c.levers.holds_frames())
+    }
+
     /// Checks every value: positive noise where it must be, finite thresholds, `max_age >= 1`.
     pub fn validate(&self) -> Result<(), ConfigError> {
         if !(self.dt_nominal.is_finite() && self.dt_nominal > 0.0) {

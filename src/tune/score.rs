@@ -157,7 +157,8 @@ fn run_tracker(
     let mut src: Vec<usize> = Vec::new();
     // Image box of each track's last matched detection, by track id.
     let mut image: Vec<Option<[f64; 4]>> = Vec::new();
-    // Frames wait here while the offline options decide their reports.
+    // Frames wait here while the offline options decide their reports (when a class has them).
+    let held = cfg.holds_frames();
     let mut lookback: Lookback<(TrackReport, Option<[f64; 4]>)> = Lookback::default();
     let mut shown = Vec::new();
     for (fi, f) in log.frames.iter().enumerate() {
@@ -187,6 +188,12 @@ fn run_tracker(
             if let Some(d) = r.detection {
                 image[id] = f.detections[src[d as usize]].image_box;
             }
+        }
+        if !held {
+            for r in tracker.reports() {
+                emit(fi, r, tracker.label(r.class), image[r.id as usize]);
+            }
+            continue;
         }
         // The frame index stands for the stamp: the reports come out with their frame.
         lookback.push(fi as u64, tracker.reports(), |v, r| {
