@@ -424,6 +424,27 @@ fn cli_tune_base_reporting_flags_reach_the_written_config() {
     }
 }
 
+/// `tune --help` lists every search option `--search` accepts (the help text is written by
+/// hand, the names are the search space's).
+#[test]
+fn tune_help_lists_every_search_option() {
+    let out = common::probmot_ok(&["tune", "--help"]);
+    let help = String::from_utf8_lossy(&out.stdout);
+    let search = help
+        .split_once("--search <LIST>")
+        .map(|(_, rest)| rest.split("\n      --").next().unwrap_or_default())
+        .expect("a --search option");
+    let words: Vec<&str> = search
+        .split(|c: char| !(c.is_alphanumeric() || c == '_'))
+        .collect();
+    for name in probmot::tune::space::DIM_NAMES {
+        assert!(
+            words.contains(&name),
+            "--search help lacks {name}:\n{search}"
+        );
+    }
+}
+
 /// The acceptance run, reduced to fit CI time: 2-fold cross-validation of the car class on the
 /// ten KITTI train sequences with a small budget (`--budget 13 --rounds 1 --margin 0`); the
 /// tuned configs must beat the fitted base
