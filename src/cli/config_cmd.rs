@@ -158,9 +158,11 @@ pub struct TrackerArgs {
     #[arg(long, value_enum, help_heading = "Levers")]
     pub coast: Option<CoastArg>,
     /// Offline: once a track reaches min_hits, also report its earlier frames (every class),
-    /// so tracks start at their first detection. Example: --backfill
-    #[arg(long, help_heading = "Levers")]
-    pub backfill: bool,
+    /// so tracks start at their first detection; `--backfill false` turns it off (e.g. in the
+    /// kitti-pointrcnn preset). Example: --backfill
+    #[arg(long, help_heading = "Levers", value_name = "BOOL", num_args = 0..=1,
+          default_missing_value = "true")]
+    pub backfill: Option<bool>,
 }
 
 /// Coasted-frame reporting on the command line.

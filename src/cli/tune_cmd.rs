@@ -79,9 +79,10 @@ pub struct TuneArgs {
     /// none); classes that are not searched keep it. Example: --coast gaps
     #[arg(long, value_enum)]
     coast: Option<CoastArg>,
-    /// Set backfill on every class of the base, as `track --backfill`.
-    #[arg(long)]
-    backfill: bool,
+    /// Set backfill on (or with `false` off) for every class of the base, as
+    /// `track --backfill`.
+    #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
+    backfill: Option<bool>,
     /// Classes to tune and score, comma-separated (default: the protocol's classes).
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     classes: Vec<String>,
@@ -177,8 +178,10 @@ fn base_config(a: &TuneArgs) -> Result<TrackerConfig> {
             c.to_possible_value().expect("a value").get_name()
         ));
     }
-    if a.backfill {
-        set.push("backfill".to_string());
+    match a.backfill {
+        Some(true) => set.push("backfill".to_string()),
+        Some(false) => set.push("no backfill".to_string()),
+        None => {}
     }
     if !set.is_empty() {
         cfg.name = format!("{} with {}", cfg.name, set.join(", "));

@@ -44,8 +44,8 @@ pub struct Overrides {
     pub birth_score: Option<f64>,
     /// Coasted frames every class reports (`levers.coast`).
     pub coast: Option<Coast>,
-    /// Every class reports a confirmed track from its birth (`levers.backfill`).
-    pub backfill: bool,
+    /// Backfill of every class (`levers.backfill`: report a confirmed track from its birth).
+    pub backfill: Option<bool>,
 }
 
 impl Overrides {
@@ -104,7 +104,9 @@ impl Overrides {
             if let Some(v) = self.coast {
                 c.levers.coast = v;
             }
-            c.levers.backfill |= self.backfill;
+            if let Some(b) = self.backfill {
+                c.levers.backfill = b;
+            }
         });
         cfg.validate()?;
         Ok(())
@@ -225,7 +227,7 @@ mod tests {
             nms_iou: Some(0.1),
             birth_score: Some(0.5),
             coast: Some(Coast::Gaps),
-            backfill: true,
+            backfill: Some(true),
             ..Default::default()
         };
         o.apply(&mut cfg).unwrap();

@@ -10,7 +10,8 @@
 //!
 //! An undecided report is shown when its track's next [`ReportStatus::Final`] report comes
 //! (a match of a confirmed track), and dropped when a frame passes without a report of its
-//! track (the track was deleted, or is past `max_age`) or at [`Lookback::finish`]. The delay is
+//! track (the track was deleted, or is past `max_age`) or at [`Lookback::finish`]. A
+//! [`ReportStatus::Hidden`] report is never shown but keeps its track's held reports waiting. The delay is
 //! bounded: a track is reported only within `max_age` frames of a match, and a tentative track
 //! is confirmed after at most `min_hits - 1` more matches.
 //!
@@ -123,7 +124,7 @@ impl<T: Default> Lookback<T> {
         held.stamp = stamp;
         held.used = 0;
         held.undecided = 0;
-        for r in reports {
+        for r in reports.iter().filter(|r| r.status != ReportStatus::Hidden) {
             if held.used == held.items.len() {
                 held.items.push(Item::default());
             }
@@ -142,7 +143,7 @@ impl<T: Default> Lookback<T> {
         for r in reports {
             match (r.status, self.open.get_mut(&r.id)) {
                 (ReportStatus::Final, Some(_)) => self.close(r.id, Decision::Shown),
-                (ReportStatus::Final, None) => {}
+                (ReportStatus::Final | ReportStatus::Hidden, None) => {}
                 (_, Some(open)) => open.seen = index,
                 (_, None) => {
                     let open = Open {
@@ -269,7 +270,8 @@ mod tests {
     }
 
     /// The rule stated plainly over the whole sequence: an undecided report is shown when its
-    /// track has a later final report and is reported in every frame up to it.
+    /// track has a later final report and is reported (hidden or not) in every frame up to it;
+    /// a hidden report is never shown.
     fn reference(frames: &[Vec<(u64, ReportStatus)>]) -> Vec<(u64, Vec<u64>)> {
         let status_at = |f: usize, id: u64| frames[f].iter().find(|r| r.0 == id).map(|r| r.1);
         let shown = |f: usize, id: u64| {
@@ -285,14 +287,18 @@ mod tests {
         let frame_ids = |(f, reports): (usize, &Vec<(u64, ReportStatus)>)| {
             let ids = reports
                 .iter()
-                .filter(|&&(id, s)| s == ReportStatus::Final || shown(f, id))
+                .filter(|&&(id, s)| match s {
+                    Final => true,
+                    Hidden => false,
+                    Tentative | Coasting => shown(f, id),
+                })
                 .map(|r| r.0);
             (f as u64, ids.collect())
         };
         frames.iter().enumerate().map(frame_ids).collect()
     }
 
-    use ReportStatus::{Coasting, Final, Tentative};
+    use ReportStatus::{Coasting, Final, Hidden, Tentative};
 
     #[test]
     fn final_reports_pass_without_delay() {
@@ -345,7 +351,7 @@ mod tests {
     }
 
     fn frames_strategy() -> impl Strategy<Value = Vec<Vec<(u64, ReportStatus)>>> {
-        let status = prop_oneof![Just(Final), Just(Tentative), Just(Coasting)];
+        let status = prop_oneof![Just(Final), Just(Tentative), Just(Coasting), Just(Hidden)];
         let frame = proptest::collection::btree_map(1u64..6, status, 0..5)
             .prop_map(|m| m.into_iter().collect::<Vec<_>>());
         proptest::collection::vec(frame, 0..30)

@@ -22,7 +22,8 @@ pub struct Track {
     pub time_since_update: u32,
     /// Score of the last matched detection.
     pub score: f64,
-    /// Number of frames in which this track was reported.
+    /// Number of frames in which this track was reported (with the offline options: reported
+    /// for the lookback to decide, so it also counts frames the lookback drops).
     pub reported_frames: u32,
     /// Whether `hits` ever reached `min_hits`.
     pub confirmed: bool,
@@ -44,6 +45,9 @@ pub enum ReportStatus {
     Tentative,
     /// A coasted frame: shown if the track is matched again before it stops being reported.
     Coasting,
+    /// Never shown (a coasted frame under `coast: none`), but the track lives on: a tentative
+    /// track's held frames still wait for its confirmation.
+    Hidden,
 }
 
 /// What the tracker reports for one track in one frame.

@@ -421,7 +421,7 @@ fn report_and_delete(
         }
         let shown = t.hits >= min_hits || frame_count <= min_hits as u64;
         if let Some(status) = report_status(levers, shown, m.is_none()) {
-            t.reported_frames += 1;
+            t.reported_frames += u32::from(status != ReportStatus::Hidden);
             let mut r = t.report(dt_nominal, c.cfg.origin, *m);
             r.score = t.conf.reported(t.score, levers);
             r.status = status;
@@ -446,7 +446,8 @@ fn report_and_delete(
 /// match. `None`: not reported.
 fn report_status(levers: &Levers, shown: bool, coasted: bool) -> Option<ReportStatus> {
     if coasted && levers.coast == Coast::None {
-        None
+        // A tentative track stays open in the lookback through the frames it is not shown.
+        (!shown && levers.backfill).then_some(ReportStatus::Hidden)
     } else if !shown {
         levers.backfill.then_some(ReportStatus::Tentative)
     } else if coasted && levers.coast == Coast::Gaps {

@@ -125,6 +125,18 @@ fn config_help_examples_run() {
         assert_eq!(c["levers"]["coast"], "gaps", "{label}");
         assert_eq!(c["levers"]["backfill"], true, "{label}");
     }
+    // `--backfill false` turns it off again (the kitti-pointrcnn preset has it on).
+    let off = [
+        "config",
+        "--preset",
+        "kitti-pointrcnn",
+        "--backfill",
+        "false",
+    ];
+    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&off).stdout).unwrap();
+    for (label, c) in v["classes"].as_object().unwrap() {
+        assert!(c["levers"].get("backfill").is_none(), "{label}: {c}");
+    }
     let clash = ["config", "--motion", "ctrv", "--no-angular-velocity"];
     assert_eq!(probmot(&clash).status.code(), Some(2));
 }

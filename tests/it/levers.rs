@@ -366,6 +366,34 @@ fn backfill_shows_a_confirmed_track_from_its_first_detection() {
     assert_eq!(backfilled[4][0].1, 2.0);
 }
 
+/// Backfill shows a confirmed track from its first detection also when it missed a frame
+/// before it was confirmed, whatever the coast mode (under `none` the missed frame itself is
+/// not shown).
+#[test]
+fn backfill_reaches_back_across_a_miss_before_confirmation() {
+    // A car in frames 4 and 5, missed in 6, seen again in 7 to 9.
+    let frames: Vec<Vec<Detection>> = (0..10)
+        .map(|i| match i {
+            4 | 5 | 7..=9 => vec![car(0.4 * i as f64, 0.9)],
+            _ => vec![],
+        })
+        .collect();
+    let shown = |coast| {
+        let l = Levers {
+            coast,
+            backfill: true,
+            ..Levers::default()
+        };
+        let f = ids(&run_offline(offline_config(l, 3, 3), &frames));
+        (4..10)
+            .filter(|&i| !f[i].is_empty())
+            .collect::<Vec<usize>>()
+    };
+    assert_eq!(shown(Coast::All), [4, 5, 6, 7, 8, 9]);
+    assert_eq!(shown(Coast::Gaps), [4, 5, 6, 7, 8, 9]);
+    assert_eq!(shown(Coast::None), [4, 5, 7, 8, 9]);
+}
+
 #[test]
 fn coast_modes_report_every_prediction_only_gaps_or_none() {
     // A car in frames 0, 1 and 3 (a one-frame gap), then gone; max_age 3 keeps it coasting
