@@ -169,6 +169,8 @@ pub fn tune(
     let (sd, shared) =
         shared::tune_shared(&cache, &pooled, &signal, o.limits, &o.search, progress)?;
     let mut tuned = fitted.clone();
+    // Classes the tune does not score, and the default entry, get the pooled reporting too.
+    tuned.for_each_class(|c| *c = at(c, &reporting, &point));
     let mut out = Vec::new();
     for (label, start) in &starts {
         let refined = signal.contains(label);

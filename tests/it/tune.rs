@@ -206,7 +206,7 @@ fn leaving_log(seed: u64) -> TuneLog {
 
 /// `--pool-reporting`: the reporting options are chosen once on the searched classes (cars)
 /// and reach the class with too few trajectories (the truck), whose other settings stay the
-/// base's own.
+/// base's own, and the classes the logs do not hold.
 #[test]
 fn pooled_reporting_reaches_the_classes_that_are_not_searched() {
     use probmot::tracker::levers::Coast;
@@ -223,6 +223,8 @@ fn pooled_reporting_reaches_the_classes_that_are_not_searched() {
     let (car, truck) = (&t.tuned.classes["car"], &t.tuned.classes["truck"]);
     assert_ne!(car.levers.coast, Coast::All, "{car:?}");
     assert_eq!(truck.levers.coast, car.levers.coast);
+    // A class the logs do not hold gets the choice too.
+    assert_eq!(t.tuned.classes["bus"].levers.coast, car.levers.coast);
     let mut own = truck.clone();
     own.levers = base.classes["truck"].levers.clone();
     assert_eq!(own, base.classes["truck"]);
