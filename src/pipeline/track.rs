@@ -523,7 +523,6 @@ fn run_pass(
         pending: BTreeMap::new(),
         next_frame: 0,
         frame_state: FrameState::new(&opts.config),
-        frame_latest: Default::default(),
         order: Default::default(),
         summary,
         progress,

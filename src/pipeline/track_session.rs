@@ -116,8 +116,6 @@ pub struct TrackSession<'a, S: RecordSink> {
     pub(super) pending: BTreeMap<u64, Vec<Pending>>,
     pub(super) next_frame: usize,
     pub(super) frame_state: FrameState,
-    /// Per frame tracked and not yet written, the latest log time of its detection messages.
-    pub(super) frame_latest: VecDeque<u64>,
     /// Holds input messages until the tracks before them (in log time) are written.
     pub(super) order: LogTimeOrder,
     pub(super) summary: TrackSummary,
@@ -254,10 +252,10 @@ impl<S: RecordSink> TrackSession<'_, S> {
         let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
         msgs_of_frame.sort_by_key(|p| p.ordinal);
         let latest = msgs_of_frame.iter().map(|p| p.log_time).max();
-        self.frame_latest
-            .push_back(latest.expect("a frame has a message"));
+        let latest = latest.expect("a frame has a message");
         self.frame_state.run(
             stamp,
+            latest,
             &mut msgs_of_frame,
             &mut self.tracker,
             &mut self.counters,
@@ -266,7 +264,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
             &self.topics,
         )?;
         if self.frame_state.held.is_none() {
-            self.write_tracks()?;
+            self.write_tracks(latest)?;
         } else {
             self.write_held()?;
         }
@@ -284,17 +282,16 @@ impl<S: RecordSink> TrackSession<'_, S> {
 
     /// Writes the frames the offline options have decided.
     fn write_held(&mut self) -> Result<()> {
-        while self.frame_state.next_held(&self.tracker).is_some() {
-            self.write_tracks()?;
+        while let Some(latest) = self.frame_state.next_held(&self.tracker) {
+            self.write_tracks(latest)?;
         }
         Ok(())
     }
 
     /// Writes the tracks in `frame_state.out` (the oldest frame not yet written) and the extra
-    /// channels, at the log time of that frame.
-    fn write_tracks(&mut self) -> Result<()> {
+    /// channels, at the log time of that frame (`latest`: of its last detection message).
+    fn write_tracks(&mut self, latest: u64) -> Result<()> {
         let (_, channel_id) = self.ids.expect("ids exist with detections");
-        let latest = self.frame_latest.pop_front().expect("a frame to write");
         let log_time = self.order.tracks_time(&mut self.out, latest)?;
         let state = &mut self.frame_state;
         self.format.encode_into(&state.out, &mut state.buf);
@@ -400,12 +397,15 @@ struct HeldTrack {
 }
 
 /// The frames held while the offline options (`backfill`, `coast: gaps`) decide their reports,
-/// with each frame's frame id. The attributes of a held report are a copy (the only allocation
-/// per report, and only for detections that carry attributes).
+/// with each frame's latest detection log time and frame id. The attributes of a held report
+/// are a copy (the only allocation per report, and only for detections that carry attributes).
 #[derive(Default)]
 pub(super) struct HeldFrames {
     lookback: Lookback<HeldTrack>,
-    frame_ids: VecDeque<String>,
+    /// Per held frame, in order: latest detection log time and frame id.
+    frames: VecDeque<(u64, String)>,
+    /// Frame id strings of written frames, reused.
+    spare_ids: Vec<String>,
     shown: Vec<HeldTrack>,
 }
 
@@ -439,6 +439,7 @@ impl FrameState {
     fn run(
         &mut self,
         stamp: u64,
+        latest: u64,
         frame: &mut [Pending],
         tracker: &mut Tracker,
         counters: &mut InputCounters,
@@ -494,8 +495,9 @@ impl FrameState {
                 }
             };
             held.lookback.push(stamp, reports, &mut fill);
-            held.frame_ids
-                .push_back(std::mem::take(&mut self.out.frame_id));
+            let mut frame_id = held.spare_ids.pop().unwrap_or_default();
+            frame_id.clone_from(&self.out.frame_id);
+            held.frames.push_back((latest, frame_id));
             return Ok(());
         }
         self.out.tracks.resize_with(reports.len(), Track3D::default);
@@ -517,15 +519,15 @@ impl FrameState {
     }
 
     /// With the offline options: the next frame whose reports are all decided, in
-    /// `self.out` (its tracks own their attributes; [`FrameState::finish`] is not needed).
+    /// `self.out` (its tracks own their attributes; [`FrameState::finish`] is not needed), and
+    /// the latest log time of its detection messages.
     fn next_held(&mut self, tracker: &Tracker) -> Option<u64> {
         let held = self.held.as_mut()?;
         let stamp = held.lookback.pop_into(&mut held.shown)?;
+        let (latest, frame_id) = held.frames.pop_front().expect("a held frame's own data");
         self.out.stamp = stamp;
-        self.out.frame_id = held
-            .frame_ids
-            .pop_front()
-            .expect("a frame id per held frame");
+        held.spare_ids
+            .push(std::mem::replace(&mut self.out.frame_id, frame_id));
         self.out
             .tracks
             .resize_with(held.shown.len(), Track3D::default);
@@ -534,7 +536,7 @@ impl FrameState {
             t.image_box = v.image_box;
             std::mem::swap(&mut t.attributes, &mut v.attributes);
         }
-        Some(stamp)
+        Some(latest)
     }
 
     /// Gives the attributes lent to the encoded message back to the side table and forgets the
@@ -649,7 +651,6 @@ mod tests {
             pending: BTreeMap::new(),
             next_frame: 0,
             frame_state: FrameState::new(&opts.config),
-            frame_latest: Default::default(),
             order: LogTimeOrder::default(),
             summary: TrackSummary::default(),
             progress: &no_progress,

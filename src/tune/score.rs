@@ -159,7 +159,7 @@ fn run_tracker(
     let mut image: Vec<Option<[f64; 4]>> = Vec::new();
     // Frames wait here while the offline options decide their reports (when a class has them).
     let held = cfg.holds_frames();
-    let mut lookback: Lookback<(TrackReport, Option<[f64; 4]>)> = Lookback::default();
+    let mut lookback: Lookback<HeldReport> = Lookback::default();
     let mut shown = Vec::new();
     for (fi, f) in log.frames.iter().enumerate() {
         if !f.has_detections {
@@ -199,19 +199,28 @@ fn run_tracker(
         lookback.push(fi as u64, tracker.reports(), |v, r| {
             *v = (*r, image[r.id as usize])
         });
-        while let Some(fi) = lookback.pop_into(&mut shown) {
-            for (r, image_box) in &shown {
-                emit(fi as usize, r, tracker.label(r.class), *image_box);
-            }
-        }
+        drain(&mut lookback, &mut shown, &tracker, &mut emit);
     }
     lookback.finish();
-    while let Some(fi) = lookback.pop_into(&mut shown) {
-        for (r, image_box) in &shown {
+    drain(&mut lookback, &mut shown, &tracker, &mut emit);
+    Ok(())
+}
+
+/// A report held with the 2D box its track had in its frame.
+type HeldReport = (TrackReport, Option<[f64; 4]>);
+
+/// Hands every frame the lookback has decided to `emit`, in order (frame indexes as stamps).
+fn drain(
+    lookback: &mut Lookback<HeldReport>,
+    shown: &mut Vec<HeldReport>,
+    tracker: &Tracker,
+    emit: &mut impl FnMut(usize, &TrackReport, &str, Option<[f64; 4]>),
+) {
+    while let Some(fi) = lookback.pop_into(shown) {
+        for (r, image_box) in shown.iter() {
             emit(fi as usize, r, tracker.label(r.class), *image_box);
         }
     }
-    Ok(())
 }
 
 /// [`track_log`] with the truth of frame `i` given by `truth(i)`.

@@ -77,6 +77,12 @@ fn every_help_has_an_example() {
     }
 }
 
+/// The class entries of the config `probmot ARGS` prints.
+fn config_classes(args: &[&str]) -> serde_json::Map<String, serde_json::Value> {
+    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(args).stdout).unwrap();
+    v["classes"].as_object().unwrap().clone()
+}
+
 #[test]
 fn config_help_examples_run() {
     let dir = tempfile::tempdir().unwrap();
@@ -103,10 +109,9 @@ fn config_help_examples_run() {
         "--nms-iou",
         "0.1",
     ];
-    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&levers).stdout).unwrap();
-    let classes = v["classes"].as_object().unwrap();
+    let classes = config_classes(&levers);
     assert!(!classes.is_empty());
-    for (label, c) in classes {
+    for (label, c) in &classes {
         assert_eq!(c["levers"]["motion"], "ctrv", "{label}");
         assert_eq!(c["levers"]["nms_iou"], 0.1, "{label}");
         assert_eq!(c["angular_velocity"], true, "{label}");
@@ -120,8 +125,7 @@ fn config_help_examples_run() {
         "gaps",
         "--backfill",
     ];
-    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&offline).stdout).unwrap();
-    for (label, c) in v["classes"].as_object().unwrap() {
+    for (label, c) in &config_classes(&offline) {
         assert_eq!(c["levers"]["coast"], "gaps", "{label}");
         assert_eq!(c["levers"]["backfill"], true, "{label}");
     }
@@ -133,8 +137,7 @@ fn config_help_examples_run() {
         "--backfill",
         "false",
     ];
-    let v: serde_json::Value = serde_json::from_slice(&probmot_ok(&off).stdout).unwrap();
-    for (label, c) in v["classes"].as_object().unwrap() {
+    for (label, c) in &config_classes(&off) {
         assert!(c["levers"].get("backfill").is_none(), "{label}: {c}");
     }
     let clash = ["config", "--motion", "ctrv", "--no-angular-velocity"];

@@ -300,21 +300,22 @@ fn run_offline(cfg: TrackerConfig, frames: &[Vec<Detection>]) -> Vec<Vec<(u64, f
     let mut t = Tracker::new(cfg).unwrap();
     let c = t.class_id("car").unwrap();
     let mut lookback: Lookback<(u64, f64)> = Lookback::default();
-    let (mut out, mut shown) = (vec![], vec![]);
-    for (i, f) in frames.iter().enumerate() {
-        let dets: Vec<Detection> = f.iter().map(|d| Detection { class: c, ..*d }).collect();
-        let r = t.step(i as u64 * DT + 1, &dets).unwrap();
-        lookback.push(i as u64, r, |v, r| *v = (r.id, r.bbox.center[0]));
+    let mut out = vec![];
+    let drain = |lookback: &mut Lookback<(u64, f64)>, out: &mut Vec<Vec<(u64, f64)>>| {
+        let mut shown = vec![];
         while let Some(frame) = lookback.pop_into(&mut shown) {
             assert_eq!(frame as usize, out.len(), "frames come out in order");
             out.push(shown.clone());
         }
+    };
+    for (i, f) in frames.iter().enumerate() {
+        let dets: Vec<Detection> = f.iter().map(|d| Detection { class: c, ..*d }).collect();
+        let r = t.step(i as u64 * DT + 1, &dets).unwrap();
+        lookback.push(i as u64, r, |v, r| *v = (r.id, r.bbox.center[0]));
+        drain(&mut lookback, &mut out);
     }
     lookback.finish();
-    while let Some(frame) = lookback.pop_into(&mut shown) {
-        assert_eq!(frame as usize, out.len(), "frames come out in order");
-        out.push(shown.clone());
-    }
+    drain(&mut lookback, &mut out);
     out
 }
 
