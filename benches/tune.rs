@@ -9,6 +9,7 @@
 use std::path::{Path, PathBuf};
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use probmot::eval::kitti::MeanScores;
 use probmot::pipeline::kitti_io::{import_kitti, resolve_detection_files};
 use probmot::tracker::TrackerConfig;
 use probmot::tune::score::{class_truth, score_class_with, single_class};
@@ -42,6 +43,7 @@ fn bench(c: &mut Criterion) {
     let scoring = Scoring {
         protocol: Protocol::Kitti,
         iou: 0.25,
+        search_means: MeanScores::Once,
     };
     let o = TuneOptions {
         scoring,

@@ -49,6 +49,8 @@ rows=(
   "+ life cycle by confidence|--preset ab3dmot-kitti --search keep_score,decay|tuned"
   "probmot tune (every option)|--preset ab3dmot-kitti|tuned"
   "probmot tune --pool-reporting (every option)|--preset ab3dmot-kitti --pool-reporting|tuned"
+  "probmot tune --search-means every-pass (the search averaging as the reference)|--preset ab3dmot-kitti --search-means every-pass|tuned"
+  "probmot tune --pool-reporting --search-means every-pass|--preset ab3dmot-kitti --pool-reporting --search-means every-pass|tuned"
   "probmot tune --coast gaps (every option; base chosen on these sequences)|--preset ab3dmot-kitti --coast gaps|tuned"
 )
 echo "| row (2-fold, held-out sAMOTA x100) | Car | Pedestrian | Cyclist | overall |"

@@ -13,6 +13,7 @@ use probmot::pipeline::overrides::Overrides;
 use probmot::tracker::TrackerConfig;
 
 use super::config_cmd::CoastArg;
+use super::eval_cmd::MeansArg;
 use probmot::tune::{
     self, cross_validate, overall, CvReport, HeldOutLoss, Protocol, Scoring, SearchLimits, TuneLog,
     TuneOptions,
@@ -31,7 +32,8 @@ use rayon::prelude::*;
 ///
 /// Search: coordinate descent (classes are tracked and scored independently). Each round tries
 /// every candidate value of one option at a time and keeps the best when it raises the training
-/// score (sAMOTA for kitti, AMOTA for nuscenes) by more than --margin. Options: fitted or the
+/// score (sAMOTA for kitti, AMOTA for nuscenes; for kitti with each track's mean score computed
+/// once, see --search-means) by more than --margin. Options: fitted or the
 /// base config's own noise, gate and distance, matcher, min_hits, max_age, which frames are
 /// reported (coast, backfill), yaw rate, Q and R factors, NMS, reported score and its refinement, score floor, two-stage birth score, life
 /// cycle by confidence. Only classes with at least --min-tracks ground-truth trajectories in the
@@ -66,6 +68,13 @@ pub struct TuneArgs {
     /// KITTI: minimum 3D IoU of a match (as `probmot eval --iou`).
     #[arg(long, default_value_t = 0.25, value_name = "IOU")]
     iou: f64,
+    /// KITTI: how the search's objective computes each track's mean score. once (the default):
+    /// from the track's own scores. every-pass: as the reference evaluation does, re-averaged
+    /// at every threshold, whose ulp of drift drops tracks at thresholds equal to their own
+    /// means (see `probmot eval --means`), noise a search would chase. The held-out table is
+    /// always scored as the reference does. Example: --search-means every-pass
+    #[arg(long, value_enum, default_value = "once", value_name = "WHEN")]
+    search_means: MeansArg,
     /// Number of cross-validation folds; 0 or 1: no cross-validation, only the final tune.
     #[arg(long, default_value_t = 2, value_name = "K")]
     folds: usize,
@@ -269,6 +278,7 @@ fn options(a: &TuneArgs) -> TuneOptions {
                 ProtocolArg::Nuscenes => Protocol::Nuscenes,
             },
             iou: a.iou,
+            search_means: a.search_means.means(),
         },
         limits: SearchLimits {
             budget: a.budget,
@@ -350,7 +360,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
             Protocol::Kitti => "kitti",
             Protocol::Nuscenes => "nuscenes",
         },
-        scoring.metric(),
+        scoring.search_metric(),
         a.budget
     );
     if a.pool_reporting {
@@ -402,7 +412,7 @@ fn report(
                 "{}: {} trajectories, training {} base {} -> shared {} -> {} ({})",
                 c.label,
                 c.trajectories,
-                o.scoring.metric(),
+                o.scoring.search_metric(),
                 pct(c.base_score),
                 pct(c.shared_score),
                 pct(c.score),

@@ -6,7 +6,7 @@ use std::collections::BTreeMap;
 use anyhow::{anyhow, Result};
 
 use super::data::TuneLog;
-use crate::eval::kitti::{self, KittiParams, RowKind, TrackRow};
+use crate::eval::kitti::{self, KittiParams, MeanScores, RowKind, TrackRow};
 use crate::eval::nuscenes::{self, NuscenesParams};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
@@ -29,6 +29,9 @@ pub struct Scoring {
     pub protocol: Protocol,
     /// KITTI: minimum 3D IoU of a match. nuScenes: unused (2 m centre distance).
     pub iou: f64,
+    /// KITTI: how the search's objective computes the tracks' mean scores. The reported
+    /// scores ([`Scoring::evaluate`]) are always the reference's.
+    pub search_means: MeanScores,
 }
 
 impl Scoring {
@@ -45,6 +48,14 @@ impl Scoring {
         match self.protocol {
             Protocol::Kitti => "sAMOTA",
             Protocol::Nuscenes => "AMOTA",
+        }
+    }
+
+    /// Name of the search's objective: the headline metric, and for KITTI how it averages.
+    pub fn search_metric(&self) -> &'static str {
+        match (self.protocol, self.search_means) {
+            (Protocol::Kitti, MeanScores::Once) => "sAMOTA (means once)",
+            _ => self.metric(),
         }
     }
 
@@ -140,6 +151,7 @@ fn kitti_params(label: &str, scoring: &Scoring) -> KittiParams {
     KittiParams {
         classes: vec![label.to_string()],
         min_overlap: scoring.iou,
+        means: scoring.search_means,
         ..KittiParams::default()
     }
 }

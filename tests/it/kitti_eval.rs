@@ -76,6 +76,7 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
     assert!(runs.len() >= 2);
     let tmp = tempfile::tempdir().unwrap();
     let mut errors = Vec::new();
+    let (mut drift_seen, mut compared) = (false, 0);
     for run in runs {
         let seq = run["sequence"].as_str().unwrap();
         let preset = run["preset"].as_str().unwrap();
@@ -109,6 +110,7 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
             continue;
         }
 
+        compared += 1;
         let eval = probmot_ok(&["eval", "--protocol", "kitti", "--truth", s(&out), "--json"]);
         let ours: Value = serde_json::from_slice(&eval.stdout).unwrap();
         let ours = &ours["result"]["classes"];
@@ -121,7 +123,36 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
         for (class, want) in reference {
             compare_class(&format!("{what} {class}"), want, &ours[class], &mut errors);
         }
+        // `--means once` gives the sAMOTA the default run reports as `sAMOTA_means_once`, and
+        // differs from the reference's exactly where the default run saw drift.
+        let once = probmot_ok(&[
+            "eval",
+            "--protocol",
+            "kitti",
+            "--truth",
+            s(&out),
+            "--json",
+            "--means",
+            "once",
+        ]);
+        let once: Value = serde_json::from_slice(&once.stdout).unwrap();
+        for (class, m) in once["result"]["classes"].as_object().unwrap() {
+            let default = &ours[class];
+            assert_eq!(m["drift_points"], 0, "{what} {class}");
+            assert_eq!(m["sAMOTA"], default["sAMOTA_means_once"], "{what} {class}");
+            let drifted = default["drift_points"].as_u64().unwrap() > 0;
+            drift_seen |= drifted && m["sAMOTA"] != reference[class]["sAMOTA"];
+            if !drifted {
+                assert_eq!(m["sAMOTA"], default["sAMOTA"], "{what} {class}");
+            }
+        }
     }
+    // The reference's numbers are those of the re-averaging: on these runs it changed a
+    // result (0017's pedestrians), and the reference agrees with the default, not `once`.
+    assert!(
+        drift_seen || compared == 0,
+        "no run showed the re-averaging drift"
+    );
     assert!(
         errors.is_empty(),
         "disagreements with the AB3DMOT evaluation:\n{}",
@@ -189,9 +220,12 @@ fn kitti_eval_table_and_gate() {
         1,
         "only car"
     );
-    // --iou belongs to kitti.
+    // --iou and --means belong to kitti.
     let out = common::probmot(&["eval", "--truth", s(&ab), "--iou", "0.5"]);
     assert_eq!(out.status.code(), Some(2));
+    let out = common::probmot(&["eval", "--truth", s(&ab), "--means", "once"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--means is a KITTI option"));
     // The gate on sAMOTA: comparing a run with itself passes; against a baseline that is
     // better by more than --max-drop, it fails with status 3.
     let samota = |p: &Path| {

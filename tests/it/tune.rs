@@ -6,6 +6,7 @@ use crate::common;
 use std::path::Path;
 
 use indicatif::ProgressBar;
+use probmot::eval::kitti::MeanScores;
 use probmot::mcapio::LabelledBox;
 use probmot::tracker::{Box3, TrackerConfig};
 use probmot::tune::data::{TuneDet, TuneFrame};
@@ -98,6 +99,7 @@ fn options(budget: usize) -> TuneOptions {
         scoring: Scoring {
             protocol: Protocol::Nuscenes,
             iou: 0.25,
+            search_means: MeanScores::Once,
         },
         limits: SearchLimits {
             budget,
@@ -482,6 +484,10 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
         scoring: Scoring {
             protocol: Protocol::Kitti,
             iou: 0.25,
+            // The reference's averaging, for which this 13-configuration search was set up
+            // (with the default `once` it picks a gate that scores 87.54 held-out against the
+            // base's 87.64; docs/tune.md).
+            search_means: MeanScores::EveryPass,
         },
         // The start, the base's own noise, then the first eleven gates.
         limits: SearchLimits {

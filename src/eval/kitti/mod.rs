@@ -30,7 +30,9 @@
 //! - A track box once matched (at any earlier threshold of the same class) can no longer be
 //!   ignored by the neighbouring-class, height or DontCare rules.
 //! - The mean track score is recomputed at every threshold from the previous means, which can
-//!   move it by an ulp (and drop a track whose mean equals the threshold).
+//!   move it by an ulp (and drop a track whose mean equals the threshold). `drift_points`
+//!   counts the recall points where that changed which tracks were kept, `sAMOTA_means_once`
+//!   shows what it cost, and [`MeanScores::Once`] evaluates without it.
 //! - FAR and MODP divide by the devkit's frame count, which is one more than the number of
 //!   frames (the KITTI seqmap's last column holds the frame count, read as the last index).
 //! - `overall` is not printed by the reference script; AB3DMOT's published tables give, for
@@ -86,6 +88,25 @@ pub struct KittiParams {
     pub min_height: f64,
     /// Number of recall points (40).
     pub recall_points: usize,
+    /// When each track's mean score is computed: at every threshold from the previous means,
+    /// as the reference does (the default), or once.
+    pub means: MeanScores,
+}
+
+/// When the evaluation computes each track's mean score, the score its boxes are kept or
+/// dropped by at a threshold.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MeanScores {
+    /// At every threshold, from the means of the previous one, as the reference does. Adding
+    /// up `n` copies of a mean and dividing by `n` can move it by an ulp, so a track can be
+    /// dropped at a threshold equal to its own mean (the thresholds are the matched boxes'
+    /// means): the official numbers, quirk included.
+    #[default]
+    EveryPass,
+    /// Once, from the track's own scores: a track is kept exactly when its mean reaches the
+    /// threshold. Not the reference's numbers where they differ.
+    Once,
 }
 
 impl Default for KittiParams {
@@ -97,6 +118,7 @@ impl Default for KittiParams {
             max_occlusion: 2,
             min_height: 25.0,
             recall_points: 40,
+            means: MeanScores::EveryPass,
         }
     }
 }
@@ -238,6 +260,14 @@ pub struct KittiMetrics {
     /// The threshold of the best MOTA (the reference's "best results with single threshold").
     #[serde(serialize_with = "nan_as_null")]
     pub best_threshold: f64,
+    /// Recall points at which a track was kept or dropped otherwise than its mean score says:
+    /// the drift of the reference's re-averaging ([`MeanScores::EveryPass`]); summed in
+    /// `overall`.
+    pub drift_points: u64,
+    /// sAMOTA with each track's mean score computed once ([`MeanScores::Once`]): `sAMOTA`
+    /// itself when no point drifted. Not an official number; it shows what the drift cost.
+    #[serde(rename = "sAMOTA_means_once", serialize_with = "nan_as_null")]
+    pub samota_means_once: f64,
     /// The metrics at every recall point, in order (empty for `overall`).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub curve: Vec<CurvePoint>,
@@ -353,6 +383,8 @@ impl KittiMetrics {
             ignored_tracker: sum(|m| m.ignored_tracker),
             tracker_trajectories: sum(|m| m.tracker_trajectories),
             best_threshold: f64::NAN,
+            drift_points: sum(|m| m.drift_points),
+            samota_means_once: mean(|m| m.samota_means_once),
             curve: Vec::new(),
         }
     }
@@ -417,6 +449,19 @@ fn evaluate_class(
     let tracks: Vec<Vec<TrackRow>> = scenes.iter().map(|s| scene_rows(s, cls)).collect();
     match truth.evaluate_recording(&tracks, log) {
         Ok(m) => {
+            if m.drift_points > 0 {
+                notes.push(format!(
+                    "{cls}: the reference's re-averaging of the track scores (an ulp of drift \
+                     at each threshold, whose values are the tracks' own means) changed which \
+                     tracks were kept at {} of {} recall points: sAMOTA {:.4} as the reference \
+                     computes it, {:.4} with each track's mean computed once (`--means once`; \
+                     not the official number)",
+                    m.drift_points,
+                    m.curve.len(),
+                    m.samota,
+                    m.samota_means_once
+                ));
+            }
             if m.gt_objects == m.ignored_gt {
                 notes.push(format!(
                     "{cls}: no ground truth that counts (all ignored or none): MOTA is -inf \
@@ -462,17 +507,35 @@ impl ClassTruth {
         tracks: &[Vec<TrackRow>],
         log: Option<&mut Collector>,
     ) -> Result<KittiMetrics, Skip> {
+        let mut m = self.evaluate_means(tracks, log, self.p.means)?;
+        m.samota_means_once = if m.drift_points == 0 {
+            m.samota
+        } else {
+            self.evaluate_means(tracks, None, MeanScores::Once)?.samota
+        };
+        Ok(m)
+    }
+
+    /// The evaluation with the mean scores computed as `means` says.
+    fn evaluate_means(
+        &self,
+        tracks: &[Vec<TrackRow>],
+        log: Option<&mut Collector>,
+        means: MeanScores,
+    ) -> Result<KittiMetrics, Skip> {
         let p = &self.p;
         let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, p)?;
-        let mut e = ClassEval::new(self, seqs);
+        let mut e = ClassEval::new(self, seqs, means);
         let first = e.pass(-10000.0, 1.0, true);
         let num_gt = first.tp + first.fn_;
         let (ths, recs) = thresholds(&first.scores, num_gt, p.recall_points);
         let mut curve = Vec::with_capacity(ths.len());
         let (mut sum_smota, mut sum_mota, mut sum_motp) = (0.0f64, 0.0f64, 0.0f64);
         let (mut best_mota, mut best_threshold) = (0.0f64, -10000.0f64);
+        let mut drift_points = 0;
         for (&th, &rec) in ths.iter().zip(&recs) {
             let r = e.pass(th, rec, false);
+            drift_points += u64::from(r.drifted);
             sum_smota += r.smota;
             sum_mota += r.mota;
             sum_motp += r.motp;
@@ -492,6 +555,7 @@ impl ClassTruth {
         let mut m = metrics_at(&best, (n_gt_trajectories, n_tr_trajectories));
         (m.samota, m.amota, m.amotp) = (sum_smota / k, sum_mota / k, sum_motp / k);
         m.best_threshold = best_threshold;
+        m.drift_points = drift_points;
         m.curve = curve;
         Ok(m)
     }
@@ -552,6 +616,8 @@ fn metrics_at(best: &Pass, (gt_trajectories, tracker_trajectories): (u64, u64)) 
         ignored_tracker: best.n_itr,
         tracker_trajectories,
         best_threshold: f64::NAN,
+        drift_points: 0,
+        samota_means_once: f64::NAN,
         curve: Vec::new(),
     }
 }

@@ -18,7 +18,7 @@ use std::cmp::Ordering;
 use super::munkres::Munkres;
 use super::prepare::{ClassTruth, GtObj, TruthSeq};
 use super::tracks::{Edge, SeqTracks, TrObj};
-use super::MAX_COST;
+use super::{MeanScores, MAX_COST};
 use crate::eval::events::{Collector, MarkKind};
 
 /// Counts and derived metrics of one pass over the data at one threshold.
@@ -51,6 +51,9 @@ pub(super) struct Pass {
     pub far: f64,
     /// Mean scores of the matched boxes, in matching order.
     pub scores: Vec<f64>,
+    /// Whether a track was kept or dropped otherwise than its first mean score says (the
+    /// re-averaging drift of [`MeanScores::EveryPass`]).
+    pub drifted: bool,
 }
 
 /// Sums a pass carries besides [`Pass`]'s counts.
@@ -138,11 +141,15 @@ pub(super) struct ClassEval<'a> {
     /// Per scene, per frame: its share of the last pass.
     memos: Vec<Vec<FrameMemo>>,
     scratch: Scratch,
+    /// When the tracks' mean scores are computed.
+    means: MeanScores,
+    /// Per scene, per track slot: its mean score after the first pass.
+    first_means: Vec<Vec<f64>>,
 }
 
 impl<'a> ClassEval<'a> {
     /// The evaluation of prepared tracks against `truth`.
-    pub(super) fn new(truth: &'a ClassTruth, seqs: Vec<SeqTracks>) -> Self {
+    pub(super) fn new(truth: &'a ClassTruth, seqs: Vec<SeqTracks>, means: MeanScores) -> Self {
         let memos = truth.seqs.iter().map(|t| {
             let frames = t.frames.iter();
             frames.map(|_| FrameMemo::default()).collect()
@@ -153,6 +160,8 @@ impl<'a> ClassEval<'a> {
             log: None,
             memos: memos.collect(),
             scratch: Scratch::default(),
+            means,
+            first_means: Vec::new(),
         }
     }
 
@@ -162,13 +171,25 @@ impl<'a> ClassEval<'a> {
         let mut r = Pass::default();
         let mut t = Tally::default();
         let s = &mut self.scratch;
+        let first_pass = self.first_means.is_empty();
         let seqs = self.seqs.iter_mut().zip(&self.truth.seqs);
         for (si, ((seq, truth), memos)) in seqs.zip(&mut self.memos).enumerate() {
             t.n_frames += truth.frames.len();
-            average_scores(seq, &mut s.sums);
+            if first_pass || self.means == MeanScores::EveryPass {
+                average_scores(seq, &mut s.sums);
+            }
+            if first_pass {
+                let mut means = vec![f64::NAN; seq.n_tracks];
+                for row in &seq.rows {
+                    means[row.slot as usize] = row.score;
+                }
+                self.first_means.push(means);
+            }
+            let first_means = &self.first_means[si];
             for (fi, (f, memo)) in truth.frames.iter().zip(memos.iter_mut()).enumerate() {
                 let (rows, edges) = seq.frame(fi);
-                let changed = update_kept(rows, threshold);
+                let (changed, drifted) = update_kept(rows, threshold, first_means);
+                r.drifted |= drifted;
                 if changed || !memo.fresh || scores || self.log.is_some() {
                     let scores = scores.then_some(&mut r.scores);
                     match_frame((&f.gt, &mut *rows, edges), s, memo, scores);
@@ -185,15 +206,18 @@ impl<'a> ClassEval<'a> {
     }
 }
 
-/// Marks the rows kept at `threshold` (score not below it); whether any changed.
-fn update_kept(rows: &mut [TrObj], threshold: f64) -> bool {
-    let mut changed = false;
+/// Marks the rows kept at `threshold` (score not below it); whether any changed, and whether
+/// any is kept otherwise than its track's first mean score (`first_means`, by slot) says.
+fn update_kept(rows: &mut [TrObj], threshold: f64, first_means: &[f64]) -> (bool, bool) {
+    let at_least = |score: f64| score.partial_cmp(&threshold) != Some(Ordering::Less);
+    let (mut changed, mut drifted) = (false, false);
     for row in rows {
-        let kept = row.score.partial_cmp(&threshold) != Some(Ordering::Less);
+        let kept = at_least(row.score);
         changed |= kept != row.kept;
+        drifted |= kept != at_least(first_means[row.slot as usize]);
         row.kept = kept;
     }
-    changed
+    (changed, drifted)
 }
 
 /// Every row of a track takes the mean score of the track's rows, summed in file order.

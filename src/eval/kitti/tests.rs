@@ -275,6 +275,54 @@ fn ids_repeated_in_another_log_are_other_objects() {
 }
 
 #[test]
+fn the_reference_re_averaging_can_drop_a_track_at_its_own_mean() {
+    // One ground truth in six frames, matched by track 1 scoring 0.1 five times and 0.35 once.
+    // Its mean m = 0.14166666666666666 is every threshold; six copies of m add up to a sum
+    // whose sixth is one ulp lower, so the reference (which re-averages at every threshold)
+    // drops the track at all five points. Averaged once, it is kept: sMOTA 1 at each.
+    let frames: Vec<_> = [0.1, 0.1, 0.1, 0.1, 0.1, 0.35]
+        .iter()
+        .map(|&s| {
+            (
+                vec![gt(0, "Car", 10.0, 0, 0)],
+                vec![trk(1, "Car", 10.0, s, IMG)],
+            )
+        })
+        .collect();
+    let scenes = [scene(frames)];
+    let reference = evaluate(&scenes, &params(&["car"]));
+    let m = &reference.classes["car"];
+    let mean = m.curve[0].threshold;
+    assert_eq!(mean, (0.1 * 5.0 + 0.35) / 6.0);
+    assert!((mean * 6.0) / 6.0 == mean && (0..6).map(|_| mean).sum::<f64>() / 6.0 < mean);
+    assert_eq!(m.curve.len(), 5);
+    assert!(m.curve.iter().all(|c| c.threshold == mean && c.tp == 0));
+    assert!(
+        m.samota < 1e-12 && m.drift_points == 5,
+        "{} {}",
+        m.samota,
+        m.drift_points
+    );
+    assert!(close(m.samota_means_once, 5.0 / 40.0));
+    let note = &reference.notes[0];
+    assert!(
+        note.contains("at 5 of 5 recall points") && note.contains("0.1250"),
+        "{note}"
+    );
+
+    let once = KittiParams {
+        means: MeanScores::Once,
+        ..params(&["car"])
+    };
+    let r = evaluate(&scenes, &once);
+    let m = &r.classes["car"];
+    assert!(m.curve.iter().all(|c| c.tp == 6));
+    assert!(close(m.samota, 5.0 / 40.0) && m.samota == m.samota_means_once);
+    assert_eq!(m.drift_points, 0);
+    assert!(r.notes.is_empty(), "{:?}", r.notes);
+}
+
+#[test]
 fn whole_trajectories_are_filtered_by_their_mean_score() {
     // GT 0 in four frames, matched by track 1 with scores averaging 0.5 (one box below);
     // GT 1 in the first two frames, matched by track 3 (mean 0.125); track 2 is a false
