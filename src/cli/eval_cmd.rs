@@ -756,7 +756,11 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
-            "KITTI 3D MOT metrics (AB3DMOT evaluation, 3D IoU >= {}): {} vs {} ({} / {})",
+            "KITTI 3D MOT metrics (AB3DMOT evaluation{}, 3D IoU >= {}): {} vs {} ({} / {})",
+            match params.means {
+                MeanScores::EveryPass => "",
+                MeanScores::Once => " with each track's mean computed once, not official",
+            },
             params.min_overlap,
             describe(&pairs, true),
             describe(&pairs, false),

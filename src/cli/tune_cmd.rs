@@ -8,6 +8,7 @@ use std::process::ExitCode;
 use anyhow::{bail, ensure, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
+use probmot::eval::kitti::MeanScores;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::pipeline::overrides::Overrides;
 use probmot::tracker::TrackerConfig;
@@ -33,14 +34,15 @@ use rayon::prelude::*;
 /// Search: coordinate descent (classes are tracked and scored independently). Each round tries
 /// every candidate value of one option at a time and keeps the best when it raises the training
 /// score (sAMOTA for kitti, AMOTA for nuscenes; for kitti with each track's mean score computed
-/// once, see --search-means) by more than --margin. Options: fitted or the
-/// base config's own noise, gate and distance, matcher, min_hits, max_age, which frames are
-/// reported (coast, backfill), yaw rate, Q and R factors, NMS, reported score and its refinement, score floor, two-stage birth score, life
-/// cycle by confidence. Only classes with at least --min-tracks ground-truth trajectories in the
-/// training logs are searched (from the base with fitted noise); the others keep the base
-/// config's own settings, as a handful of trajectories supports no data-driven choice. With
-/// --shared, a first stage chooses the class-agnostic options jointly for every class (on the
-/// mean score of the searched classes), and the other classes keep those instead.
+/// once, see --search-means) by more than --margin. Options: fitted or the base config's own
+/// noise, gate and distance, matcher, min_hits, max_age, which frames are reported (coast,
+/// backfill), yaw rate, Q and R factors, NMS, reported score and its refinement, score floor,
+/// two-stage birth score, life cycle by confidence. Only classes with at least --min-tracks
+/// ground-truth trajectories in the training logs are searched (from the base with fitted
+/// noise); the others keep the base config's own settings, as a handful of trajectories
+/// supports no data-driven choice. With --shared, a first stage chooses the class-agnostic
+/// options jointly for every class (on the mean score of the searched classes), and the other
+/// classes keep those instead.
 /// Bound the work with --budget (configurations per search; about 80 make one round) and
 /// --rounds; the total is at most (folds + 1) x (classes + 1) x budget configurations, and a
 /// configuration seen before is not scored again. Deterministic for the same inputs and
@@ -68,13 +70,13 @@ pub struct TuneArgs {
     /// KITTI: minimum 3D IoU of a match (as `probmot eval --iou`).
     #[arg(long, default_value_t = 0.25, value_name = "IOU")]
     iou: f64,
-    /// KITTI: how the search's objective computes each track's mean score. once (the default):
+    /// KITTI: how the search's objective computes each track's mean score. once (default):
     /// from the track's own scores. every-pass: as the reference evaluation does, re-averaged
     /// at every threshold, whose ulp of drift drops tracks at thresholds equal to their own
     /// means (see `probmot eval --means`), noise a search would chase. The held-out table is
     /// always scored as the reference does. Example: --search-means every-pass
-    #[arg(long, value_enum, default_value = "once", value_name = "WHEN")]
-    search_means: MeansArg,
+    #[arg(long, value_enum, value_name = "WHEN")]
+    search_means: Option<MeansArg>,
     /// Number of cross-validation folds; 0 or 1: no cross-validation, only the final tune.
     #[arg(long, default_value_t = 2, value_name = "K")]
     folds: usize,
@@ -258,6 +260,10 @@ pub fn run(a: TuneArgs) -> Result<ExitCode> {
         "--iou must lie in (0, 1], got {}",
         a.iou
     );
+    ensure!(
+        a.search_means.is_none() || matches!(a.protocol, ProtocolArg::Kitti),
+        "--search-means is a KITTI option (the nuScenes devkit averages each track's score once)"
+    );
     tune::space::check_names(&a.search).map_err(anyhow::Error::msg)?;
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
@@ -278,7 +284,7 @@ fn options(a: &TuneArgs) -> TuneOptions {
                 ProtocolArg::Nuscenes => Protocol::Nuscenes,
             },
             iou: a.iou,
-            search_means: a.search_means.means(),
+            search_means: a.search_means.map_or(MeanScores::Once, MeansArg::means),
         },
         limits: SearchLimits {
             budget: a.budget,

@@ -64,9 +64,11 @@ impl Scoring {
     pub fn evaluate(&self, scenes: &[Scene], classes: &[String]) -> BTreeMap<String, f64> {
         match self.protocol {
             Protocol::Kitti => {
+                // The reference's averaging: reported scores are the official ones.
                 let p = KittiParams {
                     classes: classes.to_vec(),
                     min_overlap: self.iou,
+                    means: MeanScores::EveryPass,
                     ..KittiParams::default()
                 };
                 let r = kitti::evaluate(scenes, &p);

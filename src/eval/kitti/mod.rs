@@ -30,7 +30,9 @@
 //! - A track box once matched (at any earlier threshold of the same class) can no longer be
 //!   ignored by the neighbouring-class, height or DontCare rules.
 //! - The mean track score is recomputed at every threshold from the previous means, which can
-//!   move it by an ulp (and drop a track whose mean equals the threshold). `drift_points`
+//!   move it by an ulp (and drop a track whose mean equals the threshold). The reference sums
+//!   with Python's `sum`, plain left-to-right summation up to Python 3.11 (the version the
+//!   reference numbers were made with); Python 3.12's compensated `sum` drifts far less. `drift_points`
 //!   counts the recall points where that changed which tracks were kept, `sAMOTA_means_once`
 //!   shows what it cost, and [`MeanScores::Once`] evaluates without it.
 //! - FAR and MODP divide by the devkit's frame count, which is one more than the number of
@@ -56,6 +58,7 @@ use crate::pipeline::kitti_io::attr::{
 use pass::{ClassEval, Pass};
 use prepare::loaded_types;
 pub use prepare::ClassTruth;
+use tracks::SeqTracks;
 pub use tracks::{row_kind, scene_rows, RowKind, Skip, TrackRow};
 
 mod munkres;
@@ -98,10 +101,11 @@ pub struct KittiParams {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum MeanScores {
-    /// At every threshold, from the means of the previous one, as the reference does. Adding
-    /// up `n` copies of a mean and dividing by `n` can move it by an ulp, so a track can be
-    /// dropped at a threshold equal to its own mean (the thresholds are the matched boxes'
-    /// means): the official numbers, quirk included.
+    /// At every threshold, from the means of the previous one, as the reference does (summed
+    /// left to right, as Python's `sum` did up to 3.11). Adding up `n` copies of a mean and
+    /// dividing by `n` can move it by an ulp, so a track can be dropped at a threshold equal
+    /// to its own mean (the thresholds are the matched boxes' means): the official numbers,
+    /// quirk included.
     #[default]
     EveryPass,
     /// Once, from the track's own scores: a track is kept exactly when its mean reaches the
@@ -397,6 +401,8 @@ pub struct KittiResult {
     pub protocol: &'static str,
     /// Minimum 3D IoU of a match.
     pub min_overlap: f64,
+    /// When the tracks' mean scores were computed (`every-pass`: the official numbers).
+    pub means: MeanScores,
     /// Per evaluated class. A class without any track box of its types is not evaluated (as in
     /// the reference) and is absent here; see `notes`.
     pub classes: BTreeMap<String, KittiMetrics>,
@@ -507,24 +513,29 @@ impl ClassTruth {
         tracks: &[Vec<TrackRow>],
         log: Option<&mut Collector>,
     ) -> Result<KittiMetrics, Skip> {
-        let mut m = self.evaluate_means(tracks, log, self.p.means)?;
-        m.samota_means_once = if m.drift_points == 0 {
-            m.samota
-        } else {
-            self.evaluate_means(tracks, None, MeanScores::Once)?.samota
+        let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, &self.p)?;
+        // The passes change the rows' scores and flags: a drift needs the prepared rows again.
+        let again = (self.p.means == MeanScores::EveryPass).then(|| seqs.clone());
+        let mut m = self.evaluate_means((seqs, n_tr_trajectories), log, self.p.means);
+        m.samota_means_once = match again {
+            Some(seqs) if m.drift_points > 0 => {
+                let once = self.evaluate_means((seqs, n_tr_trajectories), None, MeanScores::Once);
+                once.samota
+            }
+            _ => m.samota,
         };
         Ok(m)
     }
 
-    /// The evaluation with the mean scores computed as `means` says.
+    /// The evaluation of prepared tracks (and their number of trajectories) with the mean
+    /// scores computed as `means` says.
     fn evaluate_means(
         &self,
-        tracks: &[Vec<TrackRow>],
+        (seqs, n_tr_trajectories): (Vec<SeqTracks>, u64),
         log: Option<&mut Collector>,
         means: MeanScores,
-    ) -> Result<KittiMetrics, Skip> {
+    ) -> KittiMetrics {
         let p = &self.p;
-        let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, p)?;
         let mut e = ClassEval::new(self, seqs, means);
         let first = e.pass(-10000.0, 1.0, true);
         let num_gt = first.tp + first.fn_;
@@ -557,7 +568,7 @@ impl ClassTruth {
         m.best_threshold = best_threshold;
         m.drift_points = drift_points;
         m.curve = curve;
-        Ok(m)
+        m
     }
 }
 
@@ -668,6 +679,7 @@ pub fn evaluate_recording(
     let result = KittiResult {
         protocol: "kitti",
         min_overlap: p.min_overlap,
+        means: p.means,
         classes,
         overall,
         notes,

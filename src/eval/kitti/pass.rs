@@ -143,7 +143,10 @@ pub(super) struct ClassEval<'a> {
     scratch: Scratch,
     /// When the tracks' mean scores are computed.
     means: MeanScores,
-    /// Per scene, per track slot: its mean score after the first pass.
+    /// Whether the first pass has averaged the scores.
+    averaged: bool,
+    /// [`MeanScores::EveryPass`]: per scene, per track slot, its mean score after the first
+    /// pass (to see the drift).
     first_means: Vec<Vec<f64>>,
 }
 
@@ -161,6 +164,7 @@ impl<'a> ClassEval<'a> {
             memos: memos.collect(),
             scratch: Scratch::default(),
             means,
+            averaged: false,
             first_means: Vec::new(),
         }
     }
@@ -171,21 +175,24 @@ impl<'a> ClassEval<'a> {
         let mut r = Pass::default();
         let mut t = Tally::default();
         let s = &mut self.scratch;
-        let first_pass = self.first_means.is_empty();
+        let first_pass = !self.averaged;
+        self.averaged = true;
+        let every_pass = self.means == MeanScores::EveryPass;
         let seqs = self.seqs.iter_mut().zip(&self.truth.seqs);
         for (si, ((seq, truth), memos)) in seqs.zip(&mut self.memos).enumerate() {
             t.n_frames += truth.frames.len();
-            if first_pass || self.means == MeanScores::EveryPass {
+            if first_pass || every_pass {
                 average_scores(seq, &mut s.sums);
             }
-            if first_pass {
+            if first_pass && every_pass {
                 let mut means = vec![f64::NAN; seq.n_tracks];
                 for row in &seq.rows {
                     means[row.slot as usize] = row.score;
                 }
                 self.first_means.push(means);
             }
-            let first_means = &self.first_means[si];
+            // Averaged once, the scores are the first means: nothing can drift.
+            let first_means = self.first_means.get(si).map(Vec::as_slice);
             for (fi, (f, memo)) in truth.frames.iter().zip(memos.iter_mut()).enumerate() {
                 let (rows, edges) = seq.frame(fi);
                 let (changed, drifted) = update_kept(rows, threshold, first_means);
@@ -207,14 +214,17 @@ impl<'a> ClassEval<'a> {
 }
 
 /// Marks the rows kept at `threshold` (score not below it); whether any changed, and whether
-/// any is kept otherwise than its track's first mean score (`first_means`, by slot) says.
-fn update_kept(rows: &mut [TrObj], threshold: f64, first_means: &[f64]) -> (bool, bool) {
+/// any is kept otherwise than its track's first mean score (`first_means`, by slot, when
+/// given) says.
+fn update_kept(rows: &mut [TrObj], threshold: f64, first_means: Option<&[f64]>) -> (bool, bool) {
     let at_least = |score: f64| score.partial_cmp(&threshold) != Some(Ordering::Less);
     let (mut changed, mut drifted) = (false, false);
     for row in rows {
         let kept = at_least(row.score);
         changed |= kept != row.kept;
-        drifted |= kept != at_least(first_means[row.slot as usize]);
+        if let Some(first) = first_means {
+            drifted |= kept != at_least(first[row.slot as usize]);
+        }
         row.kept = kept;
     }
     (changed, drifted)
