@@ -14,6 +14,8 @@ use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult, MeanScores};
+
+use super::means_arg::MeansArg;
 use probmot::eval::nuscenes::{
     evaluate_columns, evaluate_columns_recording, NuscenesParams, NuscenesResult,
 };
@@ -57,6 +59,7 @@ pub enum Protocol {
 ///   probmot eval --truth gt.mcap --tracks new.mcap --baseline old.mcap --max-drop 1
 ///   probmot eval --protocol kitti --truth 0000.tracked.mcap
 ///   probmot eval --protocol kitti --iou 0.5 --classes car --truth 0000.tracked.mcap
+///   probmot eval --protocol kitti --means once --truth new/ --baseline old/ --max-drop 1
 ///   probmot eval --truth gt/ --tracks tracked/ --json        # many logs, paired by file name
 ///   probmot eval --devkit --truth val/                        # the official nuScenes number
 #[derive(Debug, Args)]
@@ -679,25 +682,6 @@ fn kitti_params(a: &EvalArgs) -> Result<KittiParams> {
     }
     params.means = a.means.map_or(MeanScores::EveryPass, MeansArg::means);
     Ok(params)
-}
-
-/// When the KITTI evaluation computes the tracks' mean scores, on the command line.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum MeansArg {
-    /// At every threshold, from the previous means (the reference; official numbers).
-    EveryPass,
-    /// Once per track.
-    Once,
-}
-
-impl MeansArg {
-    /// The library's value.
-    pub fn means(self) -> MeanScores {
-        match self {
-            MeansArg::EveryPass => MeanScores::EveryPass,
-            MeansArg::Once => MeanScores::Once,
-        }
-    }
 }
 
 fn run_kitti(a: EvalArgs) -> Result<ExitCode> {

@@ -7,6 +7,7 @@ mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
 mod layer_topics;
+mod means_arg;
 mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;

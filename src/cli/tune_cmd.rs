@@ -14,7 +14,7 @@ use probmot::pipeline::overrides::Overrides;
 use probmot::tracker::TrackerConfig;
 
 use super::config_cmd::CoastArg;
-use super::eval_cmd::MeansArg;
+use super::means_arg::MeansArg;
 use probmot::tune::{
     self, cross_validate, overall, CvReport, HeldOutLoss, Protocol, Scoring, SearchLimits, TuneLog,
     TuneOptions,

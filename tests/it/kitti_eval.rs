@@ -271,4 +271,30 @@ fn kitti_eval_table_and_gate() {
     if a != n {
         assert_eq!(gate(worse, better), Some(3));
     }
+    // The gate with --means once: both sides averaged once, the exit status follows those
+    // numbers.
+    let once = |tracks: &Path, baseline: &Path| {
+        let args = [
+            "eval",
+            "--protocol",
+            "kitti",
+            "--means",
+            "once",
+            "--truth",
+            s(&ab),
+        ];
+        let mut args = args.to_vec();
+        args.extend(["--tracks", s(tracks), "--baseline", s(baseline)]);
+        args.extend(["--max-drop", "0", "--json"]);
+        let out = common::probmot(&args);
+        let v: Value = serde_json::from_slice(&out.stdout).unwrap();
+        let score = |r: &Value| r["overall"]["sAMOTA"].as_f64().unwrap();
+        assert_eq!(v["baseline"]["result"]["means"], "once");
+        let (new, old) = (score(&v["result"]), score(&v["baseline"]["result"]));
+        (out.status.code(), new, old)
+    };
+    let (code, new, old) = once(&ab, &nu);
+    assert_eq!(code, Some(if new < old { 3 } else { 0 }), "{new} vs {old}");
+    let (code, new, old) = once(&nu, &ab);
+    assert_eq!(code, Some(if new < old { 3 } else { 0 }), "{new} vs {old}");
 }
