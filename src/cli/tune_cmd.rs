@@ -244,6 +244,20 @@ fn table(cv: &CvReport, metric: &str) -> String {
         rows(&name, &f.base, &f.tuned, &f.search);
     }
     rows("all held-out together", &cv.base, &cv.tuned, &[]);
+    let once = !cv.tuned_means_once.is_empty();
+    if once {
+        rows(
+            "all, means once *",
+            &cv.base_means_once,
+            &cv.tuned_means_once,
+            &[],
+        );
+        let _ = writeln!(
+            s,
+            "* each track's mean score computed once, not re-averaged at every threshold as the\n  \
+             reference does: not the official number (see `probmot eval --means`)"
+        );
+    }
     s
 }
 

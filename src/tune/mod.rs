@@ -284,6 +284,13 @@ pub struct CvReport {
     pub base: BTreeMap<String, f64>,
     /// All held-out logs together, tuned configs.
     pub tuned: BTreeMap<String, f64>,
+    /// KITTI: `base` with each track's mean score computed once (not official; empty for
+    /// nuScenes).
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub base_means_once: BTreeMap<String, f64>,
+    /// KITTI: `tuned` with each track's mean score computed once.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub tuned_means_once: BTreeMap<String, f64>,
     /// The configs tuned per fold (for re-scoring with `probmot track` and `probmot eval`).
     #[serde(skip)]
     pub fold_configs: Vec<TrackerConfig>,
@@ -389,6 +396,8 @@ pub fn cross_validate(
         folds: reports,
         base: o.scoring.evaluate(&base_scenes, &classes),
         tuned: o.scoring.evaluate(&tuned_scenes, &classes),
+        base_means_once: o.scoring.evaluate_means_once(&base_scenes, &classes),
+        tuned_means_once: o.scoring.evaluate_means_once(&tuned_scenes, &classes),
         fold_configs,
     })
 }
@@ -445,6 +454,8 @@ mod tests {
             ],
             base: BTreeMap::new(),
             tuned: BTreeMap::new(),
+            base_means_once: BTreeMap::new(),
+            tuned_means_once: BTreeMap::new(),
             fold_configs: vec![],
         };
         let l = cv.losses(0.005);

@@ -59,6 +59,29 @@ impl Scoring {
         }
     }
 
+    /// KITTI: sAMOTA per class over `scenes` with each track's mean score computed once (not
+    /// the official number; shown beside it, see `probmot eval --means`). Empty for nuScenes.
+    pub fn evaluate_means_once(
+        &self,
+        scenes: &[Scene],
+        classes: &[String],
+    ) -> BTreeMap<String, f64> {
+        if self.protocol != Protocol::Kitti {
+            return BTreeMap::new();
+        }
+        let p = KittiParams {
+            classes: classes.to_vec(),
+            min_overlap: self.iou,
+            means: MeanScores::Once,
+            ..KittiParams::default()
+        };
+        let r = kitti::evaluate(scenes, &p);
+        classes
+            .iter()
+            .map(|c| (c.clone(), r.classes.get(c).map_or(f64::NAN, |m| m.samota)))
+            .collect()
+    }
+
     /// The headline metric per class over `scenes` (NaN for a class that is not evaluated, e.g.
     /// without ground truth or without tracks).
     pub fn evaluate(&self, scenes: &[Scene], classes: &[String]) -> BTreeMap<String, f64> {

@@ -338,6 +338,11 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     let r = common::probmot_ok(&args);
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
     assert_eq!(v["cross_validation"]["folds"].as_array().unwrap().len(), 2);
+    // The once-averaged KITTI numbers do not apply to nuScenes.
+    assert!(
+        v["cross_validation"].get("tuned_means_once").is_none(),
+        "{v}"
+    );
     // The table says, per fold and class, how many trajectories trained it and whether it was
     // searched.
     let text = common::probmot_ok(&args[..args.len() - 1]);
@@ -549,6 +554,12 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
     let cv = cross_validate(&base, &logs, 2, &o, &ProgressBar::hidden()).unwrap();
     eprintln!("base {:?}\ntuned {:?}", cv.base, cv.tuned);
     assert_eq!(cv.tuned.len(), 1);
+    // Next to the official numbers, the same tracks with each mean computed once.
+    assert_eq!(
+        cv.tuned_means_once.keys().collect::<Vec<_>>(),
+        cv.tuned.keys().collect::<Vec<_>>()
+    );
+    assert!(cv.tuned_means_once["car"] > 0.5 && cv.base_means_once["car"] > 0.5);
     assert!(
         cv.tuned["car"] > cv.base["car"],
         "held-out sAMOTA: tuned {:?} vs base {:?}",
