@@ -95,7 +95,8 @@ pub struct TrackSummary {
     pub tracks_born: u64,
     /// Tracks that reached `min_hits`.
     pub tracks_confirmed: u64,
-    /// Mean number of reported frames per confirmed track.
+    /// Mean number of reported frames per confirmed track (with the offline reporting options:
+    /// written boxes per written track).
     pub mean_track_length: Option<f64>,
     /// Input messages copied.
     pub messages_copied: u64,

@@ -4,7 +4,7 @@
 //! frame as soon as the [`Schedule`] says it is complete, and writes the tracks (and the extra
 //! channels of [`ExtraOutputs`]). [`super::track::track_file`] is the file adapter around it.
 
-use std::collections::{BTreeMap, HashMap, VecDeque};
+use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
@@ -321,13 +321,20 @@ impl<S: RecordSink> TrackSession<'_, S> {
             tracker,
             counters,
             mut summary,
+            frame_state,
             ..
         } = self;
         let st = tracker.stats();
         summary.frames = st.frames;
         summary.tracks_born = st.born;
         summary.tracks_confirmed = st.confirmed;
-        summary.mean_track_length = tracker.mean_confirmed_track_length();
+        summary.mean_track_length = match &frame_state.held {
+            // Offline reporting: what was written (every shown track is confirmed).
+            Some(h) => {
+                (h.shown_boxes > 0).then(|| h.shown_boxes as f64 / h.shown_tracks.len() as f64)
+            }
+            None => tracker.mean_confirmed_track_length(),
+        };
         summary.merged_messages = summary.detection_messages - summary.tracks_messages;
         if counters.total_skipped() > 0 {
             let parts: Vec<String> = counters
@@ -407,6 +414,10 @@ pub(super) struct HeldFrames {
     /// Frame id strings of written frames, reused.
     spare_ids: Vec<String>,
     shown: Vec<HeldTrack>,
+    /// Track boxes written, and the tracks they belong to (for the mean track length: the
+    /// tracker counts frames the lookback may leave out).
+    shown_boxes: u64,
+    shown_tracks: HashSet<u64>,
 }
 
 /// Per-frame buffers reused across frames, and the attributes of each track's last matched
@@ -531,6 +542,9 @@ impl FrameState {
         self.out
             .tracks
             .resize_with(held.shown.len(), Track3D::default);
+        held.shown_boxes += held.shown.len() as u64;
+        held.shown_tracks
+            .extend(held.shown.iter().map(|v| v.report.id));
         for (t, v) in self.out.tracks.iter_mut().zip(&mut held.shown) {
             fill_track3d(t, &v.report, tracker.label(v.report.class));
             t.image_box = v.image_box;

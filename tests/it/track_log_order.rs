@@ -290,4 +290,30 @@ fn offline_reporting_keeps_the_order_and_shows_what_the_library_shows() {
         })
         .collect();
     assert_eq!(got, want);
+
+    // The summary's mean track length is that of the written tracks (the tracker alone would
+    // count coasted frames the lookback leaves out).
+    let out = dir.path().join("json.mcap");
+    let r = probmot_ok(&[
+        "track",
+        city,
+        "-o",
+        out.to_str().unwrap(),
+        "--quiet",
+        "--json",
+        "--coast",
+        "gaps",
+        "--backfill",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let boxes: usize = got.iter().map(|(_, t)| t.len()).sum();
+    let ids: std::collections::BTreeSet<u64> = got
+        .iter()
+        .flat_map(|(_, t)| t.iter().map(|x| x.0))
+        .collect();
+    let mean = v["mean_track_length"].as_f64().unwrap();
+    assert!(
+        (mean - boxes as f64 / ids.len() as f64).abs() < 1e-12,
+        "{mean} {v}"
+    );
 }
