@@ -66,13 +66,23 @@ impl Scoring {
         scenes: &[Scene],
         classes: &[String],
     ) -> BTreeMap<String, f64> {
-        if self.protocol != Protocol::Kitti {
-            return BTreeMap::new();
+        match self.protocol {
+            Protocol::Kitti => self.kitti_samota(scenes, classes, MeanScores::Once),
+            Protocol::Nuscenes => BTreeMap::new(),
         }
+    }
+
+    /// KITTI sAMOTA per class over `scenes`, the means computed as `means` says.
+    fn kitti_samota(
+        &self,
+        scenes: &[Scene],
+        classes: &[String],
+        means: MeanScores,
+    ) -> BTreeMap<String, f64> {
         let p = KittiParams {
             classes: classes.to_vec(),
             min_overlap: self.iou,
-            means: MeanScores::Once,
+            means,
             ..KittiParams::default()
         };
         let r = kitti::evaluate(scenes, &p);
@@ -86,23 +96,8 @@ impl Scoring {
     /// without ground truth or without tracks).
     pub fn evaluate(&self, scenes: &[Scene], classes: &[String]) -> BTreeMap<String, f64> {
         match self.protocol {
-            Protocol::Kitti => {
-                // The reference's averaging: reported scores are the official ones.
-                let p = KittiParams {
-                    classes: classes.to_vec(),
-                    min_overlap: self.iou,
-                    means: MeanScores::EveryPass,
-                    ..KittiParams::default()
-                };
-                let r = kitti::evaluate(scenes, &p);
-                classes
-                    .iter()
-                    .map(|c| {
-                        let v = r.classes.get(c).map_or(f64::NAN, |m| m.samota);
-                        (c.clone(), v)
-                    })
-                    .collect()
-            }
+            // The reference's averaging: reported scores are the official ones.
+            Protocol::Kitti => self.kitti_samota(scenes, classes, MeanScores::EveryPass),
             Protocol::Nuscenes => {
                 let p = NuscenesParams {
                     classes: classes.to_vec(),
