@@ -392,12 +392,14 @@ pub fn cross_validate(
         tuned_scenes.extend(u);
         fold_configs.push(t.tuned);
     }
+    let (base, base_means_once) = o.scoring.evaluate_with_once(&base_scenes, &classes);
+    let (tuned, tuned_means_once) = o.scoring.evaluate_with_once(&tuned_scenes, &classes);
     Ok(CvReport {
         folds: reports,
-        base: o.scoring.evaluate(&base_scenes, &classes),
-        tuned: o.scoring.evaluate(&tuned_scenes, &classes),
-        base_means_once: o.scoring.evaluate_means_once(&base_scenes, &classes),
-        tuned_means_once: o.scoring.evaluate_means_once(&tuned_scenes, &classes),
+        base,
+        tuned,
+        base_means_once,
+        tuned_means_once,
         fold_configs,
     })
 }

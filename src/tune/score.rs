@@ -59,58 +59,46 @@ impl Scoring {
         }
     }
 
-    /// KITTI: sAMOTA per class over `scenes` with each track's mean score computed once (not
-    /// the official number; shown beside it, see `probmot eval --means`). Empty for nuScenes.
-    pub fn evaluate_means_once(
-        &self,
-        scenes: &[Scene],
-        classes: &[String],
-    ) -> BTreeMap<String, f64> {
-        match self.protocol {
-            Protocol::Kitti => self.kitti_samota(scenes, classes, MeanScores::Once),
-            Protocol::Nuscenes => BTreeMap::new(),
-        }
-    }
-
-    /// KITTI sAMOTA per class over `scenes`, the means computed as `means` says.
-    fn kitti_samota(
-        &self,
-        scenes: &[Scene],
-        classes: &[String],
-        means: MeanScores,
-    ) -> BTreeMap<String, f64> {
-        let p = KittiParams {
-            classes: classes.to_vec(),
-            min_overlap: self.iou,
-            means,
-            ..KittiParams::default()
-        };
-        let r = kitti::evaluate(scenes, &p);
-        classes
-            .iter()
-            .map(|c| (c.clone(), r.classes.get(c).map_or(f64::NAN, |m| m.samota)))
-            .collect()
-    }
-
     /// The headline metric per class over `scenes` (NaN for a class that is not evaluated, e.g.
     /// without ground truth or without tracks).
     pub fn evaluate(&self, scenes: &[Scene], classes: &[String]) -> BTreeMap<String, f64> {
+        self.evaluate_with_once(scenes, classes).0
+    }
+
+    /// [`Scoring::evaluate`], and for KITTI from the same evaluation sAMOTA per class with each
+    /// track's mean score computed once (not the official number; shown beside it, see
+    /// `probmot eval --means`). The second map is empty for nuScenes.
+    pub fn evaluate_with_once(
+        &self,
+        scenes: &[Scene],
+        classes: &[String],
+    ) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
+        let per_class = |f: &dyn Fn(&str) -> f64| -> BTreeMap<String, f64> {
+            classes.iter().map(|c| (c.clone(), f(c))).collect()
+        };
         match self.protocol {
-            // The reference's averaging: reported scores are the official ones.
-            Protocol::Kitti => self.kitti_samota(scenes, classes, MeanScores::EveryPass),
+            Protocol::Kitti => {
+                // The reference's averaging: reported scores are the official ones.
+                let p = KittiParams {
+                    classes: classes.to_vec(),
+                    min_overlap: self.iou,
+                    means: MeanScores::EveryPass,
+                    ..KittiParams::default()
+                };
+                let r = kitti::evaluate(scenes, &p);
+                let metric = |f: fn(&kitti::KittiMetrics) -> f64| {
+                    per_class(&|c| r.classes.get(c).map_or(f64::NAN, f))
+                };
+                (metric(|m| m.samota), metric(|m| m.samota_means_once))
+            }
             Protocol::Nuscenes => {
                 let p = NuscenesParams {
                     classes: classes.to_vec(),
                     ..NuscenesParams::default()
                 };
                 let r = nuscenes::evaluate(scenes, &p);
-                classes
-                    .iter()
-                    .map(|c| {
-                        let v = r.classes.get(c).map_or(f64::NAN, |m| m.amota);
-                        (c.clone(), v)
-                    })
-                    .collect()
+                let amota = per_class(&|c| r.classes.get(c).map_or(f64::NAN, |m| m.amota));
+                (amota, BTreeMap::new())
             }
         }
     }
