@@ -90,9 +90,11 @@ pub struct EvalArgs {
     #[arg(long, value_name = "IOU")]
     iou: Option<f64>,
     /// KITTI only: when each track's mean score is computed. every-pass (official): at every
-    /// threshold from the previous means, as the reference does, whose ulp of drift can drop a
-    /// track at a threshold equal to its own mean (the report notes it and what it cost). once:
-    /// from the track's own scores. Example: --means once
+    /// threshold from the previous means, as the reference does on Python 3.11 or older, whose
+    /// ulp of drift can drop a track at a threshold equal to its own mean (the report notes it
+    /// and what it cost). every-pass-py312: the same with Python 3.12's compensated sum (the
+    /// reference run on a current Python; it barely drifts). once: from the track's own
+    /// scores. Example: --means once
     #[arg(long, value_enum, value_name = "WHEN")]
     means: Option<MeansArg>,
     /// Another tracked version of the same log(s) to compare with (same truth; paired like
@@ -743,6 +745,8 @@ fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "KITTI 3D MOT metrics (AB3DMOT evaluation{}, 3D IoU >= {}): {} vs {} ({} / {})",
             match params.means {
                 MeanScores::EveryPass => "",
+                MeanScores::EveryPassCompensated =>
+                    " as run on Python 3.12+, not the published numbers",
                 MeanScores::Once => " with each track's mean computed once, not official",
             },
             params.min_overlap,

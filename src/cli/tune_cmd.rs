@@ -71,10 +71,11 @@ pub struct TuneArgs {
     #[arg(long, default_value_t = 0.25, value_name = "IOU")]
     iou: f64,
     /// KITTI: how the search's objective computes each track's mean score. once (default):
-    /// from the track's own scores. every-pass: as the reference evaluation does, re-averaged
-    /// at every threshold, whose ulp of drift drops tracks at thresholds equal to their own
-    /// means (see `probmot eval --means`), noise a search would chase. The held-out table is
-    /// always scored as the reference does. Example: --search-means every-pass
+    /// from the track's own scores. every-pass: as the reference evaluation does on Python 3.11
+    /// or older, re-averaged at every threshold, whose ulp of drift drops tracks at thresholds
+    /// equal to their own means (see `probmot eval --means`), noise a search would chase.
+    /// every-pass-py312: as the reference does on Python 3.12+. The held-out table is always
+    /// scored as the reference does on Python 3.11. Example: --search-means every-pass
     #[arg(long, value_enum, value_name = "WHEN")]
     search_means: Option<MeansArg>,
     /// Number of cross-validation folds; 0 or 1: no cross-validation, only the final tune.

@@ -55,6 +55,7 @@ impl Scoring {
     pub fn search_metric(&self) -> &'static str {
         match (self.protocol, self.search_means) {
             (Protocol::Kitti, MeanScores::Once) => "sAMOTA (means once)",
+            (Protocol::Kitti, MeanScores::EveryPassCompensated) => "sAMOTA (Python 3.12 sums)",
             _ => self.metric(),
         }
     }

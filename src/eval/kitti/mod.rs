@@ -32,9 +32,10 @@
 //! - The mean track score is recomputed at every threshold from the previous means, which can
 //!   move it by an ulp (and drop a track whose mean equals the threshold). The reference sums
 //!   with Python's `sum`, plain left-to-right summation up to Python 3.11 (the version the
-//!   reference numbers were made with); Python 3.12's compensated `sum` drifts far less. `drift_points`
-//!   counts the recall points where that changed which tracks were kept, `sAMOTA_means_once`
-//!   shows what it cost, and [`MeanScores::Once`] evaluates without it.
+//!   reference numbers were made with); Python 3.12's compensated `sum` drifts far less
+//!   ([`MeanScores::EveryPassCompensated`]). `drift_points` counts the recall points where
+//!   that changed which tracks were kept, `sAMOTA_means_once` shows what it cost, and
+//!   [`MeanScores::Once`] evaluates without it.
 //! - FAR and MODP divide by the devkit's frame count, which is one more than the number of
 //!   frames (the KITTI seqmap's last column holds the frame count, read as the last index).
 //! - `overall` is not printed by the reference script; AB3DMOT's published tables give, for
@@ -105,12 +106,30 @@ pub enum MeanScores {
     /// left to right, as Python's `sum` did up to 3.11). Adding up `n` copies of a mean and
     /// dividing by `n` can move it by an ulp, so a track can be dropped at a threshold equal
     /// to its own mean (the thresholds are the matched boxes' means): the official numbers,
-    /// quirk included.
+    /// quirk included (AB3DMOT's published scores are these).
     #[default]
     EveryPass,
-    /// Once, from the track's own scores: a track is kept exactly when its mean reaches the
-    /// threshold. Not the reference's numbers where they differ.
+    /// At every threshold, from the means of the previous one, summed with Neumaier's
+    /// compensation as Python's `sum` does from 3.12: the reference's script run on a current
+    /// Python. Its means barely drift (checked against Python 3.11, 3.12 and 3.13 in
+    /// `tests/fixtures/eval/python_sum_means.json`).
+    #[serde(rename = "every-pass-py312")]
+    EveryPassCompensated,
+    /// Once, from the track's own scores (summed left to right): a track is kept exactly when
+    /// its mean reaches the threshold. Not the reference's numbers where they differ.
     Once,
+}
+
+impl MeanScores {
+    /// Whether the means are computed again at every threshold, as the reference does.
+    pub fn every_pass(self) -> bool {
+        self != MeanScores::Once
+    }
+
+    /// Whether the sums are compensated (Python 3.12's `sum`).
+    pub fn compensated(self) -> bool {
+        self == MeanScores::EveryPassCompensated
+    }
 }
 
 impl Default for KittiParams {
@@ -456,12 +475,17 @@ fn evaluate_class(
     match truth.evaluate_recording(&tracks, log) {
         Ok(m) => {
             if m.drift_points > 0 {
+                let python = if p.means.compensated() {
+                    "3.12 or newer"
+                } else {
+                    "3.11 or older"
+                };
                 notes.push(format!(
                     "{cls}: the reference's re-averaging of the track scores (an ulp of drift \
                      at each threshold, whose values are the tracks' own means) changed which \
                      tracks were kept at {} of {} recall points: sAMOTA {:.4} as the reference \
-                     computes it, {:.4} with each track's mean computed once (`--means once`; \
-                     not the official number)",
+                     computes it on Python {python}, {:.4} with each track's mean computed once \
+                     (`--means once`; not the official number)",
                     m.drift_points,
                     m.curve.len(),
                     m.samota,
@@ -515,7 +539,7 @@ impl ClassTruth {
     ) -> Result<KittiMetrics, Skip> {
         let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, &self.p)?;
         // The passes change the rows' scores and flags: a drift needs the prepared rows again.
-        let again = (self.p.means == MeanScores::EveryPass).then(|| seqs.clone());
+        let again = self.p.means.every_pass().then(|| seqs.clone());
         let mut m = self.evaluate_means((seqs, n_tr_trajectories), log, self.p.means);
         m.samota_means_once = match again {
             Some(seqs) if m.drift_points > 0 => {

@@ -125,7 +125,7 @@ struct Scratch {
     matched_cost: Vec<f64>,
     tmpcs: Vec<f64>,
     tr_ignored: Vec<bool>,
-    sums: Vec<(f64, usize)>,
+    sums: Vec<ScoreSum>,
     /// Along one trajectory: matched track ids and ignore flags.
     traj_ids: Vec<i64>,
     traj_ignored: Vec<bool>,
@@ -177,12 +177,13 @@ impl<'a> ClassEval<'a> {
         let s = &mut self.scratch;
         let first_pass = !self.averaged;
         self.averaged = true;
-        let every_pass = self.means == MeanScores::EveryPass;
+        let every_pass = self.means.every_pass();
+        let compensated = self.means.compensated();
         let seqs = self.seqs.iter_mut().zip(&self.truth.seqs);
         for (si, ((seq, truth), memos)) in seqs.zip(&mut self.memos).enumerate() {
             t.n_frames += truth.frames.len();
             if first_pass || every_pass {
-                average_scores(seq, &mut s.sums);
+                average_scores(seq, &mut s.sums, compensated);
             }
             if first_pass && every_pass {
                 let mut means = vec![f64::NAN; seq.n_tracks];
@@ -230,18 +231,53 @@ fn update_kept(rows: &mut [TrObj], threshold: f64, first_means: Option<&[f64]>) 
     (changed, drifted)
 }
 
-/// Every row of a track takes the mean score of the track's rows, summed in file order.
-fn average_scores(seq: &mut SeqTracks, sums: &mut Vec<(f64, usize)>) {
+/// Every row of a track takes the mean score of the track's rows, summed in file order (with
+/// Python 3.12's compensation when `compensated`).
+pub(super) fn average_scores(seq: &mut SeqTracks, sums: &mut Vec<ScoreSum>, compensated: bool) {
     sums.clear();
-    sums.resize(seq.n_tracks, (0.0, 0));
+    sums.resize(seq.n_tracks, ScoreSum::default());
     for t in &seq.rows {
-        let e = &mut sums[t.slot as usize];
-        e.0 += t.score;
-        e.1 += 1;
+        sums[t.slot as usize].add(t.score, compensated);
     }
     for t in &mut seq.rows {
-        let (s, n) = sums[t.slot as usize];
-        t.score = s / n as f64;
+        t.score = sums[t.slot as usize].mean();
+    }
+}
+
+/// A running sum of a track's scores as Python's `sum` adds floats: left to right up to 3.11,
+/// from 3.12 with Neumaier's compensation (the rounding error of each addition is kept apart
+/// and added at the end, when it is finite and not zero).
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct ScoreSum {
+    total: f64,
+    compensation: f64,
+    n: usize,
+}
+
+impl ScoreSum {
+    /// Adds `x` to the sum.
+    pub(super) fn add(&mut self, x: f64, compensated: bool) {
+        let t = self.total + x;
+        if compensated {
+            self.compensation += if self.total.abs() >= x.abs() {
+                (self.total - t) + x
+            } else {
+                (x - t) + self.total
+            };
+        }
+        self.total = t;
+        self.n += 1;
+    }
+
+    /// The mean of the added values.
+    pub(super) fn mean(&self) -> f64 {
+        let c = self.compensation;
+        let sum = if c != 0.0 && c.is_finite() {
+            self.total + c
+        } else {
+            self.total
+        };
+        sum / self.n as f64
     }
 }
 

@@ -310,15 +310,127 @@ fn the_reference_re_averaging_can_drop_a_track_at_its_own_mean() {
         "{note}"
     );
 
-    let once = KittiParams {
-        means: MeanScores::Once,
-        ..params(&["car"])
+    // Averaged once, or re-averaged with Python 3.12's compensated sum (six copies of m add
+    // up to 6m there, whose sixth is m), the track is kept.
+    for means in [MeanScores::Once, MeanScores::EveryPassCompensated] {
+        let r = evaluate(
+            &scenes,
+            &KittiParams {
+                means,
+                ..params(&["car"])
+            },
+        );
+        let m = &r.classes["car"];
+        assert!(m.curve.iter().all(|c| c.tp == 6), "{means:?}");
+        assert!(close(m.samota, 5.0 / 40.0), "{means:?}");
+        assert_eq!(m.drift_points, 0, "{means:?}");
+        assert!(r.notes.is_empty(), "{means:?}: {:?}", r.notes);
+    }
+}
+
+/// `tests/fixtures/eval/python_sum_means.json`, written by `scripts/python_sum_means.py`
+/// under real Python interpreters: score lists, and per Python version the means the
+/// reference's re-averaging gives after each pass.
+#[derive(serde::Deserialize)]
+struct PythonSumFixture {
+    passes: usize,
+    inputs: Vec<FixtureScores>,
+    /// Per version ("3.11"), per score list: runs of `[repr(mean), passes]`.
+    means: BTreeMap<String, Vec<Vec<(String, usize)>>>,
+}
+
+/// Scores `k / d`, one correctly rounded division each, as the script makes them.
+#[derive(serde::Deserialize)]
+struct FixtureScores {
+    d: i64,
+    k: Vec<i64>,
+}
+
+/// The mean of each score list after each of `passes` re-averagings, as `average_scores`
+/// computes them for one scene holding every list as a track (their rows interleaved frame
+/// by frame, each track's in its own order).
+fn reaveraged(inputs: &[FixtureScores], passes: usize, compensated: bool) -> Vec<Vec<f64>> {
+    let mut rows = Vec::new();
+    let longest = inputs.iter().map(|c| c.k.len()).max().unwrap_or(0);
+    for i in 0..longest {
+        for (slot, case) in inputs.iter().enumerate() {
+            if let Some(&k) = case.k.get(i) {
+                rows.push(tracks::TrObj {
+                    id: slot as i64,
+                    slot: slot as u32,
+                    ignorable: false,
+                    score: k as f64 / case.d as f64,
+                    valid: false,
+                    kept: false,
+                });
+            }
+        }
+    }
+    let n_rows = rows.len() as u32;
+    let mut seq = SeqTracks {
+        rows,
+        row_start: vec![0, n_rows],
+        edges: Vec::new(),
+        edge_start: vec![0, 0],
+        n_tracks: inputs.len(),
     };
-    let r = evaluate(&scenes, &once);
-    let m = &r.classes["car"];
-    assert!(m.curve.iter().all(|c| c.tp == 6));
-    assert!(close(m.samota, 5.0 / 40.0));
-    assert!(r.notes.is_empty(), "{:?}", r.notes);
+    let mut per_case = vec![Vec::with_capacity(passes); inputs.len()];
+    let mut sums = Vec::new();
+    for _ in 0..passes {
+        pass::average_scores(&mut seq, &mut sums, compensated);
+        let mut seen = vec![false; inputs.len()];
+        for row in &seq.rows {
+            let slot = row.slot as usize;
+            if !std::mem::replace(&mut seen[slot], true) {
+                per_case[slot].push(row.score);
+            }
+        }
+    }
+    per_case
+}
+
+#[test]
+fn every_pass_means_equal_pythons_sum() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/eval/python_sum_means.json"
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let fixture: PythonSumFixture = serde_json::from_str(&text).unwrap();
+    let left_to_right = reaveraged(&fixture.inputs, fixture.passes, false);
+    let compensated = reaveraged(&fixture.inputs, fixture.passes, true);
+    // The two sums must differ on the fixture, or it could not tell them apart.
+    assert!(left_to_right != compensated);
+    let (mut old, mut new) = (0, 0);
+    for (version, cases) in &fixture.means {
+        let minor: u32 = version.strip_prefix("3.").unwrap().parse().unwrap();
+        let ours = if minor >= 12 {
+            &compensated
+        } else {
+            &left_to_right
+        };
+        *(if minor >= 12 { &mut new } else { &mut old }) += 1;
+        assert_eq!(cases.len(), fixture.inputs.len(), "Python {version}");
+        for (case, (runs, means)) in cases.iter().zip(ours).enumerate() {
+            let expanded: Vec<f64> = runs
+                .iter()
+                .flat_map(|(mean, n)| std::iter::repeat_n(mean.parse::<f64>().unwrap(), *n))
+                .collect();
+            let same = expanded.len() == means.len()
+                && expanded
+                    .iter()
+                    .zip(means)
+                    .all(|(a, b)| a.to_bits() == b.to_bits());
+            assert!(
+                same,
+                "Python {version}, score list {case}: {runs:?} vs {means:?}"
+            );
+        }
+    }
+    assert!(
+        old >= 1 && new >= 1,
+        "the fixture needs Python <= 3.11 and >= 3.12"
+    );
 }
 
 #[test]
