@@ -13,7 +13,7 @@ use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, Fil
 use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
-use probmot::eval::kitti::{self, KittiMetrics, KittiParams, KittiResult, MeanScores};
+use probmot::eval::kitti::{self, KittiBox, KittiMetrics, KittiParams, KittiResult, MeanScores};
 
 use super::means_arg::MeansArg;
 use probmot::eval::nuscenes::{
@@ -23,7 +23,7 @@ use probmot::eval::range::{
     apply_range_filter, read_ego_positions, EgoPositions, RangeFilter, RangeRemoved,
 };
 use probmot::eval::report::{fmt_value, table};
-use probmot::eval::scene::{load_scene_progress, Scene};
+use probmot::eval::scene::{load_kitti_scene, Scene};
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 use probmot::mcapio::LabelledBox;
 use probmot::pipeline::log_pairs::log_pairs;
@@ -259,26 +259,20 @@ impl<'a> LogFilters<'a> {
     }
 }
 
-/// Loads every log whole (in parallel), for the KITTI protocol: ground-truth boxes without id
-/// (DontCare) are allowed.
-/// Applies the filters that are on ([`LogFilters`]) and returns how many boxes each removed.
-fn load_logs(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> Result<(Vec<Scene>, FilterCounts)> {
+/// Loads every log (in parallel) for the KITTI protocol, each box as the KITTI evaluation
+/// reads it ([`load_kitti_scene`]): ground-truth boxes without id (DontCare) are allowed. The
+/// protocol has no filters.
+fn load_logs(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<Scene<KittiBox>>> {
     let bar = reading_bar(a, pairs);
-    let loaded: Vec<(Scene, FilterCounts)> = pairs
+    let scenes = pairs
         .par_iter()
         .map(|(truth, tracks)| {
-            let mut scene = load_scene_progress(
-                (truth, &a.truth_topic),
-                (tracks, &a.tracks_topic),
-                true,
-                &|n| bar.inc(n),
-            )?;
-            let counts = LogFilters::new(a, truth)?.apply(&mut scene)?;
-            Ok((scene, counts))
+            let (truth, tracks) = ((&**truth, &*a.truth_topic), (&**tracks, &*a.tracks_topic));
+            load_kitti_scene(truth, tracks, &|n| bar.inc(n))
         })
         .collect::<Result<_>>()?;
     bar.finish_and_clear();
-    Ok(sum_counts(loaded))
+    Ok(scenes)
 }
 
 /// The scenes, and the filters' counts summed over them.
@@ -367,12 +361,12 @@ type LogPairs = Vec<(PathBuf, PathBuf)>;
 
 /// The `--baseline` logs of the KITTI protocol, paired with the truth like `--tracks`, loaded as
 /// [`load_logs`] does; no pairs and `None` without `--baseline`.
-fn load_baseline(a: &EvalArgs) -> Result<(LogPairs, Option<Vec<Scene>>)> {
+fn load_baseline(a: &EvalArgs) -> Result<(LogPairs, Option<Vec<Scene<KittiBox>>>)> {
     if a.baseline.is_empty() {
         return Ok((Vec::new(), None));
     }
     let pairs = log_pairs(&a.truth, &a.baseline)?;
-    let (scenes, _) = load_logs(a, &pairs)?;
+    let scenes = load_logs(a, &pairs)?;
     Ok((pairs, Some(scenes)))
 }
 
@@ -689,7 +683,7 @@ fn kitti_params(a: &EvalArgs) -> Result<KittiParams> {
 fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let params = kitti_params(&a)?;
     let pairs = log_pairs(&a.truth, &a.tracks)?;
-    let (scenes, _) = load_logs(&a, &pairs)?;
+    let scenes = load_logs(&a, &pairs)?;
     let spinner = scoring_spinner(&a, "KITTI metrics");
     let (result, decisions) = kitti::evaluate_recording(&scenes, &params, a.events.is_some());
     spinner.finish_and_clear();

@@ -5,19 +5,22 @@
 
 use super::columns::ColumnScene;
 use super::events::{BoxAt, EventBoxes, Protocol};
+use super::kitti_box::KittiFields;
 use super::scene::Scene;
-use crate::pipeline::kitti_io::truth_track_id;
 
-fn box_at(b: &crate::mcapio::LabelledBox) -> BoxAt {
+fn box_at(b: &impl KittiFields) -> BoxAt {
+    let b3 = b.box3();
     BoxAt {
-        id: b.id,
-        center: b.center,
-        size: b.size,
-        yaw: b.yaw,
+        id: b.id(),
+        center: b3.center,
+        size: b3.size,
+        yaw: b3.yaw,
     }
 }
 
-impl EventBoxes for [Scene] {
+/// Whole boxes, or the KITTI protocol's ([`super::kitti_box::KittiBox`]): both carry the fields
+/// either protocol's lookup reads.
+impl<B: KittiFields> EventBoxes for [Scene<B>] {
     fn name(&self, scene: usize) -> &str {
         &self[scene].name
     }
@@ -33,10 +36,10 @@ impl EventBoxes for [Scene] {
     fn truth(&self, (s, f): (usize, usize), id: u64, class: &str, p: Protocol) -> Option<BoxAt> {
         let boxes = &self.get(s)?.frames.get(f)?.1;
         let found = match p {
-            Protocol::Nuscenes => boxes.iter().find(|b| b.id == id && b.label == class),
+            Protocol::Nuscenes => boxes.iter().find(|b| b.id() == id && b.label() == class),
             Protocol::Kitti => boxes
                 .iter()
-                .find(|b| b.label != "dontcare" && truth_track_id(b) == id as i64),
+                .find(|b| b.label() != "dontcare" && b.truth_track_id() == id as i64),
         };
         found.map(box_at)
     }
@@ -45,7 +48,7 @@ impl EventBoxes for [Scene] {
         let boxes = &self.get(s)?.frames.get(f)?.2;
         boxes
             .iter()
-            .find(|b| b.id == id && (p == Protocol::Kitti || b.label == class))
+            .find(|b| b.id() == id && (p == Protocol::Kitti || b.label() == class))
             .map(box_at)
     }
 }

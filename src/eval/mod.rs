@@ -8,6 +8,7 @@ pub mod events_log;
 pub mod filters;
 pub mod hota;
 pub mod kitti;
+pub mod kitti_box;
 pub mod mot_accumulator;
 pub mod numpy_compat;
 pub mod nuscenes;

@@ -5,24 +5,36 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
+use super::kitti_box::{KittiBox, KittiBoxes};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
 
 /// Ground truth and tracks of one log, by frame stamp (ns). Every stamp of either channel is a
-/// frame; a frame may hold no box of one or both.
-#[derive(Debug, Clone, Default)]
-pub struct Scene {
+/// frame; a frame may hold no box of one or both. The boxes are whole boxes, or what one
+/// protocol reads of them (`Scene<KittiBox>`, [`load_kitti_scene`]).
+#[derive(Debug, Clone)]
+pub struct Scene<B = LabelledBox> {
     /// Name (the file name), used in reports.
     pub name: String,
     /// Frames in stamp order: `(stamp_ns, truth boxes, track boxes)`.
-    pub frames: Vec<(u64, Vec<LabelledBox>, Vec<LabelledBox>)>,
+    pub frames: Vec<(u64, Vec<B>, Vec<B>)>,
+}
+
+impl<B> Default for Scene<B> {
+    fn default() -> Self {
+        Scene {
+            name: String::new(),
+            frames: Vec::new(),
+        }
+    }
 }
 
 /// Reads the tracks messages of one topic (`probmot.Tracks3D`, or ROS 2
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
 /// message (the stamp is the message's, or its `log_time` when that is 0).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
-    read_boxes(path, topic, &|_| {}, false)
+    let (frames, _) = read_boxes(path, topic, &|_| {}, false, &mut |b| b)?;
+    Ok(frames)
 }
 
 /// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
@@ -33,14 +45,19 @@ pub fn is_evaluated_attribute(key: &str) -> bool {
     key.starts_with("kitti_") || key.starts_with("nuscenes_")
 }
 
-/// The boxes of a tracks topic, message by message; `evaluated_only` keeps only the
-/// attributes [`is_evaluated_attribute`] names.
-fn read_boxes(
+/// Messages' boxes in read order: `(stamp, boxes)`.
+type Messages<B> = Vec<(u64, Vec<B>)>;
+
+/// The boxes of a tracks topic, message by message, each made into what the caller keeps of it
+/// by `keep`; with `truth_ids`, also the first message with a truth box without id
+/// ([`check_ids`]), as an error for the caller to raise when it is its turn.
+fn read_boxes<B>(
     path: &Path,
     topic: &str,
     progress: &dyn Fn(u64),
-    evaluated_only: bool,
-) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
+    truth_ids: bool,
+    keep: &mut dyn FnMut(LabelledBox) -> B,
+) -> Result<(Messages<B>, Option<anyhow::Error>)> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
@@ -49,6 +66,7 @@ fn read_boxes(
     let mut out = Vec::new();
     let mut found = false;
     let mut reported = 0u64;
+    let mut no_id = None;
     recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
@@ -56,17 +74,17 @@ fn read_boxes(
             FrameEvent::Channel(_) => found = true,
             FrameEvent::Frame(_, f) => {
                 let boxes: Vec<LabelledBox> = match f.boxes {
-                    Boxes::Tracks(t) => t
-                        .into_iter()
-                        .map(LabelledBox::from_track)
-                        .map(|b| match evaluated_only {
-                            true => b.keep_attributes(is_evaluated_attribute),
-                            false => b,
-                        })
-                        .collect(),
+                    Boxes::Tracks(t) => t.into_iter().map(LabelledBox::from_track).collect(),
                     Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                 };
-                out.push((f.stamp, boxes));
+                if truth_ids && no_id.is_none() {
+                    no_id = check_ids(path, topic, f.stamp, &boxes).err();
+                }
+                // A new allocation of the kept size: `collect` would reuse the decoded
+                // boxes' larger one in place, and a long log holds millions of them.
+                let mut kept = Vec::with_capacity(boxes.len());
+                kept.extend(boxes.into_iter().map(&mut *keep));
+                out.push((f.stamp, kept));
             }
         }
         Ok(())
@@ -76,7 +94,7 @@ fn read_boxes(
     }
     let size = std::fs::metadata(path).map_or(reported, |m| m.len());
     progress(size.saturating_sub(reported));
-    Ok(out)
+    Ok((out, no_id))
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes
@@ -110,30 +128,73 @@ pub fn load_scene_with(
 /// [`load_scene_with`], telling `progress` the bytes read (both files, the shared file twice),
 /// keeping only the attributes the evaluation reads ([`is_evaluated_attribute`]).
 pub fn load_scene_progress(
+    truth: (&Path, &str),
+    tracks: (&Path, &str),
+    allow_unlabelled: bool,
+    progress: &dyn Fn(u64),
+) -> Result<Scene> {
+    let mut keep = |b: LabelledBox| b.keep_attributes(is_evaluated_attribute);
+    load_scene_as(truth, tracks, allow_unlabelled, progress, &mut keep)
+}
+
+/// [`load_scene_progress`] for the KITTI protocol: truth boxes without id (DontCare) allowed,
+/// and of each box only what the KITTI evaluation reads ([`KittiBox`]), made while the log
+/// streams.
+pub fn load_kitti_scene(
+    truth: (&Path, &str),
+    tracks: (&Path, &str),
+    progress: &dyn Fn(u64),
+) -> Result<Scene<KittiBox>> {
+    let mut boxes = KittiBoxes::default();
+    let mut keep = |b: LabelledBox| boxes.read(&b);
+    load_scene_as(truth, tracks, true, progress, &mut keep)
+}
+
+/// The loading of [`load_scene_progress`], each box made into what the caller keeps by `keep`.
+fn load_scene_as<B>(
     (truth, truth_topic): (&Path, &str),
     (tracks, tracks_topic): (&Path, &str),
     allow_unlabelled: bool,
     progress: &dyn Fn(u64),
-) -> Result<Scene> {
-    let gt = read_boxes(truth, truth_topic, progress, true)?;
-    let tr = read_boxes(tracks, tracks_topic, progress, true)?;
-    for (stamp, boxes) in gt.iter().filter(|_| !allow_unlabelled) {
-        check_ids(truth, truth_topic, *stamp, boxes)?;
+    keep: &mut dyn FnMut(LabelledBox) -> B,
+) -> Result<Scene<B>> {
+    let (gt, no_id) = read_boxes(truth, truth_topic, progress, !allow_unlabelled, keep)?;
+    let (tr, _) = read_boxes(tracks, tracks_topic, progress, false, keep)?;
+    if let Some(e) = no_id {
+        return Err(e);
     }
     // Frames are the union of both channels' stamps.
-    let stamps = |v: &[(u64, Vec<LabelledBox>)]| v.iter().map(|m| m.0).collect::<Vec<_>>();
+    let stamps = |v: &[(u64, Vec<B>)]| v.iter().map(|m| m.0).collect::<Vec<_>>();
     check(
         &stamps(&gt),
         &stamps(&tr),
         (truth, truth_topic),
         (tracks, tracks_topic),
     )?;
-    let mut frames: BTreeMap<u64, (Vec<LabelledBox>, Vec<LabelledBox>)> = BTreeMap::new();
+    // Each message's boxes move into their frame (copied only when a stamp repeats), so the
+    // boxes are not held twice while the frames are made.
+    let mut frames: BTreeMap<u64, (Vec<B>, Vec<B>)> = BTreeMap::new();
+    let join = |into: &mut Vec<B>, b: Vec<B>| match into.is_empty() {
+        true => *into = b,
+        false => into.extend(b),
+    };
     for (s, b) in gt {
-        frames.entry(s).or_default().0.extend(b);
+        join(
+            &mut frames
+                .entry(s)
+                .or_insert_with(|| (Vec::new(), Vec::new()))
+                .0,
+            b,
+        );
     }
     for (s, b) in tr {
-        frames.entry(s).or_default().1.extend(b);
+        join(
+            &mut frames
+                .entry(s)
+                .or_insert_with(|| (Vec::new(), Vec::new()))
+                .1,
+            b,
+        );
     }
     Ok(Scene {
         name: tracks

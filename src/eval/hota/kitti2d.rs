@@ -15,11 +15,9 @@
 use std::collections::BTreeMap;
 
 use super::{eval_scenes, Hota, RawFrame, EPS};
+use crate::eval::kitti_box::KittiFields;
 use crate::eval::scene::Scene;
-use crate::mcapio::LabelledBox;
-use crate::pipeline::kitti_io::truth_track_id;
 use crate::tracker::geometry::iou3d;
-use crate::tracker::Box3;
 
 /// Similarity of the HOTA matching.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -52,22 +50,6 @@ fn class_id(kind: &str) -> Option<u8> {
     })
 }
 
-/// The lower-cased KITTI type of a box: the `kitti_type` attribute, else the label.
-fn kind(b: &LabelledBox) -> String {
-    b.attributes
-        .get("kitti_type")
-        .unwrap_or(&b.label)
-        .to_lowercase()
-}
-
-/// A numeric attribute as `int(float(s))` (Python truncates toward zero).
-fn int_attr(b: &LabelledBox, key: &str) -> i64 {
-    b.attributes
-        .get(key)
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(0, |v| v.trunc() as i64)
-}
-
 /// 2D IoU of `x1 y1 x2 y2` boxes as TrackEval's `_calculate_box_ious`.
 pub fn iou2d(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     let inter =
@@ -93,26 +75,18 @@ fn ioa(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     }
 }
 
-fn box3(b: &LabelledBox) -> Box3 {
-    Box3 {
-        center: b.center,
-        yaw: b.yaw,
-        size: b.size,
-    }
-}
-
 /// A truth box of the class or a distractor.
-struct Gt<'a> {
+struct Gt<'a, B> {
     id: i64,
     class: u8,
     occlusion: i64,
     truncation: i64,
-    b: &'a LabelledBox,
+    b: &'a B,
 }
 
-fn prepare_frame(
-    truth: &[LabelledBox],
-    tracks: &[LabelledBox],
+fn prepare_frame<B: KittiFields>(
+    truth: &[B],
+    tracks: &[B],
     cls: u8,
     distractor: u8,
     sim: KittiSimilarity,
@@ -120,28 +94,28 @@ fn prepare_frame(
     let mut dontcare = Vec::new();
     let mut gt = Vec::new();
     for b in truth {
-        let k = kind(b);
+        let k = b.kitti_type();
         if k == "dontcare" {
-            dontcare.push(b.image_box.unwrap_or([0.0; 4]));
+            dontcare.push(b.image_box().unwrap_or([0.0; 4]));
             continue;
         }
-        let id = truth_track_id(b);
+        let id = b.truth_track_id();
         match class_id(&k) {
             Some(c) if id >= 0 && (c == cls || c == distractor) => gt.push(Gt {
                 id,
                 class: c,
-                occlusion: int_attr(b, "kitti_occluded"),
-                truncation: int_attr(b, "kitti_truncated"),
+                occlusion: b.occluded(),
+                truncation: b.truncated(),
                 b,
             }),
             _ => {}
         }
     }
-    let tr: Vec<&LabelledBox> = tracks
+    let tr: Vec<&B> = tracks
         .iter()
-        .filter(|b| class_id(&kind(b)) == Some(cls))
+        .filter(|b| class_id(&b.kitti_type()) == Some(cls))
         .collect();
-    let img = |b: &LabelledBox| b.image_box.unwrap_or([0.0; 4]);
+    let img = |b: &B| b.image_box().unwrap_or([0.0; 4]);
     let (ng, nt) = (gt.len(), tr.len());
     let iou: Vec<f64> = gt
         .iter()
@@ -186,21 +160,21 @@ fn prepare_frame(
         for &j in &keep_tr {
             s.push(match sim {
                 KittiSimilarity::Image => iou[i * nt + j],
-                KittiSimilarity::Box3d => iou3d(&box3(gt[i].b), &box3(tr[j])),
+                KittiSimilarity::Box3d => iou3d(&gt[i].b.box3(), &tr[j].box3()),
             });
         }
     }
     (
         keep_gt.iter().map(|&i| gt[i].id).collect(),
-        keep_tr.iter().map(|&j| tr[j].id as i64).collect(),
+        keep_tr.iter().map(|&j| tr[j].id() as i64).collect(),
         super::sparse(&s),
     )
 }
 
 /// HOTA per class (of `classes`, those `Kitti2DBox` knows: car, pedestrian), each scene one
 /// sequence. Returns the results and notes (classes left out, data TrackEval would refuse).
-pub fn kitti_hota(
-    scenes: &[Scene],
+pub fn kitti_hota<B: KittiFields + Sync>(
+    scenes: &[Scene<B>],
     classes: &[String],
     sim: KittiSimilarity,
 ) -> (BTreeMap<String, Hota>, Vec<String>) {
@@ -241,6 +215,7 @@ pub fn kitti_hota(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::mcapio::LabelledBox;
 
     fn b(id: u64, kind: &str, img: [f64; 4], occluded: u8, truncated: u8) -> LabelledBox {
         let attributes = [

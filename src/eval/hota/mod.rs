@@ -475,7 +475,7 @@ pub trait Named {
     fn name(&self) -> &str;
 }
 
-impl Named for crate::eval::scene::Scene {
+impl<B> Named for crate::eval::scene::Scene<B> {
     fn name(&self) -> &str {
         &self.name
     }

@@ -50,9 +50,10 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use super::events::Collector;
+pub use super::kitti_box::{KittiBox, KittiBoxes, KittiFields};
 use super::nan_as_null;
 use super::scene::Scene;
-// The attributes `probmot import kitti` writes: original type, truncation, occlusion level.
+#[cfg(test)]
 use crate::pipeline::kitti_io::attr::{
     OCCLUDED as ATTR_OCCLUDED, TRUNCATED as ATTR_TRUNCATED, TYPE as ATTR_TYPE,
 };
@@ -463,8 +464,8 @@ fn thresholds(scores: &[f64], num_gt: u64, recall_points: usize) -> (Vec<f64>, V
 }
 
 /// Evaluates one class; `None` (and a note) when it cannot be evaluated.
-fn evaluate_class(
-    scenes: &[Scene],
+fn evaluate_class<B: KittiFields>(
+    scenes: &[Scene<B>],
     cls: &str,
     p: &KittiParams,
     notes: &mut Vec<String>,
@@ -663,14 +664,14 @@ fn metrics_at(best: &Pass, (gt_trajectories, tracker_trajectories): (u64, u64)) 
 /// `kitti_occluded`, `kitti_track_id`) and DontCare regions as boxes of type DontCare with an
 /// `image_box`; track boxes need `image_box` (the 2D box of their last matched detection) for
 /// the ignore rules and take their type from `kitti_type` (else the label).
-pub fn evaluate(scenes: &[Scene], p: &KittiParams) -> KittiResult {
+pub fn evaluate<B: KittiFields + Sync>(scenes: &[Scene<B>], p: &KittiParams) -> KittiResult {
     evaluate_recording(scenes, p, false).0
 }
 
 /// [`evaluate`]; with `record`, also the decisions of each evaluated class's pass at its best-MOTA
 /// threshold (the pass its counts come from), for `eval --events`.
-pub fn evaluate_recording(
-    scenes: &[Scene],
+pub fn evaluate_recording<B: KittiFields + Sync>(
+    scenes: &[Scene<B>],
     p: &KittiParams,
     record: bool,
 ) -> (KittiResult, Vec<(String, Collector)>) {

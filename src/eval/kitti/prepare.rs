@@ -4,11 +4,10 @@
 
 use std::collections::HashMap;
 
+use super::KittiParams;
 use super::DEVKIT_EXTRA_FRAMES;
-use super::{KittiParams, ATTR_OCCLUDED, ATTR_TRUNCATED, ATTR_TYPE};
+use crate::eval::kitti_box::KittiFields;
 use crate::eval::scene::Scene;
-use crate::mcapio::LabelledBox;
-use crate::pipeline::kitti_io::truth_track_id;
 use crate::tracker::Box3;
 
 /// A ground-truth box of the evaluated class (or its neighbour).
@@ -55,10 +54,11 @@ impl ClassTruth {
     /// The truth of class `cls` in `scenes`: per scene its name and the truth boxes of each
     /// frame, in frame order (boxes carry the KITTI attributes `probmot import kitti` writes).
     /// Only the rows the class reads are kept (the class, its neighbour, DontCare regions).
-    pub fn new<'a, S, F>(scenes: S, cls: &str, p: &KittiParams) -> ClassTruth
+    pub fn new<'a, S, F, B>(scenes: S, cls: &str, p: &KittiParams) -> ClassTruth
     where
         S: IntoIterator<Item = (&'a str, F)>,
-        F: IntoIterator<Item = &'a [LabelledBox]>,
+        F: IntoIterator<Item = &'a [B]>,
+        B: KittiFields + 'a,
     {
         let cls = cls.to_lowercase();
         let types = loaded_types(&cls);
@@ -83,7 +83,7 @@ impl ClassTruth {
                     }
                     seq.trajectories[slot as usize].push((fi as u32, frame.gt.len() as u32));
                     frame.gt.push(g);
-                    frame.boxes.push(box3(b));
+                    frame.boxes.push(b.box3());
                 }
                 seq.frames.push(frame);
             }
@@ -102,7 +102,11 @@ impl ClassTruth {
     }
 
     /// [`ClassTruth::new`] from the truth of evaluation scenes.
-    pub fn of_scenes(scenes: &[Scene], cls: &str, p: &KittiParams) -> ClassTruth {
+    pub fn of_scenes<B: KittiFields>(
+        scenes: &[Scene<B>],
+        cls: &str,
+        p: &KittiParams,
+    ) -> ClassTruth {
         let it = scenes.iter().map(|s| {
             let frames = s.frames.iter().map(|(_, truth, _)| truth.as_slice());
             (s.name.as_str(), frames)
@@ -119,14 +123,6 @@ impl ClassTruth {
     pub fn scenes(&self) -> usize {
         self.seqs.len()
     }
-}
-
-/// The lower-cased KITTI type of a box: the `kitti_type` attribute, else the label.
-pub(super) fn kitti_type(b: &LabelledBox) -> String {
-    b.attributes
-        .get(ATTR_TYPE)
-        .unwrap_or(&b.label)
-        .to_lowercase()
 }
 
 /// The type substrings a class evaluation loads.
@@ -147,24 +143,6 @@ pub(super) fn is_neighbour(cls: &str, kind: &str) -> bool {
     (cls == "car" && kind == "van") || (cls == "pedestrian" && kind == "person_sitting")
 }
 
-/// A numeric attribute truncated to an integer like Python's `int(float(s))`.
-fn int_attr(b: &LabelledBox, key: &str, default: i64) -> i64 {
-    b.attributes
-        .get(key)
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map(|v| v.trunc() as i64)
-        .unwrap_or(default)
-}
-
-/// The 3D box of an evaluation box.
-pub(super) fn box3(b: &LabelledBox) -> Box3 {
-    Box3 {
-        center: b.center,
-        yaw: b.yaw,
-        size: b.size,
-    }
-}
-
 /// Share of box `a`'s area inside box `b` (2D boxes `x1 y1 x2 y2`); 0 without overlap.
 pub(super) fn overlap_share(a: &[f64; 4], b: &[f64; 4]) -> f64 {
     let w = a[2].min(b[2]) - a[0].max(b[0]);
@@ -178,26 +156,26 @@ pub(super) fn overlap_share(a: &[f64; 4], b: &[f64; 4]) -> f64 {
 /// A truth box of the class (or its neighbour): its KITTI id and row; DontCare
 /// boxes go to `dc`; `None` for rows the class does not load and ids of -1.
 fn truth_row(
-    b: &LabelledBox,
+    b: &impl KittiFields,
     cls: &str,
     types: &[String],
     p: &KittiParams,
     dc: &mut Vec<[f64; 4]>,
 ) -> Option<(i64, GtObj)> {
-    let kind = kitti_type(b);
+    let kind = b.kitti_type();
     if !types.iter().any(|t| kind.contains(t.as_str())) {
         return None;
     }
     if kind == "dontcare" {
-        dc.push(b.image_box.unwrap_or([0.0; 4]));
+        dc.push(b.image_box().unwrap_or([0.0; 4]));
         return None;
     }
-    let id = truth_track_id(b);
+    let id = b.truth_track_id();
     if id == -1 {
         return None;
     }
-    let ignored = int_attr(b, ATTR_OCCLUDED, 0) > p.max_occlusion
-        || int_attr(b, ATTR_TRUNCATED, 0) > p.max_truncation
+    let ignored = b.occluded() > p.max_occlusion
+        || b.truncated() > p.max_truncation
         || is_neighbour(cls, &kind);
     Some((id, GtObj { id, ignored }))
 }

@@ -7,10 +7,10 @@ use std::collections::HashMap;
 
 use rayon::prelude::*;
 
-use super::prepare::{box3, is_neighbour, kitti_type, loaded_types, overlap_share, TruthSeq};
+use super::prepare::{is_neighbour, loaded_types, overlap_share, TruthSeq};
 use super::KittiParams;
+use crate::eval::kitti_box::KittiFields;
 use crate::eval::scene::Scene;
-use crate::mcapio::LabelledBox;
 use crate::tracker::geometry::iou3d;
 use crate::tracker::Box3;
 
@@ -45,7 +45,7 @@ pub struct TrackRow {
 
 /// The rows of class `cls` in the tracks of `scene`, in frame and file order (the rows the
 /// reference loads: the class, its neighbour and DontCare; ids of -1 only for DontCare).
-pub fn scene_rows(scene: &Scene, cls: &str) -> Vec<TrackRow> {
+pub fn scene_rows<B: KittiFields>(scene: &Scene<B>, cls: &str) -> Vec<TrackRow> {
     let types = loaded_types(cls);
     let mut rows = Vec::new();
     for (fi, (_, _, tracks)) in scene.frames.iter().enumerate() {
@@ -80,12 +80,12 @@ fn classify(cls: &str, kind: &str) -> RowKind {
 }
 
 /// One evaluation box as a row of class `cls` (`types`: [`loaded_types`]).
-fn track_row(b: &LabelledBox, cls: &str, types: &[String], frame: u32) -> Option<TrackRow> {
-    let kind = kitti_type(b);
+fn track_row(b: &impl KittiFields, cls: &str, types: &[String], frame: u32) -> Option<TrackRow> {
+    let kind = b.kitti_type();
     if !types.iter().any(|t| kind.contains(t.as_str())) {
         return None;
     }
-    let id = b.id as i64;
+    let id = b.id() as i64;
     if id == -1 && kind != "dontcare" {
         return None;
     }
@@ -94,9 +94,9 @@ fn track_row(b: &LabelledBox, cls: &str, types: &[String], frame: u32) -> Option
         frame,
         id,
         kind,
-        bbox: box3(b),
-        score: b.score,
-        image_box: b.image_box,
+        bbox: b.box3(),
+        score: b.score(),
+        image_box: b.image_box(),
     })
 }
 
