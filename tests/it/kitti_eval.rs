@@ -130,17 +130,12 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
         }
         // `--means once` gives the sAMOTA the default run reports as `sAMOTA_means_once`, and
         // differs from the reference's exactly where the default run saw drift.
-        let once = probmot_ok(&[
-            "eval",
-            "--protocol",
-            "kitti",
-            "--truth",
-            s(&out),
-            "--json",
-            "--means",
-            "once",
-        ]);
-        let once: Value = serde_json::from_slice(&once.stdout).unwrap();
+        let eval_means = |means: &str| -> Value {
+            let args = ["eval", "--protocol", "kitti", "--truth", s(&out), "--json"];
+            let run = probmot_ok(&[&args[..], &["--means", means]].concat());
+            serde_json::from_slice(&run.stdout).unwrap()
+        };
+        let once = eval_means("once");
         assert_eq!(once["result"]["means"], "once");
         assert_eq!(ours_all["result"]["means"], "every-pass");
         for (class, m) in once["result"]["classes"].as_object().unwrap() {
@@ -160,17 +155,7 @@ fn kitti_eval_agrees_with_the_ab3dmot_evaluation() {
         }
         // `--means every-pass-py312`, the reference run on Python 3.12+: its compensated sums
         // do not drift on these runs, so it scores as `once` (to rounding of the thresholds).
-        let py312 = probmot_ok(&[
-            "eval",
-            "--protocol",
-            "kitti",
-            "--truth",
-            s(&out),
-            "--json",
-            "--means",
-            "every-pass-py312",
-        ]);
-        let py312: Value = serde_json::from_slice(&py312.stdout).unwrap();
+        let py312 = eval_means("every-pass-py312");
         assert_eq!(py312["result"]["means"], "every-pass-py312");
         for (class, m) in py312["result"]["classes"].as_object().unwrap() {
             assert_eq!(
