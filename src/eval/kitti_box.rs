@@ -12,7 +12,7 @@ use crate::mcapio::LabelledBox;
 use crate::pipeline::kitti_io::attr::{
     OCCLUDED as ATTR_OCCLUDED, TRUNCATED as ATTR_TRUNCATED, TYPE as ATTR_TYPE,
 };
-use crate::pipeline::kitti_io::truth_track_id;
+use crate::pipeline::kitti_io::{number_attr, truth_track_id};
 use crate::tracker::Box3;
 
 /// What the KITTI evaluation reads of a box.
@@ -40,10 +40,7 @@ pub trait KittiFields {
 /// A numeric attribute truncated to an integer like Python's `int(float(s))`; 0 when absent or
 /// not a number.
 fn int_attr(b: &LabelledBox, key: &str) -> i64 {
-    b.attributes
-        .get(key)
-        .and_then(|v| v.trim().parse::<f64>().ok())
-        .map_or(0, |v| v.trunc() as i64)
+    number_attr(&b.attributes, key).map_or(0, |v| v.trunc() as i64)
 }
 
 impl KittiFields for LabelledBox {

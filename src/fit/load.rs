@@ -35,10 +35,19 @@ fn read_topics(
                 out[i].get_or_insert_with(Vec::new);
             }
             FrameEvent::Frame(i, f) => {
-                let boxes = match f.boxes {
-                    Boxes::Detections(d) => d.into_iter().filter_map(detection_box).collect(),
-                    Boxes::Tracks(t) => t.into_iter().map(truth_box).collect(),
-                };
+                // Extended into a new vector: `collect` would keep the decoded messages'
+                // larger allocation in place for as long as the log is held.
+                let mut boxes = Vec::new();
+                match f.boxes {
+                    Boxes::Detections(d) => {
+                        boxes.reserve_exact(d.len());
+                        boxes.extend(d.into_iter().filter_map(detection_box));
+                    }
+                    Boxes::Tracks(t) => {
+                        boxes.reserve_exact(t.len());
+                        boxes.extend(t.into_iter().map(truth_box));
+                    }
+                }
                 out[i].get_or_insert_with(Vec::new).push((f.stamp, boxes));
             }
         }

@@ -47,14 +47,14 @@ pub mod attr {
 /// file's id (attribute [`attr::TRACK_ID`]), else the box id minus one (`import kitti` stores
 /// id + 1, ids being non-zero).
 pub fn truth_track_id(b: &LabelledBox) -> i64 {
-    match b
-        .attributes
-        .get(attr::TRACK_ID)
-        .map(|v| v.trim().parse::<f64>())
-    {
-        Some(Ok(v)) => v.trunc() as i64,
-        _ => b.id as i64 - 1,
-    }
+    number_attr(&b.attributes, attr::TRACK_ID).map_or(b.id as i64 - 1, |v| v.trunc() as i64)
+}
+
+/// A numeric KITTI attribute as Python's `float(s)` reads the text field (surrounding
+/// whitespace allowed); `None` when absent or not a number. The one reader of these attributes
+/// for the evaluation and the export.
+pub fn number_attr(attributes: &BTreeMap<String, String>, key: &str) -> Option<f64> {
+    attributes.get(key).and_then(|v| v.trim().parse().ok())
 }
 
 /// Counts of an import.
@@ -420,7 +420,7 @@ pub fn export_kitti(
             };
             let (hwl, xyz, ry) = box_to_camera(&bx);
             let a = &b.attributes;
-            let parse = |k: &str, d: f64| a.get(k).and_then(|v| v.parse().ok()).unwrap_or(d);
+            let parse = |k: &str, d: f64| number_attr(a, k).unwrap_or(d);
             let kind = a
                 .get(attr::TYPE)
                 .cloned()
@@ -466,5 +466,29 @@ fn capitalize(s: &str) -> String {
     match c.next() {
         Some(f) => f.to_uppercase().collect::<String>() + c.as_str(),
         None => String::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numeric_attributes_read_as_python_floats() {
+        let attrs: BTreeMap<String, String> = [("a", " 7 "), ("b", "2.9"), ("c", "x"), ("d", "-1")]
+            .iter()
+            .map(|(k, v)| (k.to_string(), v.to_string()))
+            .collect();
+        assert_eq!(number_attr(&attrs, "a"), Some(7.0));
+        assert_eq!(number_attr(&attrs, "b"), Some(2.9));
+        assert_eq!(number_attr(&attrs, "c"), None);
+        assert_eq!(number_attr(&attrs, "d"), Some(-1.0));
+        assert_eq!(number_attr(&attrs, "e"), None);
+        let b = LabelledBox {
+            id: 5,
+            attributes: attrs,
+            ..Default::default()
+        };
+        assert_eq!(truth_track_id(&b), 4, "no kitti_track_id: id - 1");
     }
 }
