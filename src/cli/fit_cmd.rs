@@ -14,7 +14,7 @@ use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::tracker::{Preset, TrackerConfig};
 
 use super::config_cmd::PresetArg;
-use super::eval_cmd::bytes_bar;
+use super::eval_args::bytes_bar;
 use super::show_progress;
 
 /// Fit per-class noise (Q, R, P0) from logs with ground truth and detections, and write a

@@ -8,7 +8,7 @@ use clap::Args;
 use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
 use probmot::pipeline::info::{duration, file_info_progress, iso8601};
 
-use super::eval_cmd::bytes_bar;
+use super::eval_args::bytes_bar;
 use super::show_progress;
 use probmot::transforms::buffer::EdgeSummary;
 

@@ -1,8 +1,10 @@
 //! Command-line parsing and the subcommands' front ends.
 
 mod config_cmd;
+mod eval_args;
 mod eval_cmd;
 mod eval_events;
+mod eval_kitti;
 mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
@@ -42,7 +44,7 @@ enum Command {
     Info(info_cmd::InfoArgs),
     Simulate(simulate_cmd::SimulateArgs),
     Config(config_cmd::ConfigArgs),
-    Eval(eval_cmd::EvalArgs),
+    Eval(eval_args::EvalArgs),
     Fit(fit_cmd::FitArgs),
     Import(import_cmd::ImportArgs),
     Export(import_cmd::ExportArgs),
