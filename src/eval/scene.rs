@@ -39,7 +39,7 @@ pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Label
 
 /// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
 /// ones (`nuscenes_*`: point counts, rack rotations). Others (e.g. `sim_truth_id`, which
-/// `track` copies from each detection to its track) are dropped by [`load_scene_progress`]: a
+/// `track` copies from each detection to its track) are dropped by [`load_scene_with`]: a
 /// map per box would be most of a long log's memory.
 pub fn is_evaluated_attribute(key: &str) -> bool {
     key.starts_with("kitti_") || key.starts_with("nuscenes_")
@@ -109,7 +109,8 @@ pub fn load_scene(
 }
 
 /// [`load_scene`], optionally allowing truth boxes without id (KITTI's DontCare regions, which
-/// `probmot import kitti` stores with id 0 and label `dontcare`).
+/// `probmot import kitti` stores with id 0 and label `dontcare`). Only the attributes the
+/// evaluation reads are kept ([`is_evaluated_attribute`]).
 pub fn load_scene_with(
     truth: &Path,
     truth_topic: &str,
@@ -117,27 +118,12 @@ pub fn load_scene_with(
     tracks_topic: &str,
     allow_unlabelled: bool,
 ) -> Result<Scene> {
-    load_scene_progress(
-        (truth, truth_topic),
-        (tracks, tracks_topic),
-        allow_unlabelled,
-        &|_| {},
-    )
-}
-
-/// [`load_scene_with`], telling `progress` the bytes read (both files, the shared file twice),
-/// keeping only the attributes the evaluation reads ([`is_evaluated_attribute`]).
-pub fn load_scene_progress(
-    truth: (&Path, &str),
-    tracks: (&Path, &str),
-    allow_unlabelled: bool,
-    progress: &dyn Fn(u64),
-) -> Result<Scene> {
     let mut keep = |b: LabelledBox| b.keep_attributes(is_evaluated_attribute);
-    load_scene_as(truth, tracks, allow_unlabelled, progress, &mut keep)
+    let (truth, tracks) = ((truth, truth_topic), (tracks, tracks_topic));
+    load_scene_as(truth, tracks, allow_unlabelled, &|_| {}, &mut keep)
 }
 
-/// [`load_scene_progress`] for the KITTI protocol: truth boxes without id (DontCare) allowed,
+/// [`load_scene_with`] for the KITTI protocol: truth boxes without id (DontCare) allowed,
 /// and of each box only what the KITTI evaluation reads ([`KittiBox`]), made while the log
 /// streams.
 pub fn load_kitti_scene(
@@ -150,7 +136,8 @@ pub fn load_kitti_scene(
     load_scene_as(truth, tracks, true, progress, &mut keep)
 }
 
-/// The loading of [`load_scene_progress`], each box made into what the caller keeps by `keep`.
+/// The loading of [`load_scene_with`], telling `progress` the bytes read (both files, the
+/// shared file twice), each box made into what the caller keeps by `keep`.
 fn load_scene_as<B>(
     (truth, truth_topic): (&Path, &str),
     (tracks, tracks_topic): (&Path, &str),
