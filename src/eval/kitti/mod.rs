@@ -539,13 +539,18 @@ impl ClassTruth {
         log: Option<&mut Collector>,
     ) -> Result<KittiMetrics, Skip> {
         let (seqs, n_tr_trajectories) = tracks::prepare_tracks(&self.seqs, tracks, &self.p)?;
-        // The passes change the rows' scores and flags: a drift needs the prepared rows again.
-        let again = self.p.means.every_pass().then(|| seqs.clone());
-        let mut m = self.evaluate_means((seqs, n_tr_trajectories), log, self.p.means);
-        m.samota_means_once = match again {
-            Some(seqs) if m.drift_points > 0 => {
+        // The passes change the rows' scores and flags: a drift needs the rows' own scores to
+        // evaluate them again.
+        let scores: Option<Vec<Vec<f64>>> =
+            (self.p.means.every_pass()).then(|| seqs.iter().map(SeqTracks::scores).collect());
+        let (mut m, mut seqs) = self.evaluate_means((seqs, n_tr_trajectories), log, self.p.means);
+        m.samota_means_once = match scores {
+            Some(scores) if m.drift_points > 0 => {
+                for (seq, scores) in seqs.iter_mut().zip(&scores) {
+                    seq.restart(scores);
+                }
                 let once = self.evaluate_means((seqs, n_tr_trajectories), None, MeanScores::Once);
-                once.samota
+                once.0.samota
             }
             _ => m.samota,
         };
@@ -553,13 +558,13 @@ impl ClassTruth {
     }
 
     /// The evaluation of prepared tracks (and their number of trajectories) with the mean
-    /// scores computed as `means` says.
+    /// scores computed as `means` says; the tracks given back as the passes left them.
     fn evaluate_means(
         &self,
         (seqs, n_tr_trajectories): (Vec<SeqTracks>, u64),
         log: Option<&mut Collector>,
         means: MeanScores,
-    ) -> KittiMetrics {
+    ) -> (KittiMetrics, Vec<SeqTracks>) {
         let p = &self.p;
         let mut e = ClassEval::new(self, seqs, means);
         let first = e.pass(-10000.0, 1.0, true);
@@ -593,7 +598,7 @@ impl ClassTruth {
         m.best_threshold = best_threshold;
         m.drift_points = drift_points;
         m.curve = curve;
-        m
+        (m, e.into_seqs())
     }
 }
 

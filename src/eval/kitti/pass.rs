@@ -169,6 +169,11 @@ impl<'a> ClassEval<'a> {
         }
     }
 
+    /// The tracks, as the passes left them.
+    pub(super) fn into_seqs(self) -> Vec<SeqTracks> {
+        self.seqs
+    }
+
     /// One pass at `threshold` (tracks whose mean score is below it are dropped), with sMOTA at
     /// `recall_point`; with `scores`, [`Pass::scores`] is filled.
     pub(super) fn pass(&mut self, threshold: f64, recall_point: f64, scores: bool) -> Pass {

@@ -145,6 +145,19 @@ pub(super) struct SeqTracks {
 }
 
 impl SeqTracks {
+    /// The rows' scores as [`prepare_tracks`] gave them (the passes replace them by means).
+    pub fn scores(&self) -> Vec<f64> {
+        self.rows.iter().map(|r| r.score).collect()
+    }
+
+    /// The rows as [`prepare_tracks`] left them, from their `scores` then: nothing kept or
+    /// matched yet.
+    pub fn restart(&mut self, scores: &[f64]) {
+        for (r, &score) in self.rows.iter_mut().zip(scores) {
+            (r.score, r.valid, r.kept) = (score, false, false);
+        }
+    }
+
     /// The rows and the feasible pairs of frame `f`.
     pub fn frame(&mut self, f: usize) -> (&mut [TrObj], &[Edge]) {
         let r = self.row_start[f] as usize..self.row_start[f + 1] as usize;
