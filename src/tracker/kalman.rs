@@ -9,8 +9,9 @@
 //! then diagonal, so the gain `K = P H^T S^-1` and the update `P - K H P` act within each block.
 //! The filter below computes exactly the dense equations but only on the non-zero entries:
 //! `predict` and `update` cost a few dozen flops instead of several thousand, and the Cholesky
-//! factor of the diagonal `S` is the square roots of its diagonal. `tests/it/tracker_core.rs`
-//! checks the result against the dense matrix equations.
+//! factor of the diagonal `S` is the square roots of its diagonal. The unit test
+//! `structured_filter_equals_dense_equations` checks the result against the dense matrix
+//! equations, and `tests/it/tracker_core/life_cycle.rs` against a closed-form filter.
 //!
 //! With the coordinated-turn motion ([`super::ctrv`], `levers.motion = "ctrv"`) the Jacobian
 //! couples position, velocity and yaw rate, `P` is dense, and predict, update and the
