@@ -3,7 +3,7 @@
 
 The output is written by PyPI `mcap-protobuf-support` with the message classes and descriptors
 of PyPI `foxglove-schemas-protobuf` (Foxglove's published .proto files), not by probmot, so
-`tests/it/ros2_foxglove_input.rs` checks probmot's decoder against a third-party writer. One
+`tests/it/ros2_foxglove_input/fixtures.rs` checks probmot's decoder against a third-party writer. One
 SceneUpdate per `probmot.Detections3D` message, one entity per box, following probmot's
 metadata convention (README, "Detection inputs"):
 

@@ -2,7 +2,7 @@
 """Convert the detections of a probmot log into a ROS 2 MCAP of vision_msgs/msg/Detection3DArray.
 
 The output is written by PyPI `mcap-ros2-support` (its own CDR serializer, driven by the message
-definition text below), not by probmot, so `tests/it/ros2_foxglove_input.rs` checks probmot's
+definition text below), not by probmot, so `tests/it/ros2_foxglove_input/fixtures.rs` checks probmot's
 decoder against a third-party writer. One Detection3DArray per `probmot.Detections3D` message:
 
 - header.stamp = the message's `stamp` (or its log_time when unset), header.frame_id = frame_id;

@@ -283,7 +283,7 @@ fn plot_errors_are_clear_and_write_nothing() {
 #[test]
 fn plot_draws_ros2_and_foxglove_detections_like_probmot_ones() {
     // The ROS 2 and Foxglove fixtures carry the detections of sample_logs/city.mcap; tracked,
-    // they give the same boxes (tests/it/ros2_foxglove_input.rs), so their pictures are the same
+    // they give the same boxes (tests/it/ros2_foxglove_input/fixtures.rs), so their pictures are the same
     // pixels as the probmot log's.
     let dir = tempfile::tempdir().unwrap();
     let mut pictures = Vec::new();

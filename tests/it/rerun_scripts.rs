@@ -305,7 +305,7 @@ fn to_rerun_reads_ros2_foxglove_and_json_inputs() {
             &format!("{name} detections"),
         );
         // ROS 2 tracks carry no velocity; their boxes are those of the probmot log's tracks
-        // (tests/it/ros2_foxglove_input.rs: the same tracks to 1e-9).
+        // (tests/it/ros2_foxglove_input/fixtures.rs: the same tracks to 1e-9).
         let want = if ros2_tracks {
             let reference = dir.path().join("reference.tracked.mcap");
             track(source, &reference, &[]);
