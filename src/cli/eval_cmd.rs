@@ -266,7 +266,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     }
     let events = (a.events.as_deref())
         .map(|out| {
-            let logs = (EventsProtocol::Nuscenes, &decisions[..]);
+            let logs = (EventsProtocol::Nuscenes, decisions);
             eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;

@@ -5,13 +5,14 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Result};
-use probmot::eval::events::{resolve, ClassEvents, Collector, Counts, EventBoxes, Protocol};
-use probmot::eval::events_log::{write_events_log, LogEvents};
+use anyhow::{bail, Context, Result};
+use probmot::eval::events::{
+    resolve, ClassEvents, Collector, Counts, EventBoxes, Located, Protocol,
+};
+use probmot::eval::events_log::{write_events_log, EventLabels, LogEvents};
 use probmot::mcapio::writer::check_output_path;
 use probmot::msgs::eval_event::Kind;
 use probmot::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
-use probmot::msgs::EvalEvents;
 
 /// Worst moments listed in the report.
 const WORST: usize = 10;
@@ -105,10 +106,12 @@ fn output_paths(out: &Path, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<PathBuf>
 
 /// Turns the decisions each class's evaluation recorded at its best-MOTA threshold (`logs`,
 /// from `evaluate_recording` of `protocol`) into events, writes one copy of each truth log with
-/// the events channels and returns the report.
+/// the events channels and returns the report. Each class's record is dropped once resolved
+/// and its events moved to their logs, keeping only what the report lists (a long log has
+/// millions of events; no second copy).
 pub fn write<B: EventBoxes + ?Sized>(
     out: &Path,
-    (protocol, logs): (Protocol, &[(String, Collector)]),
+    (protocol, logs): (Protocol, Vec<(String, Collector)>),
     pairs: &[(PathBuf, PathBuf)],
     scenes: &B,
     truth_topic: &str,
@@ -118,41 +121,62 @@ pub fn write<B: EventBoxes + ?Sized>(
         Protocol::Nuscenes => "nuscenes",
         Protocol::Kitti => "kitti",
     };
-    let classes: Vec<ClassEvents> = logs
-        .iter()
-        .map(|(c, log)| resolve(scenes, c, log, protocol))
-        .collect();
-    // The report first, so that the events can then move to their logs (a long log has
-    // millions of them; no second copy).
-    let summary = report(dests.clone(), &classes, scenes);
     let mut per_log: Vec<LogEvents> = vec![LogEvents::new(); scenes.logs()];
-    for ce in classes {
-        for e in ce.events {
+    let mut summaries = Vec::with_capacity(logs.len());
+    for (class, (label, log)) in logs.into_iter().enumerate() {
+        let class = u16::try_from(class).context("more than 65,536 classes")?;
+        let ClassEvents {
+            class: label,
+            counts,
+            events,
+        } = resolve(scenes, &label, &log, protocol);
+        drop(log);
+        let listed = (events.iter())
+            .filter(|e| matches!(e.event.kind, Kind::Switch | Kind::Fragmentation))
+            .copied()
+            .collect();
+        for e in events {
             let stamp = scenes.stamp(e.scene, e.frame);
-            let frame = per_log[e.scene].entry(stamp).or_insert_with(|| EvalEvents {
-                stamp,
-                protocol: name.to_string(),
-                ..Default::default()
-            });
-            frame.events.push(e.event);
+            per_log[e.scene]
+                .entry(stamp)
+                .or_default()
+                .push((class, e.event));
         }
+        summaries.push(ClassSummary {
+            class: label,
+            counts,
+            listed,
+        });
     }
+    let names: Vec<String> = summaries.iter().map(|c| c.class.clone()).collect();
+    let labels = EventLabels {
+        protocol: name,
+        classes: &names,
+    };
     for (((truth, _), dest), events) in pairs.iter().zip(&dests).zip(&per_log) {
-        write_events_log(truth, dest, truth_topic, events, false)?;
+        write_events_log(truth, dest, truth_topic, (events, labels), false)?;
     }
-    Ok(summary)
+    Ok(report(dests, &summaries, scenes))
+}
+
+/// What the report keeps of one class's events: the counts, and the identity switches and
+/// fragmentations it may list.
+struct ClassSummary {
+    class: String,
+    counts: Counts,
+    listed: Vec<Located>,
 }
 
 fn report<B: EventBoxes + ?Sized>(
     outputs: Vec<PathBuf>,
-    classes: &[ClassEvents],
+    classes: &[ClassSummary],
     scenes: &B,
 ) -> EventsReport {
     let mut worst = Vec::new();
     for kind in [Kind::Switch, Kind::Fragmentation] {
         let start = worst.len();
         for ce in classes {
-            for e in ce.events.iter().filter(|e| e.event.kind() == kind) {
+            for e in ce.listed.iter().filter(|e| e.event.kind == kind) {
                 let stamp = scenes.stamp(e.scene, e.frame);
                 let time_s = (stamp - scenes.stamp(e.scene, 0)) as f64 / 1e9;
                 worst.push(Moment {
@@ -160,7 +184,7 @@ fn report<B: EventBoxes + ?Sized>(
                     time_s,
                     stamp_ns: stamp,
                     class: ce.class.clone(),
-                    event: event_text(&e.event),
+                    event: event_text(&e.event.message("")),
                     truth_id: e.event.truth_id,
                     track_id: e.event.track_id,
                     previous_track_id: e.event.previous_track_id,

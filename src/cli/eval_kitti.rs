@@ -120,7 +120,7 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     }
     let events = (a.events.as_deref())
         .map(|out| {
-            let logs = (EventsProtocol::Kitti, &decisions[..]);
+            let logs = (EventsProtocol::Kitti, decisions);
             eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;

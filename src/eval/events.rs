@@ -2,7 +2,7 @@
 //! to the moments that made it. The protocols record what their pass at the best-MOTA threshold
 //! decided into a [`Collector`] (matches, misses, false positives; KITTI also the identity
 //! switches and fragmentations it counts along each trajectory); [`resolve`] turns that record
-//! into located [`EvalEvent`]s with the boxes' geometry, and counts them.
+//! into located [`Event`]s with the boxes' geometry, and counts them.
 //!
 //! The counts are those of the metrics: the nuScenes identity switches are the accumulator's
 //! switch events and its fragmentations are where an object, tracked before and again later,
@@ -200,15 +200,52 @@ pub struct Counts {
     pub fn_: u64,
 }
 
+/// One event as the evaluation keeps it until it is written: the fields of an [`EvalEvent`]
+/// but its class, which the events of a class share (a long log has millions of events, and a
+/// label string on each was a fifth of their memory).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Event {
+    /// Match, miss, false positive, identity switch or fragmentation.
+    pub kind: Kind,
+    /// Ground-truth id (0: none).
+    pub truth_id: u64,
+    /// Track id (0: none).
+    pub track_id: u64,
+    /// The track paired before a switch or a fragmentation (0: none).
+    pub previous_track_id: u64,
+    /// Centre of the box the event is drawn as, metres.
+    pub center: [f64; 3],
+    /// Length, width, height, metres.
+    pub size: [f64; 3],
+    /// Heading, radians.
+    pub yaw: f64,
+}
+
+impl Event {
+    /// The message of this event of class `label`.
+    pub fn message(&self, label: &str) -> EvalEvent {
+        EvalEvent {
+            kind: self.kind as i32,
+            label: label.to_string(),
+            truth_id: self.truth_id,
+            track_id: self.track_id,
+            previous_track_id: self.previous_track_id,
+            center: Some(v3(self.center)),
+            size: Some(size3(self.size)),
+            yaw: self.yaw,
+        }
+    }
+}
+
 /// An event with the scene and frame it belongs to.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Located {
     /// Index of the scene (log).
     pub scene: usize,
     /// Index of the frame in the scene.
     pub frame: usize,
     /// The event (ids are the boxes' ids as the logs carry them).
-    pub event: EvalEvent,
+    pub event: Event,
 }
 
 /// One class's events, in scene and frame order, and their counts.
@@ -277,14 +314,13 @@ impl<B: EventBoxes + ?Sized> Boxes<'_, B> {
         Located {
             scene: d.scene,
             frame: d.frame,
-            event: EvalEvent {
-                kind: kind as i32,
-                label: self.class.to_string(),
+            event: Event {
+                kind,
                 truth_id,
                 track_id: d.track.unwrap_or(0),
                 previous_track_id: previous,
-                center: Some(v3(center)),
-                size: Some(size3(size)),
+                center,
+                size,
                 yaw,
             },
         }
@@ -454,6 +490,12 @@ mod tests {
         assert_eq!((c.tp, c.ids, c.frag, c.fp, c.fn_), (0, 0, 0, 0, 5));
     }
 
+    /// docs/eval.md and BENCHMARKS.md quote this size: an event holds no heap memory.
+    #[test]
+    fn an_event_is_88_bytes() {
+        assert_eq!(std::mem::size_of::<Event>(), 88);
+    }
+
     #[test]
     fn nuscenes_switch_names_the_previous_track_and_a_gap_is_a_fragmentation() {
         let scene = Scene {
@@ -471,15 +513,15 @@ mod tests {
         let r = resolve(&[scene][..], "car", &log, Protocol::Nuscenes);
         let c = r.counts;
         assert_eq!((c.tp, c.ids, c.frag, c.fp, c.fn_), (1, 1, 1, 1, 2));
-        let sw = r.events.iter().find(|e| e.event.kind() == Kind::Switch);
+        let sw = r.events.iter().find(|e| e.event.kind == Kind::Switch);
         let sw = sw.unwrap();
         assert_eq!((sw.frame, sw.event.previous_track_id), (2, 10));
-        assert_eq!(sw.event.center.unwrap().x, 2.0, "geometry of the truth box");
+        assert_eq!(sw.event.center[0], 2.0, "geometry of the truth box");
         // The miss after the last tracked frame is not a fragmentation; the one between is.
         let fr: Vec<_> = r
             .events
             .iter()
-            .filter(|e| e.event.kind() == Kind::Fragmentation)
+            .filter(|e| e.event.kind == Kind::Fragmentation)
             .map(|e| (e.frame, e.event.previous_track_id))
             .collect();
         assert_eq!(fr, vec![(1, 10)]);

@@ -10,6 +10,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
 
+use super::events::Event;
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records, read_summary_records};
 use crate::mcapio::writer::OutputOptions;
@@ -24,8 +25,19 @@ use crate::msgs::{decode, encode_into, Encoding, EvalEvents, Tracks3D};
 const EVENTS_ID: u16 = u16::MAX - 1;
 const SCENE_ID: u16 = u16::MAX - 2;
 
-/// The events of one log, by frame stamp (ns); `frame_id` is filled in from the truth channel.
-pub type LogEvents = BTreeMap<u64, EvalEvents>;
+/// The events of one log, by frame stamp (ns), each with the index of its class in
+/// [`EventLabels::classes`].
+pub type LogEvents = BTreeMap<u64, Vec<(u16, Event)>>;
+
+/// What the written events are labelled with: the protocol's name and the class names that
+/// [`LogEvents`] index.
+#[derive(Debug, Clone, Copy)]
+pub struct EventLabels<'a> {
+    /// `nuscenes` or `kitti`.
+    pub protocol: &'a str,
+    /// Class names.
+    pub classes: &'a [String],
+}
 
 /// What [`write_events_log`] wrote.
 #[derive(Debug, Clone, Copy, Default)]
@@ -44,7 +56,7 @@ pub fn write_events_log(
     src: &Path,
     dest: &Path,
     truth_topic: &str,
-    events: &LogEvents,
+    (events, labels): (&LogEvents, EventLabels<'_>),
     scene_matches: bool,
 ) -> Result<Written> {
     let name = src.display().to_string();
@@ -67,6 +79,7 @@ pub fn write_events_log(
     let mut w = Writer {
         out,
         pending: events.iter().peekable(),
+        labels,
         frame_id: "map".to_string(),
         buf: Vec::new(),
         written: Written::default(),
@@ -133,7 +146,8 @@ pub fn write_events_log(
 /// The output and the events not yet written.
 struct Writer<'a> {
     out: BackgroundOutput,
-    pending: std::iter::Peekable<std::collections::btree_map::Iter<'a, u64, EvalEvents>>,
+    pending: std::iter::Peekable<std::collections::btree_map::Iter<'a, u64, Vec<(u16, Event)>>>,
+    labels: EventLabels<'a>,
     frame_id: String,
     buf: Vec<u8>,
     written: Written,
@@ -147,8 +161,14 @@ impl Writer<'_> {
             if stamp >= log_time && log_time != u64::MAX {
                 break;
             }
-            let mut ev = (*ev).clone();
-            ev.frame_id = self.frame_id.clone();
+            let ev = EvalEvents {
+                stamp,
+                frame_id: self.frame_id.clone(),
+                protocol: self.labels.protocol.to_string(),
+                events: (ev.iter())
+                    .map(|&(class, e)| e.message(&self.labels.classes[usize::from(class)]))
+                    .collect(),
+            };
             let seq = self.written.frames as u32;
             let header = |channel_id| MessageHeader {
                 channel_id,
