@@ -104,11 +104,14 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let params = kitti_params(&a)?;
     let pairs = log_pairs(&a.truth, &a.tracks)?;
     let scenes = load_logs(&a, &pairs)?;
-    let spinner = scoring_spinner(&a, "KITTI metrics");
-    let (result, decisions) = kitti::evaluate_recording(&scenes, &params, a.events.is_some());
+    let spinner = scoring_spinner(&a, "KITTI metrics and HOTA");
+    // The metrics and the two HOTA similarities are independent: run side by side.
+    let hota = |sim| kitti_hota(&scenes, &params.classes, sim);
+    let ((result, decisions), ((hota_2d, mut hota_notes), (hota_3d, _))) = rayon::join(
+        || kitti::evaluate_recording(&scenes, &params, a.events.is_some()),
+        || rayon::join(|| hota(KittiSimilarity::Image), || hota(KittiSimilarity::Box3d)),
+    );
     spinner.finish_and_clear();
-    let (hota_2d, mut hota_notes) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Image);
-    let (hota_3d, _) = kitti_hota(&scenes, &params.classes, KittiSimilarity::Box3d);
     hota_notes.dedup();
     if result.classes.is_empty() {
         bail!(
