@@ -280,6 +280,14 @@ pub fn run(a: TuneArgs) -> Result<ExitCode> {
         "--search-means is a KITTI option (the nuScenes devkit averages each track's score once)"
     );
     tune::space::check_names(&a.search).map_err(anyhow::Error::msg)?;
+    // Checked before the logs are read (a long log takes a while).
+    ensure!(
+        a.folds < 2 || a.inputs.len() >= a.folds,
+        "--folds {} needs one log per fold ({} log(s) given); --folds 1 tunes on all the logs \
+         without cross-validation",
+        a.folds,
+        a.inputs.len()
+    );
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
     }

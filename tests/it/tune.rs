@@ -379,6 +379,8 @@ fn cli_tune_writes_a_config_that_track_accepts() {
         o,
         "--truth-topic",
         "/nope",
+        "--folds",
+        "1",
         "--quiet",
     ]);
     assert!(!r.status.success());
@@ -403,6 +405,16 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     assert_eq!(r.status.code(), Some(2));
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(err.contains("--search-means is a KITTI option"), "{err}");
+    // Too few logs for the folds: refused before any log is read (this one does not exist).
+    let r = common::probmot(&["tune", "missing.mcap", "-o", o, "--quiet"]);
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("--folds 2 needs one log per fold (1 log(s) given)")
+            && err.contains("--folds 1")
+            && !err.contains("missing.mcap"),
+        "{err}"
+    );
 }
 
 /// `tune --coast gaps --backfill` sets the base's reporting for every class, and a class the
