@@ -109,7 +109,12 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     let hota = |sim| kitti_hota(&scenes, &params.classes, sim);
     let ((result, decisions), ((hota_2d, mut hota_notes), (hota_3d, _))) = rayon::join(
         || kitti::evaluate_recording(&scenes, &params, a.events.is_some()),
-        || rayon::join(|| hota(KittiSimilarity::Image), || hota(KittiSimilarity::Box3d)),
+        || {
+            rayon::join(
+                || hota(KittiSimilarity::Image),
+                || hota(KittiSimilarity::Box3d),
+            )
+        },
     );
     spinner.finish_and_clear();
     hota_notes.dedup();
