@@ -68,7 +68,7 @@ fn bench(c: &mut Criterion) {
         // As the tune does: the class's truth is prepared once.
         let truth = class_truth(&refs, label, &scoring);
         g.bench_function(format!("one_config_{label}_10_logs"), |b| {
-            b.iter(|| score_class_with(&refs, &truth, &cfg, label, &scoring).unwrap())
+            b.iter(|| score_class_with(&refs, &truth, &cfg, label).unwrap())
         });
     }
     g.finish();

@@ -31,6 +31,28 @@ pub struct Side {
 }
 
 impl Side {
+    /// A side with no frame yet, to fill frame by frame with [`Side::push_box`] and
+    /// [`Side::end_frame`] (what an in-process tracker run writes, e.g. `probmot tune`).
+    pub fn new() -> Side {
+        Side {
+            at: vec![0],
+            ..Side::default()
+        }
+    }
+
+    /// Appends a box (id, class index, ground-plane centre, score) to the frame being filled.
+    pub fn push_box(&mut self, id: u64, label: u16, xy: [f64; 2], score: f64) {
+        self.id.push(id);
+        self.label.push(label);
+        self.xy.push(xy);
+        self.score.push(score);
+    }
+
+    /// Closes the frame being filled: its boxes are those pushed since the last close.
+    pub fn end_frame(&mut self) {
+        self.at.push(self.id.len());
+    }
+
     /// The column range of frame `f`.
     pub fn frame(&self, f: usize) -> std::ops::Range<usize> {
         self.at[f]..self.at[f + 1]
@@ -47,10 +69,7 @@ impl Side {
     }
 
     fn push(&mut self, b: &LabelledBox, label: u16, geometry: bool) {
-        self.id.push(b.id);
-        self.label.push(label);
-        self.xy.push([b.center[0], b.center[1]]);
-        self.score.push(b.score);
+        self.push_box(b.id, label, [b.center[0], b.center[1]], b.score);
         if geometry {
             let [l, w, h] = b.size;
             self.geometry.push([b.center[2], l, w, h, b.yaw]);
@@ -95,6 +114,11 @@ impl ColumnScene {
         self.labels.iter().position(|l| l == name).map(|i| i as u16)
     }
 
+    /// The index of class `name`, added to [`ColumnScene::labels`] when no box had it yet.
+    pub fn label_or_add(&mut self, name: &str) -> u16 {
+        label_or_add(&mut self.labels, name)
+    }
+
     /// The columns of a [`Scene`] (the same frames and boxes, in the same order).
     pub fn from_scene(scene: &Scene) -> ColumnScene {
         Self::of_scene(scene, false)
@@ -116,6 +140,17 @@ impl ColumnScene {
         }
         b.finish(scene.name.clone(), None)
             .expect("no checks without paths")
+    }
+}
+
+/// The index of `name` in `labels`, appended when missing.
+fn label_or_add(labels: &mut Vec<String>, name: &str) -> u16 {
+    match labels.iter().position(|l| l == name) {
+        Some(i) => i as u16,
+        None => {
+            labels.push(name.to_string());
+            (labels.len() - 1) as u16
+        }
     }
 }
 
@@ -178,13 +213,7 @@ struct Builder {
 
 impl Builder {
     fn label(&mut self, name: &str) -> u16 {
-        match self.labels.iter().position(|l| l == name) {
-            Some(i) => i as u16,
-            None => {
-                self.labels.push(name.to_string());
-                (self.labels.len() - 1) as u16
-            }
-        }
+        label_or_add(&mut self.labels, name)
     }
 
     /// Appends one message of side `s` (0 truth, 1 tracks).

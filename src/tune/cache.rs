@@ -55,13 +55,7 @@ impl<'a> ScoreCache<'a> {
         }
         let truth = self.truth_of(label);
         let cfg = single_class(self.cfg, label, cc.clone());
-        let v = finite_or_min(score_class_with(
-            self.logs,
-            &truth,
-            &cfg,
-            label,
-            &self.scoring,
-        )?);
+        let v = finite_or_min(score_class_with(self.logs, &truth, &cfg, label)?);
         self.map.lock().expect("cache lock").insert(k, v);
         Ok(v)
     }

@@ -1,11 +1,12 @@
 //! In-process scoring: track the in-memory logs with a config, as `probmot track` would, and
 //! evaluate the tracks with the library's protocol implementation (no temporary files).
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, HashSet};
 
 use anyhow::{anyhow, Result};
 
 use super::data::TuneLog;
+use crate::eval::columns::{ColumnScene, Side};
 use crate::eval::kitti::{self, KittiParams, MeanScores, RowKind, TrackRow};
 use crate::eval::nuscenes::{self, NuscenesParams};
 use crate::eval::scene::Scene;
@@ -128,8 +129,8 @@ pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
 pub enum ClassTruth {
     /// KITTI: the class's truth as the protocol reads it.
     Kitti(kitti::ClassTruth),
-    /// nuScenes: per log, per frame, the truth boxes.
-    Nuscenes(Vec<Vec<Vec<LabelledBox>>>),
+    /// nuScenes: per log, the truth the class's evaluation reads, in columns (no tracks yet).
+    Nuscenes(Vec<ColumnScene>),
 }
 
 /// The truth of class `label` in `logs` as the protocol's evaluation of that class reads it
@@ -147,12 +148,57 @@ pub fn class_truth(logs: &[&TuneLog], label: &str, scoring: &Scoring) -> ClassTr
                 &kitti_params(label, scoring),
             ))
         }
-        Protocol::Nuscenes => ClassTruth::Nuscenes(
-            logs.iter()
-                .map(|l| l.frames.iter().map(|f| f.truth.clone()).collect())
-                .collect(),
-        ),
+        Protocol::Nuscenes => {
+            ClassTruth::Nuscenes(logs.iter().map(|l| nuscenes_truth(l, label)).collect())
+        }
     }
+}
+
+/// The truth of `log` that the nuScenes evaluation of class `label` reads, in columns: the
+/// boxes of the class, and those of other classes that share an id with one of them (the
+/// evaluation fills gaps by id across classes). Every frame of the log is a frame.
+fn nuscenes_truth(log: &TuneLog, label: &str) -> ColumnScene {
+    let ids: HashSet<u64> = (log.frames.iter())
+        .flat_map(|f| f.truth.iter().filter(|b| b.label == label).map(|b| b.id))
+        .collect();
+    let mut scene = ColumnScene {
+        name: log.name.clone(),
+        labels: vec![label.to_string()],
+        stamps: log.frames.iter().map(|f| f.stamp).collect(),
+        truth: Side::new(),
+        tracks: Side::new(),
+    };
+    for f in &log.frames {
+        for b in f.truth.iter().filter(|b| ids.contains(&b.id)) {
+            let l = scene.label_or_add(&b.label);
+            scene
+                .truth
+                .push_box(b.id, l, [b.center[0], b.center[1]], b.score);
+        }
+        scene.truth.end_frame();
+    }
+    scene
+}
+
+/// `log` tracked with `cfg`, in columns beside the class's `truth` (from [`nuscenes_truth`]).
+fn track_columns(log: &TuneLog, cfg: &TrackerConfig, truth: &ColumnScene) -> Result<ColumnScene> {
+    let mut scene = truth.clone();
+    let mut tracks = Side::new();
+    let mut frames = 0;
+    run_tracker(log, cfg, |fi, r, label, _| {
+        for _ in frames..fi {
+            tracks.end_frame();
+        }
+        frames = frames.max(fi);
+        let l = scene.label_or_add(label);
+        let c = r.bbox.center;
+        tracks.push_box(r.id, l, [c[0], c[1]], r.score);
+    })?;
+    for _ in frames..log.frames.len() {
+        tracks.end_frame();
+    }
+    scene.tracks = tracks;
+    Ok(scene)
 }
 
 /// The KITTI parameters of one class's evaluation.
@@ -309,23 +355,17 @@ pub fn score_class(
     label: &str,
     scoring: &Scoring,
 ) -> Result<f64> {
-    score_class_with(
-        logs,
-        &class_truth(logs, label, scoring),
-        cfg,
-        label,
-        scoring,
-    )
+    score_class_with(logs, &class_truth(logs, label, scoring), cfg, label)
 }
 
-/// [`score_class`] with the class's truth prepared by [`class_truth`] (once per tune). KITTI
-/// scores the tracks' rows against the prepared truth without building evaluation scenes.
+/// [`score_class`] with the class's truth prepared by [`class_truth`] (once per tune, with the
+/// protocol's settings): the tracks go to the evaluation as rows (KITTI) or columns (nuScenes)
+/// beside the prepared truth, without evaluation scenes of whole boxes.
 pub fn score_class_with(
     logs: &[&TuneLog],
     truth: &ClassTruth,
     cfg: &TrackerConfig,
     label: &str,
-    scoring: &Scoring,
 ) -> Result<f64> {
     match truth {
         ClassTruth::Kitti(t) => {
@@ -336,13 +376,15 @@ pub fn score_class_with(
             Ok(t.evaluate(&rows).map_or(f64::NAN, |m| m.samota))
         }
         ClassTruth::Nuscenes(t) => {
-            let scenes = logs
-                .iter()
-                .zip(t)
-                .map(|(l, t)| track_frames(l, cfg, |i| t[i].clone()))
+            let scenes = (logs.iter().zip(t))
+                .map(|(l, t)| track_columns(l, cfg, t))
                 .collect::<Result<Vec<_>>>()?;
-            let classes = [label.to_string()];
-            Ok(scoring.evaluate(&scenes, &classes)[label])
+            let p = NuscenesParams {
+                classes: vec![label.to_string()],
+                ..NuscenesParams::default()
+            };
+            let r = nuscenes::evaluate_columns(&scenes, &p);
+            Ok(r.classes.get(label).map_or(f64::NAN, |m| m.amota))
         }
     }
 }

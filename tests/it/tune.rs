@@ -310,6 +310,41 @@ fn cross_validation_scores_held_out_logs() {
     assert!(cross_validate(&base, &logs[..1], 2, &options(5), &ProgressBar::hidden()).is_err());
 }
 
+/// Scoring one class on the truth prepared for it (in columns: its boxes, and those of other
+/// classes that share an id with them) gives the nuScenes score of the whole truth, to the bit.
+/// Truth id 3 is a car, then a truck for two frames, then a car again: the evaluation fills
+/// gaps by id across classes, so those two frames hold no interpolated car, and the car
+/// detections there are false positives.
+#[test]
+fn nuscenes_class_score_on_the_prepared_truth_equals_the_full_truth() {
+    let mut logs: Vec<TuneLog> = (1..=2).map(synthetic_log).collect();
+    for f in logs[0].frames.iter_mut() {
+        let i = f.stamp / PERIOD - 1;
+        let b = f.truth.iter_mut().find(|b| b.id == 3).unwrap();
+        if (10..12).contains(&i) {
+            b.label = "truck".into();
+        }
+        // A pedestrian that no car shares an id with.
+        f.truth.push(LabelledBox {
+            label: "pedestrian".into(),
+            ..truth(40, -20.0, 3.0 + 0.1 * i as f64)
+        });
+    }
+    let refs: Vec<&TuneLog> = logs.iter().collect();
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let scoring = options(1).scoring;
+    let cfg = single_class(&base, "car", base.class("car").unwrap().clone());
+    let full: Vec<_> = refs.iter().map(|l| track_log(l, &cfg).unwrap()).collect();
+    let p = probmot::eval::nuscenes::NuscenesParams {
+        classes: vec!["car".into()],
+        ..Default::default()
+    };
+    let want = probmot::eval::nuscenes::evaluate(&full, &p).classes["car"].amota;
+    let got = score_class(&refs, &cfg, "car", &scoring).unwrap();
+    assert_eq!(got.to_bits(), want.to_bits(), "{got} vs {want}");
+    assert!(want > 0.3 && want < 1.0, "{want}");
+}
+
 #[test]
 fn cli_tune_writes_a_config_that_track_accepts() {
     let dir = tempfile::tempdir().unwrap();
