@@ -6,7 +6,7 @@
 use super::data::{FitFrame, FitLog};
 use super::measurement::{MeasurementState, MeasurementStatsByLabel};
 use super::process::{ProcessStats, ProcessWindow};
-use super::timing::interval_s;
+use super::timing::{interval_s, period_of_intervals, FramePeriod};
 
 /// What the fit has gathered so far (pooled over the logs, in the order they were fed).
 #[derive(Default, Clone)]
@@ -57,6 +57,12 @@ impl FitAccumulator {
     /// Counts detection messages of the current log whose stamp is no truth stamp.
     pub fn add_unmatched(&mut self, messages: u64) {
         self.unmatched_detection_messages += messages;
+    }
+
+    /// The frame period of the frames fed so far (as [`super::timing::frame_period`] of the
+    /// same logs).
+    pub fn frame_period(&self) -> Option<FramePeriod> {
+        period_of_intervals(&self.intervals)
     }
 
     /// Adds a whole log.

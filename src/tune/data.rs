@@ -8,7 +8,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 
 use crate::eval::scene::read_tracks_topic;
-use crate::fit::data::{assemble_frames, FitLog};
+use crate::fit::{FitAccumulator, FitFrame};
 use crate::mcapio::topic::for_each_message;
 use crate::mcapio::LabelledBox;
 use crate::msgs::{self, Detections3D};
@@ -110,43 +110,43 @@ impl TuneLog {
         })
     }
 
-    /// The log as the noise fit sees it: truth stamps as frames, boxes without DontCare regions.
-    pub fn fit_log(&self) -> FitLog {
+    /// Feeds the log to a noise fit as `probmot fit` reads it (truth stamps as frames, boxes
+    /// without DontCare regions, a detection stamp without truth only counted), one frame at a
+    /// time: the fit never holds a second copy of the log.
+    pub fn feed_fit(&self, acc: &mut FitAccumulator) {
         // The fit reads geometry and labels only.
-        let fb = |b: &LabelledBox| LabelledBox {
-            id: b.id,
-            label: b.label.clone(),
+        let fit_box = |id, label: &str, b: Box3| LabelledBox {
+            id,
+            label: label.to_string(),
             center: b.center,
             size: b.size,
             yaw: b.yaw,
             ..Default::default()
         };
-        let truth = self
-            .frames
-            .iter()
-            .filter(|f| f.has_truth)
-            .map(|f| {
-                let boxes = f.truth.iter().filter(|b| b.id != 0).map(fb);
-                (f.stamp, boxes.collect())
-            })
-            .collect();
-        let dets = self
-            .frames
-            .iter()
-            .filter(|f| f.has_detections)
-            .map(|f| {
-                let boxes = f.detections.iter().map(|d| LabelledBox {
-                    id: 0,
-                    label: d.label.clone(),
-                    center: d.bbox.center,
-                    size: d.bbox.size,
-                    yaw: d.bbox.yaw,
-                    ..Default::default()
-                });
-                (f.stamp, boxes.collect())
-            })
-            .collect();
-        assemble_frames(&self.name, truth, dets)
+        let mut state = acc.begin_log(&self.name);
+        let mut unmatched = 0;
+        for f in &self.frames {
+            if !f.has_truth {
+                unmatched += u64::from(f.has_detections);
+                continue;
+            }
+            let truth = (f.truth.iter().filter(|b| b.id != 0))
+                .map(|b| {
+                    let (center, size, yaw) = (b.center, b.size, b.yaw);
+                    fit_box(b.id, &b.label, Box3 { center, size, yaw })
+                })
+                .collect();
+            let detections = (f.detections.iter())
+                .map(|d| fit_box(0, &d.label, d.bbox))
+                .collect();
+            let frame = FitFrame {
+                stamp: f.stamp,
+                truth,
+                detections,
+            };
+            acc.push_frame(&mut state, frame);
+        }
+        acc.add_unmatched(unmatched);
     }
 
     /// Scores of this log's detections of one class.

@@ -20,7 +20,7 @@ pub use score::{Protocol, Scoring};
 pub use search::{ClassTune, SearchLimits, Step};
 
 use crate::eval::scene::Scene;
-use crate::fit::{fit, fitted_config, timing::frame_period, FitOptions, YawMode};
+use crate::fit::{fit_gathered, fitted_config, FitAccumulator, FitOptions, YawMode};
 use crate::tracker::{ClassConfig, TrackerConfig};
 use cache::ScoreCache;
 use space::{at, dims, restrict, ScoreStats};
@@ -83,10 +83,13 @@ pub fn fit_noise(
     logs: &[&TuneLog],
     o: &TuneOptions,
 ) -> Result<TrackerConfig> {
-    let fit_logs: Vec<_> = logs.iter().map(|l| l.fit_log()).collect();
+    let mut acc = FitAccumulator::new();
+    for l in logs {
+        l.feed_fit(&mut acc);
+    }
     let dt_nominal = match o.dt_nominal {
         Some(d) => d,
-        None => frame_period(&fit_logs)
+        None => (acc.frame_period())
             .map(|p| p.median_s)
             .filter(|p| *p > 0.0)
             .unwrap_or(base.dt_nominal),
@@ -96,7 +99,7 @@ pub fn fit_noise(
         yaw: YawMode::Folded,
         min_samples: o.min_samples,
     };
-    let mut report = fit(&fit_logs, &options);
+    let mut report = fit_gathered(acc, &options);
     Ok(fitted_config(base, &mut report, &options)?)
 }
 
