@@ -158,3 +158,107 @@ impl TuneLog {
             .map(|d| d.score)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::data::assemble_frames;
+    use crate::fit::{fit, fit_gathered, FitOptions, YawMode};
+
+    fn truth(id: u64, label: &str, x: f64) -> LabelledBox {
+        LabelledBox {
+            id,
+            label: label.into(),
+            center: [x, 0.5 * x, 0.8],
+            size: [4.5, 1.9, 1.6],
+            yaw: 0.01 * x,
+            score: 1.0,
+            ..Default::default()
+        }
+    }
+
+    /// A log with a detection stamp without truth, a truth stamp without detections and a
+    /// box without id (a DontCare region).
+    fn log() -> TuneLog {
+        let frames = (0..12u64)
+            .map(|i| {
+                let x = i as f64;
+                let has_truth = i != 3;
+                let has_detections = i != 7;
+                let mut f = TuneFrame {
+                    stamp: 1_000 + 100_000_000 * i,
+                    has_truth,
+                    has_detections,
+                    ..Default::default()
+                };
+                if has_truth {
+                    f.truth = vec![truth(1, "car", x), truth(2, "car", 20.0 - x)];
+                    f.truth.push(truth(0, "dontcare", 5.0));
+                }
+                if has_detections {
+                    f.detections = [(x + 0.1, "car"), (20.2 - x, "car"), (9.0, "truck")]
+                        .into_iter()
+                        .map(|(x, label)| TuneDet {
+                            label: label.into(),
+                            bbox: Box3 {
+                                center: [x, 0.5 * x, 0.7],
+                                yaw: 0.01 * x,
+                                size: [4.4, 1.9, 1.6],
+                            },
+                            score: 0.8,
+                            image_box: None,
+                        })
+                        .collect();
+                }
+                f
+            })
+            .collect();
+        TuneLog {
+            name: "log".into(),
+            frames,
+        }
+    }
+
+    /// Fed frame by frame, the fit gives the report of the whole log assembled as
+    /// `probmot fit` reads a file.
+    #[test]
+    fn feeding_the_fit_equals_the_assembled_log() {
+        let log = log();
+        let as_fit_box = |id, label: &str, b: Box3| LabelledBox {
+            id,
+            label: label.into(),
+            center: b.center,
+            size: b.size,
+            yaw: b.yaw,
+            ..Default::default()
+        };
+        let truth = (log.frames.iter().filter(|f| f.has_truth))
+            .map(|f| {
+                let boxes = (f.truth.iter().filter(|b| b.id != 0)).map(|b| {
+                    let (center, size, yaw) = (b.center, b.size, b.yaw);
+                    as_fit_box(b.id, &b.label, Box3 { center, size, yaw })
+                });
+                (f.stamp, boxes.collect())
+            })
+            .collect();
+        let dets = (log.frames.iter().filter(|f| f.has_detections))
+            .map(|f| {
+                let boxes = f.detections.iter().map(|d| as_fit_box(0, &d.label, d.bbox));
+                (f.stamp, boxes.collect())
+            })
+            .collect();
+        let options = FitOptions {
+            dt_nominal: 0.1,
+            yaw: YawMode::Folded,
+            min_samples: 2,
+        };
+        let want = fit(&[assemble_frames("log", truth, dets)], &options);
+        let mut acc = FitAccumulator::new();
+        log.feed_fit(&mut acc);
+        assert_eq!(acc.frame_period().unwrap().median_s, 0.1);
+        let got = fit_gathered(acc, &options);
+        assert_eq!(got, want);
+        assert_eq!((got.frames, got.unmatched_detection_messages), (11, 1));
+        assert_eq!((got.truth_boxes, got.detections), (22, 30));
+    }
+}
