@@ -344,6 +344,10 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         .par_iter()
         .map(|p| TuneLog::load(p, &a.truth_topic, &a.detections_topic))
         .collect::<Result<Vec<_>>>()?;
+    let warnings = skip_warnings(a, &logs);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     let o = options(a);
     let scoring = o.scoring;
     let all: Vec<&TuneLog> = logs.iter().collect();
@@ -398,7 +402,8 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
             .replace(" per class,", " per class, reporting pooled,");
     }
     write_configs(a, &cfg, cv.as_ref())?;
-    report(a, &final_options, (cv.as_ref(), losses.as_deref()), &t)?;
+    let found = (cv.as_ref(), losses.as_deref(), &warnings[..]);
+    report(a, &final_options, found, &t)?;
     for l in losses.iter().flatten() {
         eprintln!(
             "warning: {} on fold {}: the settings tuned on its {} training trajectories scored {} \
@@ -415,18 +420,35 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// One warning per log that had detections left out when read (none is dropped unsaid).
+fn skip_warnings(a: &TuneArgs, logs: &[TuneLog]) -> Vec<String> {
+    (a.inputs.iter().zip(logs))
+        .filter(|(_, l)| l.skipped_detections > 0)
+        .map(|(p, l)| {
+            format!(
+                "{}: topic {}: {} detection(s) left out (no centre or size, a non-finite field \
+                 or score, or a non-positive size), as `probmot track` skips them",
+                p.display(),
+                a.detections_topic,
+                l.skipped_detections
+            )
+        })
+        .collect()
+}
+
 /// Prints the cross-validation table and the final tune's per-class summary, or all as JSON
-/// (the held-out losses included).
+/// (the held-out losses and the reading warnings included).
 fn report(
     a: &TuneArgs,
     o: &TuneOptions,
-    (cv, losses): (Option<&CvReport>, Option<&[HeldOutLoss]>),
+    (cv, losses, warnings): (Option<&CvReport>, Option<&[HeldOutLoss]>, &[String]),
     t: &tune::Tuned,
 ) -> Result<()> {
     if a.json {
         let v = serde_json::json!({
             "output": a.output.display().to_string(),
             "options": o,
+            "warnings": warnings,
             "cross_validation": cv,
             "held_out_losses": losses,
             "final": { "shared": t.shared, "classes": t.classes, "scored": t.scored },

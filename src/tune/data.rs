@@ -49,6 +49,9 @@ pub struct TuneLog {
     pub name: String,
     /// Frames in stamp order.
     pub frames: Vec<TuneFrame>,
+    /// Detections left out when read, as `probmot track` skips them: no centre or size, a
+    /// non-finite field or score, or a non-positive size.
+    pub skipped_detections: u64,
 }
 
 impl TuneLog {
@@ -67,7 +70,7 @@ impl TuneLog {
             f.has_truth = true;
             f.truth.extend(boxes);
         }
-        let mut n_msgs = 0u64;
+        let (mut n_msgs, mut skipped) = (0u64, 0u64);
         for_each_message(
             path,
             detections_topic,
@@ -78,6 +81,7 @@ impl TuneLog {
                 f.stamp = stamp;
                 f.has_detections = true;
                 n_msgs += 1;
+                let before = f.detections.len() + m.detections.len();
                 f.detections
                     .extend(m.detections.iter().filter_map(|d| -> Option<TuneDet> {
                         let (c, s) = (d.center?, d.size?);
@@ -93,6 +97,7 @@ impl TuneLog {
                             image_box: d.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
                         })
                     }));
+                skipped += (before - f.detections.len()) as u64;
                 Ok(())
             },
             |_| Ok(()),
@@ -107,6 +112,7 @@ impl TuneLog {
                 .map(|n| n.to_string_lossy().into_owned())
                 .unwrap_or(file),
             frames: frames.into_values().collect(),
+            skipped_detections: skipped,
         })
     }
 
@@ -216,6 +222,7 @@ mod tests {
         TuneLog {
             name: "log".into(),
             frames,
+            skipped_detections: 0,
         }
     }
 
