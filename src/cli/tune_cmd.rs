@@ -10,6 +10,7 @@ use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::eval::kitti::MeanScores;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
+use probmot::msgs::detection_frame::describe_skips;
 use probmot::pipeline::overrides::Overrides;
 use probmot::tracker::TrackerConfig;
 
@@ -423,14 +424,13 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
 /// One warning per log that had detections left out when read (none is dropped unsaid).
 fn skip_warnings(a: &TuneArgs, logs: &[TuneLog]) -> Vec<String> {
     (a.inputs.iter().zip(logs))
-        .filter(|(_, l)| l.skipped_detections > 0)
+        .filter(|(_, l)| !l.skipped_detections.is_empty())
         .map(|(p, l)| {
             format!(
-                "{}: topic {}: {} detection(s) left out (no centre or size, a non-finite field \
-                 or score, or a non-positive size), as `probmot track` skips them",
+                "{}: topic {}: skipped {}, as `probmot track` skips them",
                 p.display(),
                 a.detections_topic,
-                l.skipped_detections
+                describe_skips(&l.skipped_detections)
             )
         })
         .collect()

@@ -3,10 +3,13 @@
 //! ([`FitAccumulator::push_frame`]) so that a long log never needs to be held whole; feeding
 //! whole [`FitLog`]s ([`FitAccumulator::add_log`]) gives the same numbers.
 
+use std::collections::BTreeMap;
+
 use super::data::{FitFrame, FitLog};
 use super::measurement::{MeasurementState, MeasurementStatsByLabel};
 use super::process::{ProcessStats, ProcessWindow};
 use super::timing::{interval_s, period_of_intervals, FramePeriod};
+use crate::msgs::detection_frame::SkipReason;
 
 /// What the fit has gathered so far (pooled over the logs, in the order they were fed).
 #[derive(Default, Clone)]
@@ -17,6 +20,8 @@ pub struct FitAccumulator {
     pub(super) detections: u64,
     pub(super) unmatched_detection_messages: u64,
     pub(super) intervals: Vec<f64>,
+    /// Per log with skipped detection boxes: its name and the counts by reason.
+    pub(super) skipped: Vec<(String, BTreeMap<SkipReason, u64>)>,
     pub(super) process: ProcessStats,
     pub(super) measurement: MeasurementStatsByLabel,
 }
@@ -54,6 +59,15 @@ impl FitAccumulator {
         log.window.push(frame.truth, &mut self.process);
     }
 
+    /// Counts the detection boxes of the current log that were left out when read, by reason.
+    pub fn add_skipped(&mut self, counts: &BTreeMap<SkipReason, u64>) {
+        if counts.is_empty() {
+            return;
+        }
+        let name = self.names.last().cloned().unwrap_or_default();
+        self.skipped.push((name, counts.clone()));
+    }
+
     /// Counts detection messages of the current log whose stamp is no truth stamp.
     pub fn add_unmatched(&mut self, messages: u64) {
         self.unmatched_detection_messages += messages;
@@ -72,5 +86,6 @@ impl FitAccumulator {
             self.push_frame(&mut state, f.clone());
         }
         self.add_unmatched(log.unmatched_detection_messages);
+        self.add_skipped(&log.skipped_detections);
     }
 }

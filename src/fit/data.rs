@@ -2,6 +2,7 @@
 //! truth boxes and the detections of the same stamp.
 
 use crate::mcapio::LabelledBox;
+use crate::msgs::detection_frame::SkipReason;
 use std::collections::BTreeMap;
 
 /// One frame: a distinct stamp of the ground-truth channel.
@@ -24,6 +25,8 @@ pub struct FitLog {
     pub frames: Vec<FitFrame>,
     /// Detection messages whose stamp is not a ground-truth stamp (not used).
     pub unmatched_detection_messages: u64,
+    /// Detection boxes left out when read, by reason, as `probmot track` skips them.
+    pub skipped_detections: BTreeMap<SkipReason, u64>,
 }
 
 /// Builds the frames of a log. Every distinct truth stamp is a frame (messages sharing a stamp
@@ -56,6 +59,7 @@ pub fn assemble_frames(
         name: name.to_string(),
         frames: frames.into_values().collect(),
         unmatched_detection_messages: unmatched,
+        skipped_detections: BTreeMap::new(),
     }
 }
 

@@ -10,22 +10,27 @@ use super::accumulate::FitAccumulator;
 use super::data::{assemble_frames, FitFrame, FitLog};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
+use crate::msgs::detection_frame::{check_box, SkipReason};
 use crate::msgs::{Detection3D, Track3D};
 
 /// `(stamp, boxes)` per message of one topic.
 type TopicBoxes = Vec<(u64, Vec<LabelledBox>)>;
 
+/// Detection boxes left out, by reason.
+type Skipped = BTreeMap<SkipReason, u64>;
+
 /// Reads topics of `path` in one pass ([`recording::for_each_frame`]), each message turned into
 /// fit boxes as soon as it is decoded: `(stamp, boxes)` per message and request, the stamp being
 /// the message's own else its MCAP `log_time` (as `probmot track` does). A missing topic,
 /// another schema or an undecodable message is an error naming them. `progress` gets the bytes
-/// read at each step.
+/// read at each step. Detection boxes `track` would skip are left out and counted.
 fn read_topics(
     path: &Path,
     wanted: &[TopicRequest],
     progress: &dyn Fn(u64),
-) -> Result<Vec<TopicBoxes>> {
+) -> Result<(Vec<TopicBoxes>, Skipped)> {
     let mut out: Vec<Option<TopicBoxes>> = vec![None; wanted.len()];
+    let mut skipped = Skipped::new();
     let mut reported = 0u64;
     recording::for_each_frame(path, wanted, |event, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
@@ -41,7 +46,8 @@ fn read_topics(
                 match f.boxes {
                     Boxes::Detections(d) => {
                         boxes.reserve_exact(d.len());
-                        boxes.extend(d.into_iter().filter_map(detection_box));
+                        let kept = d.into_iter().filter_map(|d| detection_box(d, &mut skipped));
+                        boxes.extend(kept);
                     }
                     Boxes::Tracks(t) => {
                         boxes.reserve_exact(t.len());
@@ -53,12 +59,10 @@ fn read_topics(
         }
         Ok(())
     })?;
-    out.into_iter()
-        .zip(wanted)
-        .map(|(o, r)| {
-            o.with_context(|| format!("{}: no channel with topic {}", path.display(), r.topic))
-        })
-        .collect()
+    let topics = out.into_iter().zip(wanted).map(|(o, r)| {
+        o.with_context(|| format!("{}: no channel with topic {}", path.display(), r.topic))
+    });
+    Ok((topics.collect::<Result<_>>()?, skipped))
 }
 
 fn request(topic: &str, kind: TopicKind, role: &str) -> TopicRequest {
@@ -70,10 +74,11 @@ fn request(topic: &str, kind: TopicKind, role: &str) -> TopicRequest {
 }
 
 /// Reads the detection messages of one topic (any input `track` reads): `(stamp, boxes)` per
-/// message. Boxes without a centre or size are left out. Errors name the file and topic.
+/// message. Boxes `track` would skip (no centre or size, a non-finite field, a non-positive
+/// size) are left out. Errors name the file and topic.
 pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
     let req = request(topic, TopicKind::Detections, "detections");
-    let mut v = read_topics(path, &[req], &|_| {})
+    let (mut v, _) = read_topics(path, &[req], &|_| {})
         .with_context(|| format!("reading detections from {}", path.display()))?;
     Ok(v.remove(0))
 }
@@ -84,9 +89,16 @@ fn truth_box(t: Track3D) -> LabelledBox {
     LabelledBox::from_track(t).keep_attributes(|_| false)
 }
 
-/// A detection as a fit box, if it has a centre and a size (else it measures nothing).
-fn detection_box(d: Detection3D) -> Option<LabelledBox> {
-    LabelledBox::has_geometry(&d).then(|| LabelledBox::from_detection(d).keep_attributes(|_| false))
+/// A detection as a fit box, if `track` would track it (else counted in `skipped`: it measures
+/// nothing the tracker sees).
+fn detection_box(d: Detection3D, skipped: &mut Skipped) -> Option<LabelledBox> {
+    match check_box(&d) {
+        Ok(_) => Some(LabelledBox::from_detection(d).keep_attributes(|_| false)),
+        Err(reason) => {
+            *skipped.entry(reason).or_default() += 1;
+            None
+        }
+    }
 }
 
 /// Reads one log: truth from `truth_topic`, detections from `detections_topic`. The truth must
@@ -145,6 +157,7 @@ fn stream_ordered(
         request(detections_topic, TopicKind::Detections, "detections"),
     ];
     let mut log = acc.begin_log(&file);
+    let mut skipped = Skipped::new();
     let mut pending: BTreeMap<u64, Pending> = BTreeMap::new();
     let mut newest: [Option<u64>; 2] = [None, None];
     let mut found = [false; 2];
@@ -200,7 +213,8 @@ fn stream_ordered(
                 }
             }
             Boxes::Detections(d) => {
-                p.detections.extend(d.into_iter().filter_map(detection_box));
+                let kept = d.into_iter().filter_map(|d| detection_box(d, &mut skipped));
+                p.detections.extend(kept);
                 p.detection_messages += 1;
             }
         }
@@ -219,6 +233,7 @@ fn stream_ordered(
         bail!("{file}: topic {truth_topic} (ground truth) has no messages");
     }
     flush(acc, &mut pending, None);
+    acc.add_skipped(&skipped);
     Ok(true)
 }
 
@@ -261,7 +276,7 @@ pub fn load_log_progress(
         request(truth_topic, TopicKind::Tracks, "ground truth"),
         request(detections_topic, TopicKind::Detections, "detections"),
     ];
-    let mut read = read_topics(path, &wanted, progress)?;
+    let (mut read, skipped) = read_topics(path, &wanted, progress)?;
     let detections = read.pop().expect("two requests");
     let truth = read.pop().expect("two requests");
     if truth.is_empty() {
@@ -280,5 +295,7 @@ pub fn load_log_progress(
         }
         truth_boxes.push((stamp, fb));
     }
-    Ok(assemble_frames(&file, truth_boxes, detections))
+    let mut log = assemble_frames(&file, truth_boxes, detections);
+    log.skipped_detections = skipped;
+    Ok(log)
 }

@@ -273,6 +273,7 @@ mod tests {
             name: "t".into(),
             frames,
             unmatched_detection_messages: 0,
+            skipped_detections: Default::default(),
         };
         let mut s = MeasurementStatsByLabel::new();
         accumulate_measurement_noise(&log, &mut s);

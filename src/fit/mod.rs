@@ -33,6 +33,7 @@ pub use data::{FitFrame, FitLog};
 pub use measurement::YawMode;
 pub use timing::FramePeriod;
 
+use crate::msgs::detection_frame::describe_skips;
 pub use accumulate::FitAccumulator;
 use timing::{period_of_intervals, q_scale, velocity_variance_scale};
 
@@ -134,7 +135,12 @@ pub fn fit(logs: &[FitLog], options: &FitOptions) -> FitReport {
 
 /// [`fit`] of what an accumulator gathered (logs fed whole or frame by frame).
 pub fn fit_gathered(acc: FitAccumulator, options: &FitOptions) -> FitReport {
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = (acc.skipped.iter())
+        .map(|(name, counts)| {
+            let skipped = describe_skips(counts);
+            format!("{name}: skipped {skipped}, as `probmot track` skips them")
+        })
+        .collect();
     let (pstats, mstats) = (&acc.process, &acc.measurement);
     let period = period_of_intervals(&acc.intervals);
     let data_period = match period {

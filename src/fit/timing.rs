@@ -99,6 +99,7 @@ mod tests {
                 })
                 .collect(),
             unmatched_detection_messages: 0,
+            skipped_detections: Default::default(),
         }
     }
 

@@ -77,6 +77,16 @@ pub struct DetectionFrame {
     pub rejected: Vec<Rejected>,
 }
 
+/// `N detection boxes: a (reason), b (reason)`: the boxes a reader of detections skipped, by
+/// reason, as `track`, `fit` and `tune` report them.
+pub fn describe_skips(skipped: &BTreeMap<SkipReason, u64>) -> String {
+    let parts: Vec<String> = (skipped.iter())
+        .map(|(r, n)| format!("{n} ({})", r.describe()))
+        .collect();
+    let total: u64 = skipped.values().sum();
+    format!("{total} detection boxes: {}", parts.join(", "))
+}
+
 /// The stamp rule of every reader: a message's own stamp, else the MCAP record's log_time.
 pub fn stamp_or_log_time(stamp: Option<u64>, log_time: u64) -> u64 {
     stamp.unwrap_or(log_time)

@@ -18,7 +18,7 @@ use super::track_order::LogTimeOrder;
 use super::track_outputs::ExtraOutputs;
 use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
-use crate::msgs::detection_frame::DetectionFrame;
+use crate::msgs::detection_frame::{describe_skips, DetectionFrame};
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::track_encode::fill_track3d;
 use crate::msgs::{ImageBox, Track3D, Tracks3D};
@@ -337,16 +337,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
         };
         summary.merged_messages = summary.detection_messages - summary.tracks_messages;
         if counters.total_skipped() > 0 {
-            let parts: Vec<String> = counters
-                .skipped
-                .iter()
-                .map(|(r, n)| format!("{n} ({})", r.describe()))
-                .collect();
-            summary.warnings.push(format!(
-                "{file}: skipped {} detection boxes: {}",
-                counters.total_skipped(),
-                parts.join(", ")
-            ));
+            let skipped = describe_skips(&counters.skipped);
+            summary.warnings.push(format!("{file}: skipped {skipped}"));
         }
         if counters.score_outside_unit > 0 {
             summary.warnings.push(format!(

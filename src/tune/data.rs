@@ -11,6 +11,7 @@ use crate::eval::scene::read_tracks_topic;
 use crate::fit::{FitAccumulator, FitFrame};
 use crate::mcapio::topic::for_each_message;
 use crate::mcapio::LabelledBox;
+use crate::msgs::detection_frame::{check_box, SkipReason};
 use crate::msgs::{self, Detections3D};
 use crate::tracker::Box3;
 
@@ -49,9 +50,9 @@ pub struct TuneLog {
     pub name: String,
     /// Frames in stamp order.
     pub frames: Vec<TuneFrame>,
-    /// Detections left out when read, as `probmot track` skips them: no centre or size, a
-    /// non-finite field or score, or a non-positive size.
-    pub skipped_detections: u64,
+    /// Detections left out when read, by reason, as `probmot track` skips them (no centre or
+    /// size, a non-finite field or score, a non-positive size).
+    pub skipped_detections: BTreeMap<SkipReason, u64>,
 }
 
 impl TuneLog {
@@ -70,7 +71,7 @@ impl TuneLog {
             f.has_truth = true;
             f.truth.extend(boxes);
         }
-        let (mut n_msgs, mut skipped) = (0u64, 0u64);
+        let (mut n_msgs, mut skipped) = (0u64, BTreeMap::new());
         for_each_message(
             path,
             detections_topic,
@@ -81,23 +82,17 @@ impl TuneLog {
                 f.stamp = stamp;
                 f.has_detections = true;
                 n_msgs += 1;
-                let before = f.detections.len() + m.detections.len();
-                f.detections
-                    .extend(m.detections.iter().filter_map(|d| -> Option<TuneDet> {
-                        let (c, s) = (d.center?, d.size?);
-                        let bbox = Box3 {
-                            center: [c.x, c.y, c.z],
-                            yaw: d.yaw,
-                            size: [s.length, s.width, s.height],
-                        };
-                        (bbox.is_valid() && d.score.is_finite()).then(|| TuneDet {
+                for d in &m.detections {
+                    match check_box(d) {
+                        Ok(bbox) => f.detections.push(TuneDet {
                             label: d.label.clone(),
                             bbox,
                             score: d.score,
                             image_box: d.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
-                        })
-                    }));
-                skipped += (before - f.detections.len()) as u64;
+                        }),
+                        Err(reason) => *skipped.entry(reason).or_default() += 1,
+                    }
+                }
                 Ok(())
             },
             |_| Ok(()),
@@ -222,7 +217,7 @@ mod tests {
         TuneLog {
             name: "log".into(),
             frames,
-            skipped_detections: 0,
+            skipped_detections: BTreeMap::new(),
         }
     }
 

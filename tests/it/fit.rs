@@ -378,3 +378,45 @@ fn streamed_and_whole_reads_give_the_same_fit() {
     assert_eq!(fit(&truth_first), streamed);
     assert_eq!(fit(&reversed), streamed);
 }
+
+/// Detection boxes `track` would skip are left out of the fit too, counted and named in a
+/// warning, whether the log streams or is read whole.
+#[test]
+fn skipped_detections_are_left_out_and_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.mcap");
+    city_with_bad_boxes(&bad);
+    let reversed = dir.path().join("reversed.mcap");
+    reordered(&bad, &reversed, |mut m| {
+        m.reverse();
+        m
+    });
+    let fit = |p: &Path| {
+        let out = dir.path().join("cfg.json");
+        let (p, o) = (p.to_str().unwrap(), out.to_str().unwrap());
+        let r = probmot_ok(&["fit", p, "-o", o, "--json"]);
+        let v: Value = serde_json::from_slice(&r.stdout).unwrap();
+        let warning = v["warnings"][0].as_str().unwrap().to_string();
+        assert_eq!(
+            warning,
+            format!(
+                "{p}: skipped 2 detection boxes: 1 (non-positive size), 1 (missing centre or \
+                 size), as `probmot track` skips them"
+            )
+        );
+        v
+    };
+    let (streamed, whole) = (fit(&bad), fit(&reversed));
+    assert_eq!(streamed["classes"], whole["classes"]);
+    let good = fit_detections(&repo("sample_logs/city.mcap"), dir.path());
+    assert_eq!(streamed["detections"].as_u64().unwrap() + 2, good);
+}
+
+/// The detections a fit of `log` counted.
+fn fit_detections(log: &Path, dir: &Path) -> u64 {
+    let out = dir.join("good.json");
+    let (p, o) = (log.to_str().unwrap(), out.to_str().unwrap());
+    let r = probmot_ok(&["fit", p, "-o", o, "--json"]);
+    let v: Value = serde_json::from_slice(&r.stdout).unwrap();
+    v["detections"].as_u64().unwrap()
+}

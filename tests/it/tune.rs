@@ -91,7 +91,7 @@ fn synthetic_log(seed: u64) -> TuneLog {
     TuneLog {
         name: format!("synthetic_{seed}"),
         frames,
-        skipped_detections: 0,
+        skipped_detections: Default::default(),
     }
 }
 
@@ -204,7 +204,7 @@ fn leaving_log(seed: u64) -> TuneLog {
     TuneLog {
         name: format!("leaving_{seed}"),
         frames,
-        skipped_detections: 0,
+        skipped_detections: Default::default(),
     }
 }
 
@@ -347,49 +347,12 @@ fn nuscenes_class_score_on_the_prepared_truth_equals_the_full_truth() {
     assert!(want > 0.3 && want < 1.0, "{want}");
 }
 
-/// A copy of `sample_logs/city.mcap` whose first detection message has one box without a size
-/// and one of zero length.
-fn city_with_bad_boxes(out: &Path) {
-    use probmot::msgs::Detections3D;
-    use prost::Message as _;
-    let bytes = std::fs::read(common::repo("sample_logs/city.mcap")).unwrap();
-    let file = std::fs::File::create(out).unwrap();
-    let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
-    let mut channels = std::collections::BTreeMap::new();
-    let mut spoiled = false;
-    for m in mcap::MessageStream::new(&bytes).unwrap() {
-        let m = m.unwrap();
-        let id = *channels.entry(m.channel.id).or_insert_with(|| {
-            let s = m.channel.schema.as_ref().unwrap();
-            let sid = w.add_schema(&s.name, &s.encoding, &s.data).unwrap();
-            let (topic, enc) = (&m.channel.topic, &m.channel.message_encoding);
-            w.add_channel(sid, topic, enc, &m.channel.metadata).unwrap()
-        });
-        let mut data = m.data.to_vec();
-        if m.channel.topic == "/detections" && !spoiled {
-            let mut d = Detections3D::decode(&data[..]).unwrap();
-            d.detections[0].size = None;
-            d.detections[1].size.as_mut().unwrap().length = 0.0;
-            data = d.encode_to_vec();
-            spoiled = true;
-        }
-        let header = mcap::records::MessageHeader {
-            channel_id: id,
-            sequence: m.sequence,
-            log_time: m.log_time,
-            publish_time: m.publish_time,
-        };
-        w.write_to_known_channel(&header, &data).unwrap();
-    }
-    w.finish().unwrap();
-}
-
 /// Detections `track` would skip are left out of the tune too, counted, and named in a warning.
 #[test]
 fn skipped_detections_are_counted_and_named() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("bad.mcap");
-    city_with_bad_boxes(&bad);
+    common::city_with_bad_boxes(&bad);
     let log = TuneLog::load(&bad, "/ground_truth", "/detections").unwrap();
     let good = TuneLog::load(
         &common::repo("sample_logs/city.mcap"),
@@ -397,7 +360,8 @@ fn skipped_detections_are_counted_and_named() {
         "/detections",
     );
     let count = |l: &TuneLog| l.frames.iter().map(|f| f.detections.len()).sum::<usize>();
-    assert_eq!(log.skipped_detections, 2);
+    let total: u64 = log.skipped_detections.values().sum();
+    assert_eq!(total, 2);
     assert_eq!(count(&log) + 2, count(&good.unwrap()));
     let out = dir.path().join("t.json");
     let (b, o) = (bad.to_str().unwrap(), out.to_str().unwrap());
@@ -416,7 +380,10 @@ fn skipped_detections_are_counted_and_named() {
     ]);
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(
-        err.contains("bad.mcap: topic /detections: 2 detection(s) left out"),
+        err.contains(
+            "bad.mcap: topic /detections: skipped 2 detection boxes: 1 (non-positive size), 1 \
+             (missing centre or size), as `probmot track` skips them"
+        ),
         "{err}"
     );
     let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();

@@ -220,3 +220,40 @@ pub fn import_kitti_sequence(data: &Path, seq: &str, out: &Path) {
         out.to_str().unwrap(),
     ]);
 }
+
+/// A copy of `sample_logs/city.mcap` whose first detection message has one box without a size
+/// and one of zero length.
+pub fn city_with_bad_boxes(out: &Path) {
+    use probmot::msgs::Detections3D;
+    use prost::Message as _;
+    let bytes = std::fs::read(repo("sample_logs/city.mcap")).unwrap();
+    let file = std::fs::File::create(out).unwrap();
+    let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
+    let mut channels = std::collections::BTreeMap::new();
+    let mut spoiled = false;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        let id = *channels.entry(m.channel.id).or_insert_with(|| {
+            let s = m.channel.schema.as_ref().unwrap();
+            let sid = w.add_schema(&s.name, &s.encoding, &s.data).unwrap();
+            let (topic, enc) = (&m.channel.topic, &m.channel.message_encoding);
+            w.add_channel(sid, topic, enc, &m.channel.metadata).unwrap()
+        });
+        let mut data = m.data.to_vec();
+        if m.channel.topic == "/detections" && !spoiled {
+            let mut d = Detections3D::decode(&data[..]).unwrap();
+            d.detections[0].size = None;
+            d.detections[1].size.as_mut().unwrap().length = 0.0;
+            data = d.encode_to_vec();
+            spoiled = true;
+        }
+        let header = mcap::records::MessageHeader {
+            channel_id: id,
+            sequence: m.sequence,
+            log_time: m.log_time,
+            publish_time: m.publish_time,
+        };
+        w.write_to_known_channel(&header, &data).unwrap();
+    }
+    w.finish().unwrap();
+}
