@@ -8,7 +8,7 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use super::scene::{check, check_ids, Scene};
+use super::scene::{check, check_finite, check_ids, Scene};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
 
@@ -316,6 +316,7 @@ pub fn load_columns(
                         }
                         Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                     }
+                    check_finite(path, sides[i].1, f.stamp, &boxes)?;
                     if side == 0 {
                         check_ids(path, sides[i].1, f.stamp, &boxes)?;
                     }

@@ -31,10 +31,14 @@ impl<B> Default for Scene<B> {
 
 /// Reads the tracks messages of one topic (`probmot.Tracks3D`, or ROS 2
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
-/// message (the stamp is the message's, or its `log_time` when that is 0).
+/// message (the stamp is the message's, or its `log_time` when that is 0). A box with a
+/// non-finite centre, size, yaw or score is an error ([`check_finite`]).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
-    let (frames, _) = read_boxes(path, topic, &|_| {}, false, &mut |b| b)?;
-    Ok(frames)
+    let (frames, bad) = read_boxes(path, topic, &|_| {}, false, &mut |b| b)?;
+    match bad {
+        Some(e) => Err(e),
+        None => Ok(frames),
+    }
 }
 
 /// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
@@ -49,8 +53,9 @@ pub fn is_evaluated_attribute(key: &str) -> bool {
 type Messages<B> = Vec<(u64, Vec<B>)>;
 
 /// The boxes of a tracks topic, message by message, each made into what the caller keeps of it
-/// by `keep`; with `truth_ids`, also the first message with a truth box without id
-/// ([`check_ids`]), as an error for the caller to raise when it is its turn.
+/// by `keep`; also the first message with a box the evaluation cannot score ([`check_finite`])
+/// or, with `truth_ids`, a truth box without id ([`check_ids`]), as an error for the caller to
+/// raise when it is its turn.
 fn read_boxes<B>(
     path: &Path,
     topic: &str,
@@ -66,7 +71,7 @@ fn read_boxes<B>(
     let mut out = Vec::new();
     let mut found = false;
     let mut reported = 0u64;
-    let mut no_id = None;
+    let mut bad = None;
     recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
@@ -77,8 +82,11 @@ fn read_boxes<B>(
                     Boxes::Tracks(t) => t.into_iter().map(LabelledBox::from_track).collect(),
                     Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                 };
-                if truth_ids && no_id.is_none() {
-                    no_id = check_ids(path, topic, f.stamp, &boxes).err();
+                if bad.is_none() {
+                    bad = check_finite(path, topic, f.stamp, &boxes).err();
+                }
+                if truth_ids && bad.is_none() {
+                    bad = check_ids(path, topic, f.stamp, &boxes).err();
                 }
                 // A new allocation of the kept size: `collect` would reuse the decoded
                 // boxes' larger one in place, and a long log holds millions of them.
@@ -94,7 +102,7 @@ fn read_boxes<B>(
     }
     let size = std::fs::metadata(path).map_or(reported, |m| m.len());
     progress(size.saturating_sub(reported));
-    Ok((out, no_id))
+    Ok((out, bad))
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes
@@ -145,9 +153,9 @@ fn load_scene_as<B>(
     progress: &dyn Fn(u64),
     keep: &mut dyn FnMut(LabelledBox) -> B,
 ) -> Result<Scene<B>> {
-    let (gt, no_id) = read_boxes(truth, truth_topic, progress, !allow_unlabelled, keep)?;
-    let (tr, _) = read_boxes(tracks, tracks_topic, progress, false, keep)?;
-    if let Some(e) = no_id {
+    let (gt, gt_bad) = read_boxes(truth, truth_topic, progress, !allow_unlabelled, keep)?;
+    let (tr, tr_bad) = read_boxes(tracks, tracks_topic, progress, false, keep)?;
+    if let Some(e) = gt_bad.or(tr_bad) {
         return Err(e);
     }
     // Frames are the union of both channels' stamps.
@@ -211,6 +219,27 @@ pub(super) fn check(
             tracks.0.display(),
             tracks.1,
             truth.0.display()
+        );
+    }
+    Ok(())
+}
+
+/// The first box with a non-finite centre, size, yaw or score, as an error: the metrics can
+/// neither place nor rank it, and leaving it out would change the counts unsaid.
+pub(super) fn check_finite(
+    path: &Path,
+    topic: &str,
+    stamp: u64,
+    boxes: &[LabelledBox],
+) -> Result<()> {
+    let bad = (boxes.iter().enumerate()).find(|(_, b)| !(b.is_finite() && b.score.is_finite()));
+    if let Some((i, b)) = bad {
+        bail!(
+            "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite centre, \
+             size, yaw or score; the evaluation cannot score it",
+            path.display(),
+            b.label,
+            b.id
         );
     }
     Ok(())

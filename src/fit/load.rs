@@ -238,7 +238,8 @@ fn stream_ordered(
 }
 
 /// Whether a truth box counts (KITTI's `dontcare` regions, id 0, hold no box); an error for a
-/// box without id or an instance given twice at one stamp.
+/// box without id, with a non-finite centre, size or yaw, or an instance given twice at one
+/// stamp.
 fn check_truth_box(
     b: &LabelledBox,
     seen: &mut HashSet<(String, u64)>,
@@ -252,6 +253,14 @@ fn check_truth_box(
             "{file}: topic {topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); the \
              fit needs the true instance ids",
             b.label
+        );
+    }
+    if !b.is_finite() {
+        bail!(
+            "{file}: topic {topic}, stamp {stamp}: ground-truth box ({}, id {}) has a non-finite \
+             centre, size or yaw",
+            b.label,
+            b.id
         );
     }
     if !seen.insert((b.label.clone(), b.id)) {

@@ -440,3 +440,73 @@ fn a_closed_stdout_pipe_ends_the_process_without_a_panic() {
         out.status
     );
 }
+
+/// A ground-truth (or track) box with a non-finite field cannot be scored or fitted: `eval`
+/// (both protocols, the box in the truth or in the tracks), `fit` and `tune` stop with an error
+/// naming the file, the topic, the stamp and the box, and write nothing.
+#[test]
+fn non_finite_truth_is_an_error_naming_the_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let nan = dir.path().join("nan.mcap");
+    city_with_nan_truth(&nan);
+    let city = repo("sample_logs/city.mcap");
+    let (n, c) = (nan.to_str().unwrap(), city.to_str().unwrap());
+    let out = dir.path().join("out.json");
+    let o = out.to_str().unwrap();
+    let stamp = "stamp 1767225600000000000";
+    for (args, file) in [
+        (
+            vec![
+                "eval",
+                "--truth",
+                n,
+                "--tracks",
+                c,
+                "--tracks-topic",
+                "/ground_truth",
+            ],
+            n,
+        ),
+        (
+            vec![
+                "eval",
+                "--protocol",
+                "kitti",
+                "--truth",
+                n,
+                "--tracks",
+                c,
+                "--tracks-topic",
+                "/ground_truth",
+            ],
+            n,
+        ),
+        (
+            vec![
+                "eval",
+                "--truth",
+                c,
+                "--tracks",
+                n,
+                "--tracks-topic",
+                "/ground_truth",
+            ],
+            n,
+        ),
+        (vec!["fit", n, "-o", o], n),
+        (
+            vec!["tune", n, "-o", o, "--protocol", "nuscenes", "--folds", "1"],
+            n,
+        ),
+    ] {
+        let r = probmot(&args);
+        assert_eq!(r.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        let want = format!("{file}: topic /ground_truth, {stamp}: ");
+        assert!(
+            err.contains(&want) && err.contains("id 5") && err.contains("non-finite"),
+            "{args:?}: {err}"
+        );
+        assert!(!out.exists(), "{args:?} wrote an output");
+    }
+}

@@ -221,16 +221,13 @@ pub fn import_kitti_sequence(data: &Path, seq: &str, out: &Path) {
     ]);
 }
 
-/// A copy of `sample_logs/city.mcap` whose first detection message has one box without a size
-/// and one of zero length.
-pub fn city_with_bad_boxes(out: &Path) {
-    use probmot::msgs::Detections3D;
-    use prost::Message as _;
+/// A copy of `sample_logs/city.mcap` with the first message of `topic` rewritten by `edit`.
+pub fn city_with_first_message(out: &Path, topic: &str, edit: impl FnOnce(&[u8]) -> Vec<u8>) {
     let bytes = std::fs::read(repo("sample_logs/city.mcap")).unwrap();
     let file = std::fs::File::create(out).unwrap();
     let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
     let mut channels = std::collections::BTreeMap::new();
-    let mut spoiled = false;
+    let mut edit = Some(edit);
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         let id = *channels.entry(m.channel.id).or_insert_with(|| {
@@ -239,14 +236,10 @@ pub fn city_with_bad_boxes(out: &Path) {
             let (topic, enc) = (&m.channel.topic, &m.channel.message_encoding);
             w.add_channel(sid, topic, enc, &m.channel.metadata).unwrap()
         });
-        let mut data = m.data.to_vec();
-        if m.channel.topic == "/detections" && !spoiled {
-            let mut d = Detections3D::decode(&data[..]).unwrap();
-            d.detections[0].size = None;
-            d.detections[1].size.as_mut().unwrap().length = 0.0;
-            data = d.encode_to_vec();
-            spoiled = true;
-        }
+        let data = match edit.take_if(|_| m.channel.topic == topic) {
+            Some(f) => f(&m.data),
+            None => m.data.to_vec(),
+        };
         let header = mcap::records::MessageHeader {
             channel_id: id,
             sequence: m.sequence,
@@ -256,4 +249,24 @@ pub fn city_with_bad_boxes(out: &Path) {
         w.write_to_known_channel(&header, &data).unwrap();
     }
     w.finish().unwrap();
+}
+
+/// A copy of `sample_logs/city.mcap` whose first detection message has one box without a size
+/// and one of zero length.
+pub fn city_with_bad_boxes(out: &Path) {
+    city_with_first_message(out, "/detections", |data| {
+        let mut d = Detections3D::decode(data).unwrap();
+        d.detections[0].size = None;
+        d.detections[1].size.as_mut().unwrap().length = 0.0;
+        d.encode_to_vec()
+    });
+}
+
+/// A copy of `sample_logs/city.mcap` whose first ground-truth box has a NaN centre.
+pub fn city_with_nan_truth(out: &Path) {
+    city_with_first_message(out, "/ground_truth", |data| {
+        let mut t = Tracks3D::decode(data).unwrap();
+        t.tracks[0].center.as_mut().unwrap().x = f64::NAN;
+        t.encode_to_vec()
+    });
 }
