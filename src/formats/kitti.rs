@@ -39,6 +39,21 @@ pub struct KittiRow {
     pub score: Option<f64>,
 }
 
+impl KittiRow {
+    /// Whether every number of the row is finite (a result file cannot hold NaN or infinity:
+    /// the evaluators would read them as garbage).
+    pub fn is_finite(&self) -> bool {
+        let fixed = [self.truncated, self.alpha, self.rotation_y];
+        (fixed
+            .iter()
+            .chain(&self.bbox)
+            .chain(&self.hwl)
+            .chain(&self.xyz))
+        .chain(self.score.as_ref())
+        .all(|v| v.is_finite())
+    }
+}
+
 fn num(field: &str, name: &str) -> Result<f64> {
     let v: f64 = field
         .trim()

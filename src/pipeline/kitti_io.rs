@@ -411,7 +411,7 @@ pub fn export_kitti(
         if !boxes.is_empty() {
             summary.frames += 1;
         }
-        for b in boxes {
+        for (i, b) in boxes.iter().enumerate() {
             let (c, s) = (b.center.unwrap_or_default(), b.size.unwrap_or_default());
             let bx = Box3 {
                 center: [c.x, c.y, c.z],
@@ -452,6 +452,15 @@ pub fn export_kitti(
                 rotation_y: ry,
                 score: if truth { None } else { Some(b.score) },
             };
+            if !row.is_finite() {
+                bail!(
+                    "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite \
+                     number; a KITTI result file cannot hold it",
+                    input.display(),
+                    b.label,
+                    b.id
+                );
+            }
             text.push_str(&format_row(&row));
             text.push('\n');
             summary.rows += 1;

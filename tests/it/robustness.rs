@@ -441,9 +441,10 @@ fn a_closed_stdout_pipe_ends_the_process_without_a_panic() {
     );
 }
 
-/// A ground-truth (or track) box with a non-finite field cannot be scored or fitted: `eval`
-/// (both protocols, the box in the truth or in the tracks), `fit` and `tune` stop with an error
-/// naming the file, the topic, the stamp and the box, and write nothing.
+/// A ground-truth (or track) box with a non-finite field cannot be scored, fitted or exported:
+/// `eval` (both protocols, the box in the truth or in the tracks), `fit`, `tune` and `export
+/// kitti` stop with an error naming the file, the topic, the stamp and the box, and write
+/// nothing.
 #[test]
 fn non_finite_truth_is_an_error_naming_the_box() {
     let dir = tempfile::tempdir().unwrap();
@@ -494,6 +495,10 @@ fn non_finite_truth_is_an_error_naming_the_box() {
             n,
         ),
         (vec!["fit", n, "-o", o], n),
+        (
+            vec!["export", "kitti", n, "-o", o, "--topic", "/ground_truth"],
+            n,
+        ),
         (
             vec!["tune", n, "-o", o, "--protocol", "nuscenes", "--folds", "1"],
             n,
