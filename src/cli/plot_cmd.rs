@@ -8,7 +8,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::eval_events::EVENTS_TOPIC;
-use probmot::viz::plot::{render_png, EventMark, Extent, Panel, PlotOptions};
+use probmot::viz::plot::{bev_drawable, render_png, EventMark, Extent, Panel, PlotOptions};
 use probmot::viz::truth_colors::{marks, match_by_distance, match_from_events};
 use probmot::viz::window::{read_events, read_window};
 use probmot::viz::{FileLayers, Layer, Selection};
@@ -218,6 +218,17 @@ fn build_panels(
         window_stamps.extend(frames.iter().map(|f| f.0));
         let n_boxes: usize = frames.iter().map(|f| f.1.len()).sum();
         boxes_total += n_boxes;
+        let undrawable = (frames.iter().flat_map(|f| f.1.iter()))
+            .filter(|b| !bev_drawable(b))
+            .count();
+        if undrawable > 0 {
+            eprintln!(
+                "warning: {}: topic {}: {undrawable} box(es) with a non-finite centre, length, \
+                 width or yaw are not drawn",
+                a.file.display(),
+                lf.topic
+            );
+        }
         let ids: BTreeSet<u64> = frames
             .iter()
             .flat_map(|f| f.1.iter().map(|b| b.id))

@@ -16,6 +16,7 @@ use anyhow::{bail, Context, Result};
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
+pub use super::plot_panel::bev_drawable;
 use super::plot_panel::draw_panel;
 use super::plot_types::{draw_err, rgb, FONT};
 pub use super::plot_types::{

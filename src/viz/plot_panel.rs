@@ -52,7 +52,8 @@ fn heading_tick(b: &LabelledBox) -> Vec<(f64, f64)> {
     ]
 }
 
-fn finite(b: &LabelledBox) -> bool {
+/// Whether a box can be drawn from above: finite ground-plane centre, length, width and yaw.
+pub fn bev_drawable(b: &LabelledBox) -> bool {
     b.center[0].is_finite()
         && b.center[1].is_finite()
         && b.size[0].is_finite()
@@ -175,8 +176,11 @@ where
         draw_marks(&mut chart, marks, sc, &mut labels)?;
     }
     for (&id, boxes) in &groups {
-        let boxes: Vec<(u64, &LabelledBox)> =
-            boxes.iter().copied().filter(|b| finite(b.1)).collect();
+        let boxes: Vec<(u64, &LabelledBox)> = boxes
+            .iter()
+            .copied()
+            .filter(|b| bev_drawable(b.1))
+            .collect();
         if let Some(label) = draw_id(&mut chart, panel, id, &boxes, sc)? {
             labels.push(label);
         }

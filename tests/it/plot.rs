@@ -500,3 +500,22 @@ fn windowed_read_gives_the_frames_of_a_full_read() {
         vec!["map"]
     );
 }
+
+/// A box that cannot be drawn from above (a NaN centre) is left out of the picture and named in
+/// a warning, not dropped unsaid.
+#[test]
+fn undrawable_boxes_are_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let nan = dir.path().join("nan.mcap");
+    crate::common::city_with_nan_truth(&nan);
+    let png = dir.path().join("nan.png");
+    let out = probmot_ok(&["plot", nan.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    let want = format!(
+        "warning: {}: topic /ground_truth: 1 box(es) with a non-finite centre",
+        nan.display()
+    );
+    assert!(stderr(&out).contains(&want), "{}", stderr(&out));
+    let city = repo("sample_logs/city.mcap");
+    let good = probmot_ok(&["plot", city.to_str().unwrap(), "-o", png.to_str().unwrap()]);
+    assert!(!stderr(&good).contains("warning"), "{}", stderr(&good));
+}
