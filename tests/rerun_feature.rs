@@ -149,6 +149,24 @@ mod with_feature {
         summary
     }
 
+    /// A box that cannot be drawn (a NaN centre) is left out of the recording and named in a
+    /// warning, not dropped unsaid.
+    #[test]
+    fn viz_names_undrawable_boxes() {
+        let dir = tempfile::tempdir().unwrap();
+        let nan = dir.path().join("nan.mcap");
+        super::common::city_with_nan_truth(&nan);
+        let rrd = dir.path().join("nan.rrd");
+        let out = probmot_ok(&["viz", nan.to_str().unwrap(), "-o", rrd.to_str().unwrap()]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        let want = format!(
+            "warning: {}: topic /ground_truth: 1 box(es) with a non-finite centre",
+            nan.display()
+        );
+        assert!(err.contains(&want), "{err}");
+        check_file(&rrd);
+    }
+
     #[test]
     fn viz_writes_what_to_rerun_py_writes() {
         let dir = tempfile::tempdir().unwrap();

@@ -112,6 +112,13 @@ fn write(a: &VizArgs) -> Result<ExitCode> {
     let s = mcap_to_rrd(&a.file, &a.output, &o);
     spinner.finish_and_clear();
     let s = s?;
+    for (topic, n) in &s.undrawable {
+        eprintln!(
+            "warning: {}: topic {topic}: {n} box(es) with a non-finite centre, size or yaw are \
+             not drawn",
+            a.file.display()
+        );
+    }
     if !a.quiet {
         println!(
             "{}: {} frames, {} track ids, {} bytes",

@@ -37,7 +37,7 @@ use rerun::{
 };
 
 use super::plot::{id_color, mix64, DETECTION_GREY};
-use super::scene::Scene;
+use super::scene::{drawable, Scene};
 use super::window::{read_timed_events, read_window};
 use super::{read_layers, FileLayers, Layer, Selection};
 use crate::mcapio::writer::write_file_atomic;
@@ -75,6 +75,9 @@ pub struct RrdSummary {
     pub track_ids: usize,
     /// Size of the file, bytes.
     pub bytes: usize,
+    /// Per topic, the boxes (of the chosen classes) left out because they cannot be drawn
+    /// ([`super::scene::drawable`]); only topics with any.
+    pub undrawable: Vec<(String, u64)>,
 }
 
 fn rgb((r, g, b): (u8, u8, u8)) -> Color {
@@ -359,6 +362,7 @@ pub fn write_rrd(scene: &Scene, out: &Path, opts: &RrdOptions) -> Result<RrdSumm
         frames: scene.frames.len(),
         track_ids: scene.track_ids(),
         bytes: bytes.len(),
+        undrawable: Vec::new(),
     })
 }
 
@@ -409,6 +413,7 @@ pub fn mcap_to_rrd(input: &Path, out: &Path, o: &VizOptions) -> Result<RrdSummar
         (Layer::GroundTruth, o.truth_topic.clone()),
     ];
     let read = read_drawn(input, &wanted, o)?;
+    let undrawable = undrawable(&read, &o.classes);
     let mut scene = Scene::build(&read, &o.classes, o.trail);
     let log_times = read.layers.iter().flat_map(|l| l.log_times.iter().copied());
     let (first, last) = log_times.fold((u64::MAX, 0), |(a, b), t| (a.min(t), b.max(t)));
@@ -448,7 +453,24 @@ pub fn mcap_to_rrd(input: &Path, out: &Path, o: &VizOptions) -> Result<RrdSummar
         recording_id: o.recording_id.clone(),
         name,
     };
-    write_rrd(&scene, out, &opts).with_context(|| format!("writing {}", out.display()))
+    let mut summary =
+        write_rrd(&scene, out, &opts).with_context(|| format!("writing {}", out.display()))?;
+    summary.undrawable = undrawable;
+    Ok(summary)
+}
+
+/// Per topic, the boxes of `classes` (all when empty) that [`Scene::build`] leaves out because
+/// they cannot be drawn.
+fn undrawable(read: &FileLayers, classes: &[String]) -> Vec<(String, u64)> {
+    let counted =
+        |b: &&LabelledBox| !drawable(b) && (classes.is_empty() || classes.contains(&b.label));
+    (read.layers.iter())
+        .map(|lf| {
+            let boxes = lf.frames.iter().flat_map(|f| &f.1);
+            (lf.topic.clone(), boxes.filter(counted).count() as u64)
+        })
+        .filter(|(_, n)| *n > 0)
+        .collect()
 }
 
 /// The layers the recording draws: the whole file, or with a window ([`VizOptions::from_s`],
