@@ -8,7 +8,7 @@ use std::path::Path;
 
 use anyhow::{bail, Result};
 
-use super::scene::{check, check_finite, check_ids, Scene};
+use super::scene::{check, check_finite, check_ids, Reads, Scene};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
 
@@ -316,11 +316,13 @@ pub fn load_columns(
                         }
                         Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                     }
-                    check_finite(path, sides[i].1, f.stamp, &boxes)?;
                     if side == 0 {
                         check_ids(path, sides[i].1, f.stamp, &boxes)?;
                     }
                     filter(f.stamp, &mut boxes, side == 0)?;
+                    // After the filters: what they remove is not scored.
+                    let at = (sides[i].1, f.stamp);
+                    check_finite(path, at, &boxes, Reads::GroundCentre)?;
                     b.push(side, f.stamp, &boxes);
                 }
             }

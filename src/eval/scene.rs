@@ -83,7 +83,7 @@ fn read_boxes<B>(
                     Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                 };
                 if bad.is_none() {
-                    bad = check_finite(path, topic, f.stamp, &boxes).err();
+                    bad = check_finite(path, (topic, f.stamp), &boxes, Reads::Box3d).err();
                 }
                 if truth_ids && bad.is_none() {
                     bad = check_ids(path, topic, f.stamp, &boxes).err();
@@ -224,19 +224,35 @@ pub(super) fn check(
     Ok(())
 }
 
-/// The first box with a non-finite centre, size, yaw or score, as an error: the metrics can
-/// neither place nor rank it, and leaving it out would change the counts unsaid.
+/// The numbers of a box an evaluation reads.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(super) enum Reads {
+    /// The 3D box and the score (KITTI's 3D IoU).
+    Box3d,
+    /// The ground-plane centre and the score (the nuScenes centre distance).
+    GroundCentre,
+}
+
+/// The first box with a non-finite number the evaluation reads (`reads`), as an error: the
+/// metrics can neither place nor rank it, and leaving it out would change the counts unsaid.
 pub(super) fn check_finite(
     path: &Path,
-    topic: &str,
-    stamp: u64,
+    (topic, stamp): (&str, u64),
     boxes: &[LabelledBox],
+    reads: Reads,
 ) -> Result<()> {
-    let bad = (boxes.iter().enumerate()).find(|(_, b)| !(b.is_finite() && b.score.is_finite()));
+    let (ok, what): (fn(&LabelledBox) -> bool, _) = match reads {
+        Reads::Box3d => (|b| b.is_finite(), "centre, size, yaw or score"),
+        Reads::GroundCentre => (
+            |b| b.center[0].is_finite() && b.center[1].is_finite(),
+            "ground-plane centre or score",
+        ),
+    };
+    let bad = (boxes.iter().enumerate()).find(|(_, b)| !(ok(b) && b.score.is_finite()));
     if let Some((i, b)) = bad {
         bail!(
-            "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite centre, \
-             size, yaw or score; the evaluation cannot score it",
+            "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite {what}; \
+             the evaluation cannot score it",
             path.display(),
             b.label,
             b.id

@@ -22,6 +22,8 @@ pub struct FitAccumulator {
     pub(super) intervals: Vec<f64>,
     /// Per log with skipped detection boxes: its name and the counts by reason.
     pub(super) skipped: Vec<(String, BTreeMap<SkipReason, u64>)>,
+    /// Per log with skipped ground-truth boxes: its name and how many.
+    pub(super) skipped_truth: Vec<(String, u64)>,
     pub(super) process: ProcessStats,
     pub(super) measurement: MeasurementStatsByLabel,
 }
@@ -68,6 +70,15 @@ impl FitAccumulator {
         self.skipped.push((name, counts.clone()));
     }
 
+    /// Counts the ground-truth boxes of the current log left out for a non-finite centre, size
+    /// or yaw.
+    pub fn add_skipped_truth(&mut self, boxes: u64) {
+        if boxes > 0 {
+            let name = self.names.last().cloned().unwrap_or_default();
+            self.skipped_truth.push((name, boxes));
+        }
+    }
+
     /// Counts detection messages of the current log whose stamp is no truth stamp.
     pub fn add_unmatched(&mut self, messages: u64) {
         self.unmatched_detection_messages += messages;
@@ -87,5 +98,6 @@ impl FitAccumulator {
         }
         self.add_unmatched(log.unmatched_detection_messages);
         self.add_skipped(&log.skipped_detections);
+        self.add_skipped_truth(log.skipped_truth);
     }
 }

@@ -27,6 +27,8 @@ pub struct FitLog {
     pub unmatched_detection_messages: u64,
     /// Detection boxes left out when read, by reason, as `probmot track` skips them.
     pub skipped_detections: BTreeMap<SkipReason, u64>,
+    /// Ground-truth boxes left out when read: a non-finite centre, size or yaw.
+    pub skipped_truth: u64,
 }
 
 /// Builds the frames of a log. Every distinct truth stamp is a frame (messages sharing a stamp
@@ -60,6 +62,7 @@ pub fn assemble_frames(
         frames: frames.into_values().collect(),
         unmatched_detection_messages: unmatched,
         skipped_detections: BTreeMap::new(),
+        skipped_truth: 0,
     }
 }
 

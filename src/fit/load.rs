@@ -73,16 +73,6 @@ fn request(topic: &str, kind: TopicKind, role: &str) -> TopicRequest {
     }
 }
 
-/// Reads the detection messages of one topic (any input `track` reads): `(stamp, boxes)` per
-/// message. Boxes `track` would skip (no centre or size, a non-finite field, a non-positive
-/// size) are left out. Errors name the file and topic.
-pub fn read_detections_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
-    let req = request(topic, TopicKind::Detections, "detections");
-    let (mut v, _) = read_topics(path, &[req], &|_| {})
-        .with_context(|| format!("reading detections from {}", path.display()))?;
-    Ok(v.remove(0))
-}
-
 /// A ground-truth track as a fit box (missing centre or size read as zeros, as eval does); the
 /// fit reads no attribute, so none is kept.
 fn truth_box(t: Track3D) -> LabelledBox {
@@ -157,7 +147,7 @@ fn stream_ordered(
         request(detections_topic, TopicKind::Detections, "detections"),
     ];
     let mut log = acc.begin_log(&file);
-    let mut skipped = Skipped::new();
+    let (mut skipped, mut skipped_truth) = (Skipped::new(), 0u64);
     let mut pending: BTreeMap<u64, Pending> = BTreeMap::new();
     let mut newest: [Option<u64>; 2] = [None, None];
     let mut found = [false; 2];
@@ -207,6 +197,10 @@ fn stream_ordered(
             Boxes::Tracks(t) => {
                 let (boxes, seen) = p.truth.get_or_insert_with(Default::default);
                 for b in t.into_iter().map(truth_box) {
+                    if b.id != 0 && !b.is_finite() {
+                        skipped_truth += 1;
+                        continue;
+                    }
                     if check_truth_box(&b, seen, (&file, truth_topic, f.stamp))? {
                         boxes.push(b);
                     }
@@ -234,12 +228,12 @@ fn stream_ordered(
     }
     flush(acc, &mut pending, None);
     acc.add_skipped(&skipped);
+    acc.add_skipped_truth(skipped_truth);
     Ok(true)
 }
 
 /// Whether a truth box counts (KITTI's `dontcare` regions, id 0, hold no box); an error for a
-/// box without id, with a non-finite centre, size or yaw, or an instance given twice at one
-/// stamp.
+/// box without id or an instance given twice at one stamp.
 fn check_truth_box(
     b: &LabelledBox,
     seen: &mut HashSet<(String, u64)>,
@@ -253,14 +247,6 @@ fn check_truth_box(
             "{file}: topic {topic}, stamp {stamp}: ground-truth box ({}) has no id (id 0); the \
              fit needs the true instance ids",
             b.label
-        );
-    }
-    if !b.is_finite() {
-        bail!(
-            "{file}: topic {topic}, stamp {stamp}: ground-truth box ({}, id {}) has a non-finite \
-             centre, size or yaw",
-            b.label,
-            b.id
         );
     }
     if !seen.insert((b.label.clone(), b.id)) {
@@ -293,10 +279,15 @@ pub fn load_log_progress(
     }
     let mut by_stamp: BTreeMap<u64, HashSet<(String, u64)>> = BTreeMap::new();
     let mut truth_boxes = Vec::with_capacity(truth.len());
+    let mut skipped_truth = 0;
     for (stamp, boxes) in truth {
         let seen = by_stamp.entry(stamp).or_default();
         let mut fb = Vec::with_capacity(boxes.len());
         for b in boxes {
+            if b.id != 0 && !b.is_finite() {
+                skipped_truth += 1;
+                continue;
+            }
             // Regions without an object (KITTI's DontCare, imported with id 0) hold no box.
             if check_truth_box(&b, seen, (&file, truth_topic, stamp))? {
                 fb.push(b);
@@ -306,5 +297,6 @@ pub fn load_log_progress(
     }
     let mut log = assemble_frames(&file, truth_boxes, detections);
     log.skipped_detections = skipped;
+    log.skipped_truth = skipped_truth;
     Ok(log)
 }

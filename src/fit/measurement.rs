@@ -274,6 +274,7 @@ mod tests {
             frames,
             unmatched_detection_messages: 0,
             skipped_detections: Default::default(),
+            skipped_truth: 0,
         };
         let mut s = MeasurementStatsByLabel::new();
         accumulate_measurement_noise(&log, &mut s);

@@ -141,6 +141,9 @@ pub fn fit_gathered(acc: FitAccumulator, options: &FitOptions) -> FitReport {
             format!("{name}: skipped {skipped}, as `probmot track` skips them")
         })
         .collect();
+    warnings.extend(acc.skipped_truth.iter().map(|(name, n)| {
+        format!("{name}: skipped {n} ground-truth boxes with a non-finite centre, size or yaw")
+    }));
     let (pstats, mstats) = (&acc.process, &acc.measurement);
     let period = period_of_intervals(&acc.intervals);
     let data_period = match period {

@@ -100,6 +100,7 @@ mod tests {
                 .collect(),
             unmatched_detection_messages: 0,
             skipped_detections: Default::default(),
+            skipped_truth: 0,
         }
     }
 

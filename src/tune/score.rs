@@ -186,6 +186,7 @@ fn track_columns(log: &TuneLog, cfg: &TrackerConfig, truth: &ColumnScene) -> Res
     let mut tracks = Side::new();
     let mut frames = 0;
     run_tracker(log, cfg, |fi, r, label, _| {
+        debug_assert!(fi >= frames, "frames are emitted in order");
         for _ in frames..fi {
             tracks.end_frame();
         }

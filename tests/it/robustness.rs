@@ -441,10 +441,10 @@ fn a_closed_stdout_pipe_ends_the_process_without_a_panic() {
     );
 }
 
-/// A ground-truth (or track) box with a non-finite field cannot be scored, fitted or exported:
-/// `eval` (both protocols, the box in the truth or in the tracks), `fit`, `tune` and `export
-/// kitti` stop with an error naming the file, the topic, the stamp and the box, and write
-/// nothing.
+/// A ground-truth (or track) box with a non-finite number the command reads cannot be scored
+/// or exported: `eval` (both protocols, the box in the truth or in the tracks), `tune` and
+/// `export kitti` stop with an error naming the file, the topic, the stamp and the box, and
+/// write nothing; `fit` leaves the box out and says so.
 #[test]
 fn non_finite_truth_is_an_error_naming_the_box() {
     let dir = tempfile::tempdir().unwrap();
@@ -454,64 +454,76 @@ fn non_finite_truth_is_an_error_naming_the_box() {
     let (n, c) = (nan.to_str().unwrap(), city.to_str().unwrap());
     let out = dir.path().join("out.json");
     let o = out.to_str().unwrap();
-    let stamp = "stamp 1767225600000000000";
-    for (args, file) in [
-        (
-            vec![
-                "eval",
-                "--truth",
-                n,
-                "--tracks",
-                c,
-                "--tracks-topic",
-                "/ground_truth",
-            ],
-            n,
-        ),
-        (
-            vec![
-                "eval",
-                "--protocol",
-                "kitti",
-                "--truth",
-                n,
-                "--tracks",
-                c,
-                "--tracks-topic",
-                "/ground_truth",
-            ],
-            n,
-        ),
-        (
-            vec![
-                "eval",
-                "--truth",
-                c,
-                "--tracks",
-                n,
-                "--tracks-topic",
-                "/ground_truth",
-            ],
-            n,
-        ),
-        (vec!["fit", n, "-o", o], n),
-        (
-            vec!["export", "kitti", n, "-o", o, "--topic", "/ground_truth"],
-            n,
-        ),
-        (
-            vec!["tune", n, "-o", o, "--protocol", "nuscenes", "--folds", "1"],
-            n,
-        ),
-    ] {
+    let gt = ["--tracks-topic", "/ground_truth"];
+    let runs: [Vec<&str>; 5] = [
+        [&["eval", "--truth", n, "--tracks", c][..], &gt].concat(),
+        [
+            &["eval", "--protocol", "kitti", "--truth", n, "--tracks", c][..],
+            &gt,
+        ]
+        .concat(),
+        [&["eval", "--truth", c, "--tracks", n][..], &gt].concat(),
+        vec!["tune", n, "-o", o, "--protocol", "nuscenes", "--folds", "1"],
+        vec!["export", "kitti", n, "-o", o, "--topic", "/ground_truth"],
+    ];
+    for args in runs {
         let r = probmot(&args);
         assert_eq!(r.status.code(), Some(2), "{args:?}");
         let err = String::from_utf8_lossy(&r.stderr);
-        let want = format!("{file}: topic /ground_truth, {stamp}: ");
+        let want = format!("{n}: topic /ground_truth, stamp 1767225600000000000: box 0 ");
         assert!(
             err.contains(&want) && err.contains("id 5") && err.contains("non-finite"),
             "{args:?}: {err}"
         );
         assert!(!out.exists(), "{args:?} wrote an output");
     }
+    let r = probmot_ok(&["fit", n, "-o", o, "--json"]);
+    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let warned = format!("{n}: skipped 1 ground-truth boxes with a non-finite centre, size or yaw");
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w == &warned),
+        "{v}"
+    );
+}
+
+/// The nuScenes protocol reads a box's ground-plane centre and score only: a truth box whose
+/// yaw is not a number (a ROS 2 zero quaternion, say) is scored as before, while the KITTI
+/// protocol, whose 3D IoU reads the yaw, refuses it.
+#[test]
+fn the_nuscenes_protocol_checks_only_what_it_reads() {
+    use probmot::msgs::Tracks3D;
+    use prost::Message as _;
+    let dir = tempfile::tempdir().unwrap();
+    let nan_yaw = dir.path().join("nan_yaw.mcap");
+    city_with_first_message(&nan_yaw, "/ground_truth", |data| {
+        let mut t = Tracks3D::decode(data).unwrap();
+        t.tracks[0].yaw = f64::NAN;
+        t.encode_to_vec()
+    });
+    let city = repo("sample_logs/city.mcap");
+    let (n, c) = (nan_yaw.to_str().unwrap(), city.to_str().unwrap());
+    let gt = ["--tracks-topic", "/ground_truth", "--json"];
+    let scored = |truth: &str| {
+        let r = probmot_ok(&[&["eval", "--truth", truth, "--tracks", c][..], &gt].concat());
+        let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        v["result"]["overall"]["amota"].as_f64().unwrap()
+    };
+    assert_eq!(scored(n), scored(c));
+    let r = probmot(
+        &[
+            &["eval", "--protocol", "kitti", "--truth", n, "--tracks", c][..],
+            &gt,
+        ]
+        .concat(),
+    );
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("non-finite centre, size, yaw or score"),
+        "{err}"
+    );
 }
