@@ -121,7 +121,26 @@ pub fn single_class(cfg: &TrackerConfig, label: &str, cc: ClassConfig) -> Tracke
 /// each track carrying the 2D box of its last matched detection. Returns the scene (truth and
 /// tracks) for the evaluation.
 pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
-    track_frames(log, cfg, |i| log.frames[i].truth.clone())
+    let mut tracks: Vec<Vec<LabelledBox>> = vec![Vec::new(); log.frames.len()];
+    run_tracker(log, cfg, |fi, r, label, image_box| {
+        tracks[fi].push(LabelledBox {
+            id: r.id,
+            label: label.to_string(),
+            center: r.bbox.center,
+            size: r.bbox.size,
+            yaw: r.bbox.yaw,
+            score: r.score,
+            image_box,
+            ..Default::default()
+        })
+    })?;
+    let frames = (log.frames.iter().zip(tracks))
+        .map(|(f, t)| (f.stamp, f.truth.clone(), t))
+        .collect();
+    Ok(Scene {
+        name: log.name.clone(),
+        frames,
+    })
 }
 
 /// One class's truth in a tune's logs, prepared once and read by every candidate.
@@ -289,38 +308,6 @@ fn drain(
             emit(fi as usize, r, tracker.label(r.class), *image_box);
         }
     }
-}
-
-/// [`track_log`] with the truth of frame `i` given by `truth(i)`.
-pub fn track_frames(
-    log: &TuneLog,
-    cfg: &TrackerConfig,
-    truth: impl Fn(usize) -> Vec<LabelledBox>,
-) -> Result<Scene> {
-    let mut tracks: Vec<Vec<LabelledBox>> = vec![Vec::new(); log.frames.len()];
-    run_tracker(log, cfg, |fi, r, label, image_box| {
-        tracks[fi].push(LabelledBox {
-            id: r.id,
-            label: label.to_string(),
-            center: r.bbox.center,
-            size: r.bbox.size,
-            yaw: r.bbox.yaw,
-            score: r.score,
-            image_box,
-            ..Default::default()
-        })
-    })?;
-    let frames = log
-        .frames
-        .iter()
-        .zip(tracks)
-        .enumerate()
-        .map(|(fi, (f, t))| (f.stamp, truth(fi), t))
-        .collect();
-    Ok(Scene {
-        name: log.name.clone(),
-        frames,
-    })
 }
 
 /// The rows of class `cls` in the tracks of `log` tracked with `cfg`, as the KITTI evaluation
