@@ -84,8 +84,8 @@ impl FitAccumulator {
         self.unmatched_detection_messages += messages;
     }
 
-    /// The frame period of the frames fed so far (as [`super::timing::frame_period`] of the
-    /// same logs).
+    /// The frame timing of the frames fed so far: the intervals between consecutive frames of
+    /// each log.
     pub fn frame_period(&self) -> Option<FramePeriod> {
         period_of_intervals(&self.intervals)
     }

@@ -35,7 +35,7 @@ pub use timing::FramePeriod;
 
 use crate::msgs::detection_frame::describe_skips;
 pub use accumulate::FitAccumulator;
-use timing::{period_of_intervals, q_scale, velocity_variance_scale};
+use timing::{q_scale, velocity_variance_scale};
 
 /// Settings of a fit.
 #[derive(Debug, Clone, PartialEq)]
@@ -145,7 +145,7 @@ pub fn fit_gathered(acc: FitAccumulator, options: &FitOptions) -> FitReport {
         format!("{name}: skipped {n} ground-truth boxes with a non-finite centre, size or yaw")
     }));
     let (pstats, mstats) = (&acc.process, &acc.measurement);
-    let period = period_of_intervals(&acc.intervals);
+    let period = acc.frame_period();
     let data_period = match period {
         Some(p) if p.median_s > 0.0 => p.median_s,
         _ => {

@@ -22,7 +22,6 @@
 
 use serde::Serialize;
 
-use super::data::FitLog;
 use super::stats::median;
 
 /// An interval is "irregular" when it differs from the median by more than this fraction.
@@ -40,25 +39,13 @@ pub struct FramePeriod {
     pub irregular: u64,
 }
 
-/// The frame timing of the logs (intervals within each log); `None` without any interval.
-pub fn frame_period(logs: &[FitLog]) -> Option<FramePeriod> {
-    let dts: Vec<f64> = logs
-        .iter()
-        .flat_map(|l| {
-            l.frames
-                .windows(2)
-                .map(|w| interval_s(w[0].stamp, w[1].stamp))
-        })
-        .collect();
-    period_of_intervals(&dts)
-}
-
 /// The interval between two consecutive frame stamps (ns), seconds.
 pub fn interval_s(a: u64, b: u64) -> f64 {
     (b - a) as f64 * 1e-9
 }
 
-/// [`frame_period`] of the frame intervals `dts` (seconds) of every log.
+/// The frame timing of the frame intervals `dts` (seconds, within each log; see
+/// [`super::FitAccumulator::frame_period`]); `None` without any interval.
 pub fn period_of_intervals(dts: &[f64]) -> Option<FramePeriod> {
     let m = median(dts)?;
     let irregular = dts
@@ -85,7 +72,7 @@ pub fn velocity_variance_scale(data_period: f64, dt_nominal: f64) -> f64 {
 
 #[cfg(test)]
 mod tests {
-    use super::super::data::FitFrame;
+    use super::super::data::{FitFrame, FitLog};
     use super::*;
 
     fn log(stamps: &[u64]) -> FitLog {
@@ -102,6 +89,15 @@ mod tests {
             skipped_detections: Default::default(),
             skipped_truth: 0,
         }
+    }
+
+    /// The frame timing of `logs` fed whole to the fit's accumulator.
+    fn frame_period(logs: &[FitLog]) -> Option<FramePeriod> {
+        let mut acc = super::super::FitAccumulator::new();
+        for l in logs {
+            acc.add_log(l);
+        }
+        acc.frame_period()
     }
 
     #[test]
