@@ -197,11 +197,8 @@ fn stream_ordered(
             Boxes::Tracks(t) => {
                 let (boxes, seen) = p.truth.get_or_insert_with(Default::default);
                 for b in t.into_iter().map(truth_box) {
-                    if b.id != 0 && !b.is_finite() {
-                        skipped_truth += 1;
-                        continue;
-                    }
-                    if check_truth_box(&b, seen, (&file, truth_topic, f.stamp))? {
+                    let at = (file.as_str(), truth_topic, f.stamp);
+                    if check_truth_box(&b, seen, &mut skipped_truth, at)? {
                         boxes.push(b);
                     }
                 }
@@ -232,11 +229,13 @@ fn stream_ordered(
     Ok(true)
 }
 
-/// Whether a truth box counts (KITTI's `dontcare` regions, id 0, hold no box); an error for a
-/// box without id or an instance given twice at one stamp.
+/// Whether a truth box counts (KITTI's `dontcare` regions, id 0, hold no box; one with a
+/// non-finite centre, size or yaw is left out and counted in `non_finite`); an error for a box
+/// without id or an instance given twice at one stamp.
 fn check_truth_box(
     b: &LabelledBox,
     seen: &mut HashSet<(String, u64)>,
+    non_finite: &mut u64,
     (file, topic, stamp): (&str, &str, u64),
 ) -> Result<bool> {
     if b.id == 0 && b.label == "dontcare" {
@@ -248,6 +247,10 @@ fn check_truth_box(
              fit needs the true instance ids",
             b.label
         );
+    }
+    if !b.is_finite() {
+        *non_finite += 1;
+        return Ok(false);
     }
     if !seen.insert((b.label.clone(), b.id)) {
         bail!(
@@ -284,12 +287,8 @@ pub fn load_log_progress(
         let seen = by_stamp.entry(stamp).or_default();
         let mut fb = Vec::with_capacity(boxes.len());
         for b in boxes {
-            if b.id != 0 && !b.is_finite() {
-                skipped_truth += 1;
-                continue;
-            }
             // Regions without an object (KITTI's DontCare, imported with id 0) hold no box.
-            if check_truth_box(&b, seen, (&file, truth_topic, stamp))? {
+            if check_truth_box(&b, seen, &mut skipped_truth, (&file, truth_topic, stamp))? {
                 fb.push(b);
             }
         }
