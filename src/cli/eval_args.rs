@@ -104,7 +104,11 @@ pub struct EvalArgs {
     /// nuscenes_num_lidar_pts / nuscenes_num_radar_pts attributes `probmot import nuscenes`
     /// keeps); the devkit removes boxes with 0 points, i.e. N = 1. Tracks carry no counts and are
     /// kept, as in the devkit. Example: --min-points 1
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(
+        long,
+        value_name = "N",
+        value_parser = clap::value_parser!(u64).range(1..)
+    )]
     pub(super) min_points: Option<u64>,
     /// nuScenes only: remove bicycle and motorcycle boxes (ground truth and tracks) whose centre
     /// lies inside a bicycle rack of the same frame, as the devkit does. The racks are the

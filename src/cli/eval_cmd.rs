@@ -188,6 +188,9 @@ pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
     if a.max_drop.is_some() && a.baseline.is_empty() {
         bail!("--max-drop needs --baseline");
     }
+    if let Some(d) = a.max_drop.filter(|d| !(*d >= 0.0 && d.is_finite())) {
+        bail!("--max-drop must be a number of points >= 0, got {d}");
+    }
     match a.protocol {
         Protocol::Nuscenes => {
             if a.iou.is_some() {
@@ -229,6 +232,19 @@ fn per_log_json(
         .collect()
 }
 
+/// The classes of the ground truth of `scenes`, sorted, as the error without any box of the
+/// evaluated classes gives them.
+fn truth_classes(scenes: &[ColumnScene]) -> String {
+    let names: std::collections::BTreeSet<&str> = (scenes.iter())
+        .flat_map(|s| s.truth.label.iter().map(|&l| s.labels[l as usize].as_str()))
+        .collect();
+    let names: Vec<&str> = names.into_iter().collect();
+    match names.is_empty() {
+        true => "it has no box".to_string(),
+        false => format!("its classes: {} (choose with --classes)", names.join(", ")),
+    }
+}
+
 /// The `--baseline` logs scored with the nuScenes protocol (none without `--baseline`).
 fn nuscenes_baseline(
     a: &EvalArgs,
@@ -258,10 +274,11 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
     spinner.finish_and_clear();
     if result.classes.values().all(|m| m.gt.is_nan()) {
         bail!(
-            "{}: topic {} has no ground-truth box of the evaluated classes ({})",
+            "{}: topic {} has no ground-truth box of the evaluated classes ({}); {}",
             describe(&pairs, false),
             a.truth_topic,
-            params.classes.join(", ")
+            params.classes.join(", "),
+            truth_classes(&scenes)
         );
     }
     let events = (a.events.as_deref())

@@ -119,11 +119,21 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
     spinner.finish_and_clear();
     hota_notes.dedup();
     if result.classes.is_empty() {
+        let classes: std::collections::BTreeSet<&str> = (scenes.iter())
+            .flat_map(|s| s.frames.iter().flat_map(|f| f.2.iter().map(|b| b.label())))
+            .collect();
+        let classes: Vec<&str> = classes.into_iter().collect();
         bail!(
-            "{}: topic {} has no track box of the evaluated classes ({}); nothing to evaluate",
+            "{}: topic {} has no track box of the evaluated classes ({}); nothing to evaluate \
+             (its classes: {}; choose them with --classes)",
             describe(&pairs, true),
             a.tracks_topic,
-            params.classes.join(", ")
+            params.classes.join(", "),
+            if classes.is_empty() {
+                "none".to_string()
+            } else {
+                classes.join(", ")
+            }
         );
     }
     let events = (a.events.as_deref())
@@ -212,10 +222,15 @@ fn print_kitti(
         "{}",
         table(&KITTI_COLUMNS, &kitti_rows(result, &params.classes))
     );
-    println!("\nHOTA (TrackEval's Kitti2DBox: 2D image-box IoU; 3d: the same boxes by 3D IoU):");
     let mut h = hota_rows(hota_2d, "");
     h.extend(hota_rows(hota_3d, " 3d"));
-    print!("{}", table(&HOTA_COLUMNS, &h));
+    // Without any evaluated class the notes say why; an empty table would say nothing.
+    if !h.is_empty() {
+        println!(
+            "\nHOTA (TrackEval's Kitti2DBox: 2D image-box IoU; 3d: the same boxes by 3D IoU):"
+        );
+        print!("{}", table(&HOTA_COLUMNS, &h));
+    }
     if let Some((base_pairs, base)) = baseline {
         println!("\nbaseline {}:", describe(base_pairs, true));
         print!(

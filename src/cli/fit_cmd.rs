@@ -11,6 +11,7 @@ use probmot::fit::{
     fit_gathered, fitted_config, ClassFit, FitAccumulator, FitOptions, FitReport, YawMode,
 };
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
+use probmot::pipeline::rosbag_dir::resolve_input;
 use probmot::tracker::{Preset, TrackerConfig};
 
 use super::config_cmd::PresetArg;
@@ -58,11 +59,17 @@ pub struct FitArgs {
     /// config's).
     #[arg(long, value_name = "S")]
     dt_nominal: Option<f64>,
-    /// Base preset (default nuscenes-chiu2019).
-    #[arg(long, value_enum, value_name = "NAME", conflicts_with = "base_config")]
+    /// Base preset (default nuscenes-chiu2019); `--preset` as in `tune`.
+    #[arg(
+        long,
+        visible_alias = "preset",
+        value_enum,
+        value_name = "NAME",
+        conflicts_with = "base_config"
+    )]
     base_preset: Option<PresetArg>,
-    /// Base config file (JSON, as printed by `probmot config`).
-    #[arg(long, value_name = "FILE")]
+    /// Base config file (JSON, as printed by `probmot config`); `--base` as in `tune`.
+    #[arg(long, visible_alias = "base", value_name = "FILE")]
     base_config: Option<PathBuf>,
     /// Fold yaw residuals to [-pi/2, pi/2] in R and P0 (180-degree flips count as aligned).
     #[arg(long)]
@@ -166,8 +173,19 @@ fn table(rep: &FitReport) -> String {
     s
 }
 
+/// The inputs for an error: the file, or how many.
+fn describe_inputs(inputs: &[PathBuf]) -> String {
+    match inputs {
+        [one] => one.display().to_string(),
+        many => format!("the {} logs", many.len()),
+    }
+}
+
 /// Runs `probmot fit`.
-pub fn run(a: FitArgs) -> Result<ExitCode> {
+pub fn run(mut a: FitArgs) -> Result<ExitCode> {
+    a.inputs = (a.inputs.iter())
+        .map(|p| resolve_input(p))
+        .collect::<Result<_>>()?;
     ensure!(a.min_samples >= 1, "--min-samples must be at least 1");
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
@@ -197,6 +215,13 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
         min_samples: a.min_samples,
     };
     let mut report = fit_gathered(acc, &options);
+    ensure!(
+        report.detections > 0,
+        "no detection box on topic {} in {}: the fit needs detections beside the ground truth \
+         (as `probmot import kitti|nuscenes` and `probmot simulate` write them)",
+        a.detections_topic,
+        describe_inputs(&a.inputs)
+    );
     let mut cfg = fitted_config(&base, &mut report, &options)?;
     let fitted = report.classes.iter().filter(|c| c.applied).count();
     cfg.name = format!(

@@ -11,6 +11,7 @@ use probmot::formats::nuscenes::{
 use probmot::pipeline::kitti_io::{
     export_kitti, import_kitti, resolve_detection_files, TracksInput,
 };
+use probmot::pipeline::rosbag_dir::resolve_input;
 
 /// Convert a dataset's files to an MCAP recording.
 ///
@@ -81,7 +82,7 @@ struct ImportKitti {
 /// Write a tracks (or ground-truth) channel in a dataset's result format.
 ///
 /// Examples:
-///   probmot export kitti 0000.tracked.mcap -o results/0000.txt
+///   probmot export kitti 0000.tracked.mcap -o 0000.txt
 ///   probmot export nuscenes scenes_tracked/*.mcap -o tracking_results.json
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -104,7 +105,7 @@ enum ExportFormat {
 /// (original ids, truncation and occlusion, no score).
 ///
 /// Example:
-///   probmot export kitti 0000.tracked.mcap -o results/0000.txt
+///   probmot export kitti 0000.tracked.mcap -o 0000.txt
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 struct ExportKitti {
@@ -319,7 +320,11 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let s = export_kitti(&k.input, &k.topic, &k.output, k.topic != "/ground_truth")?;
+            let input = resolve_input(&k.input)?;
+            let s = export_kitti(&input, &k.topic, &k.output, k.topic != "/ground_truth")?;
+            for w in &s.warnings {
+                eprintln!("warning: {w}");
+            }
             println!(
                 "{}: {} rows in {} frames",
                 k.output.display(),

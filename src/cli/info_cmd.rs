@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::Args;
 use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
 use probmot::pipeline::info::{duration, file_info_progress, iso8601};
+use probmot::pipeline::rosbag_dir::resolve_input;
 
 use super::eval_args::bytes_bar;
 use super::show_progress;
@@ -16,8 +17,8 @@ use probmot::transforms::buffer::EdgeSummary;
 ///
 /// Per channel: schema, encodings, message count, time range, whether probmot can use it (as
 /// detections, tracks or transforms), and for detection and track channels the boxes per class;
-/// then the transform tree. Times: the file's start and end as ISO 8601 UTC (and seconds since the epoch), its
-/// duration, and each channel's range relative to the start.
+/// then the transform tree. Times: the file's start and end as ISO 8601 UTC (and seconds since
+/// the epoch), its duration, and each channel's range relative to the start.
 ///
 /// Examples:
 ///   probmot info sample_logs/city.mcap
@@ -50,7 +51,8 @@ fn rel(ns: u64, start: u64) -> String {
     format!("+{}", duration(ns.saturating_sub(start)))
 }
 
-pub fn run(a: InfoArgs) -> Result<ExitCode> {
+pub fn run(mut a: InfoArgs) -> Result<ExitCode> {
+    a.file = resolve_input(&a.file)?;
     let bar = bytes_bar(&[a.file.as_path()], show_progress(a.quiet || a.json));
     let info = file_info_progress(&a.file, &|n| bar.inc(n))?;
     bar.finish_and_clear();
@@ -100,10 +102,13 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
             c.schema_encoding,
             c.message_encoding,
             range,
-            if c.role.is_empty() {
-                String::new()
-            } else {
-                format!("  <- usable as {}", c.role)
+            match c.role.as_str() {
+                "" => String::new(),
+                // A detection schema track does not read by default: one of probmot's outputs.
+                "detections" if !c.default_detections => {
+                    "  <- probmot's own output (read as detections only when named)".to_string()
+                }
+                role => format!("  <- usable as {role}"),
             },
         );
         if !c.per_label.is_empty() {

@@ -19,7 +19,7 @@ mod viz_cmd;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// probmot: probabilistic 3D multi-object tracking for MCAP drive recordings.
 ///
@@ -36,6 +36,25 @@ use clap::{Parser, Subcommand};
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+impl Cli {
+    /// Parses the command line, reading a negative number after an option that takes a value as
+    /// that value (`--score-floor -2` for PointRCNN's logits, `--min-hits -1` refused as out of
+    /// range), for every option of every command, instead of as an unknown flag.
+    pub fn parse_args() -> Cli {
+        let matches = negative_numbers_as_values(Cli::command()).get_matches();
+        Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit())
+    }
+}
+
+/// `cmd` and its subcommands with every option that takes a value allowing negative numbers.
+fn negative_numbers_as_values(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| match a.get_action().takes_values() {
+        true => a.allow_negative_numbers(true),
+        false => a,
+    })
+    .mut_subcommands(negative_numbers_as_values)
 }
 
 #[derive(Debug, Subcommand)]

@@ -8,6 +8,7 @@ use anyhow::{bail, Result};
 use clap::Args;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::eval_events::EVENTS_TOPIC;
+use probmot::pipeline::rosbag_dir::resolve_input;
 use probmot::viz::plot::{bev_drawable, render_png, EventMark, Extent, Panel, PlotOptions};
 use probmot::viz::truth_colors::{marks, match_by_distance, match_from_events};
 use probmot::viz::window::{read_events, read_window};
@@ -42,10 +43,10 @@ pub struct PlotArgs {
     #[arg(long, value_name = "CLASS", value_delimiter = ',')]
     class: Vec<String>,
     /// Window start, seconds after the file's first frame (inclusive).
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, value_name = "SECONDS")]
     from: Option<f64>,
     /// Window end, seconds after the file's first frame (inclusive).
-    #[arg(long, value_name = "SECONDS", allow_negative_numbers = true)]
+    #[arg(long, value_name = "SECONDS")]
     to: Option<f64>,
     /// Panels, in order (comma-separated): detections, tracks, ground_truth. Default: each of the
     /// three whose topic the file has.
@@ -259,6 +260,29 @@ fn build_panels(
     Ok((panels, window_stamps, boxes_total))
 }
 
+/// The classes of the boxes read for `layers`.
+fn present_classes<'a>(read: &'a FileLayers, layers: &[Layer]) -> BTreeSet<&'a str> {
+    (layers.iter())
+        .filter_map(|l| read.get(*l))
+        .flat_map(|lf| lf.frames.iter().flat_map(|f| f.1.iter()))
+        .map(|b| b.label.as_str())
+        .collect()
+}
+
+/// A warning for each `--class` that no box read has (a typo among classes that are drawn
+/// would otherwise go unnoticed).
+fn warn_absent_classes(a: &PlotArgs, read: &FileLayers, layers: &[Layer]) {
+    let present = present_classes(read, layers);
+    for c in a.class.iter().filter(|c| !present.contains(c.as_str())) {
+        let has: Vec<&str> = present.iter().copied().collect();
+        eprintln!(
+            "warning: {}: no box of class {c} on the plotted topics (classes: {})",
+            a.file.display(),
+            has.join(", ")
+        );
+    }
+}
+
 /// The error when the window holds no box of the classes asked for.
 fn no_boxes(
     a: &PlotArgs,
@@ -267,12 +291,7 @@ fn no_boxes(
     sel: &Selection,
     (t0, t_end): (u64, u64),
 ) -> anyhow::Error {
-    let present: BTreeSet<&str> = layers
-        .iter()
-        .filter_map(|l| read.get(*l))
-        .flat_map(|lf| lf.frames.iter().flat_map(|f| f.1.iter()))
-        .map(|b| b.label.as_str())
-        .collect();
+    let present = present_classes(read, layers);
     let join = |v: Vec<String>| v.join(", ");
     anyhow::anyhow!(
         "{}: no box{} in the window {} on {} (classes in the file: {})",
@@ -322,7 +341,8 @@ fn colour_and_marks(
     Ok(events.map_or_else(Vec::new, |ev| marks(&ev, |c| sel.keeps_class(c))))
 }
 
-pub fn run(a: PlotArgs) -> Result<ExitCode> {
+pub fn run(mut a: PlotArgs) -> Result<ExitCode> {
+    a.file = resolve_input(&a.file)?;
     let extent = validate(&a)?;
     let (asked, explicit) = asked_layers(&a)?;
     // Every layer's topic is looked at, so that "the first frame" does not depend on --layers;
@@ -364,6 +384,7 @@ pub fn run(a: PlotArgs) -> Result<ExitCode> {
     if boxes_total == 0 {
         return Err(no_boxes(&a, &read, &layers, &sel, (t0, t_end)));
     }
+    warn_absent_classes(&a, &read, &layers);
     let marks = colour_and_marks(&a, &read, &mut panels, &sel, &stamps)?;
     let (w0, w1) = (
         *stamps.first().expect("non-empty"),

@@ -28,7 +28,8 @@ pub struct SimulateArgs {
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Number of frames.
+    /// Number of frames. Velocities are a random walk (the process noise `fit` recovers), so
+    /// over thousands of frames speeds drift from typical ones: long logs are for scale tests.
     #[arg(long, default_value_t = 40)]
     frames: u32,
     /// Objects: total for city (default 40), extra background objects otherwise.
@@ -94,7 +95,7 @@ fn frames_bar(frames: u64, show: bool) -> ProgressBar {
     }
     ProgressBar::new(frames).with_style(
         ProgressStyle::with_template(
-            "{spinner} simulating [{bar:30}] {pos}/{len} frames ETA {eta}",
+            "{spinner} simulating [{bar:30}] {pos}/{len} frames, {elapsed}",
         )
         .expect("valid template")
         .progress_chars("=> "),

@@ -28,10 +28,10 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// for ROS 2 inputs, `vision_msgs/msg/Detection3DArray` (see --tracks-format). A tracks message
 /// has the frame's stamp in the message and, as log_time, the latest log_time of the frame's
 /// detection messages; it is written before any later input message, so the output is in
-/// log-time order when the input is. Frames are the distinct
-/// detection stamps, replayed in stamp order. The output is written to a partial file beside it
-/// (.NAME.probmot-partial) and renamed at the end; the input is never modified. --out-dir is
-/// created when missing. Ctrl-C, SIGTERM or SIGHUP remove the partial files (exit 130/143/129).
+/// log-time order when the input is. Frames are the distinct detection stamps, replayed in
+/// stamp order. The output is written to a partial file beside it (.NAME.probmot-partial) and
+/// renamed at the end; the input is never modified. --out-dir is created when missing. Ctrl-C,
+/// SIGTERM or SIGHUP remove the partial files (exit 130/143/129).
 ///
 /// Detection inputs, chosen by each channel's schema and encodings (no flag needed):
 ///   probmot.Detections3D               protobuf or json
@@ -96,7 +96,11 @@ pub struct TrackArgs {
     #[arg(long)]
     strict: bool,
     /// Largest number of boxes accepted in one detection message (more is an error).
-    #[arg(long, value_name = "N", default_value_t = DEFAULT_MAX_DETECTIONS)]
+    #[arg(
+        long,
+        value_name = "N",
+        default_value_t = DEFAULT_MAX_DETECTIONS
+    )]
     max_detections: usize,
     /// Chunk compression of the output: zstd (level 1, the smallest files), lz4 (faster to
     /// write and to read, larger files) or none.
@@ -181,7 +185,7 @@ fn print_summary(s: &TrackSummary) {
         s.tracks_born,
         s.tracks_confirmed,
         s.mean_track_length.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
-        s.detections.total_skipped(),
+        s.detections.total_skipped() + s.ego.boxes_without_transform,
         s.messages_copied,
         s.wall_time_s,
         s.passes,

@@ -1,6 +1,6 @@
 //! `probmot tune`.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -9,9 +9,12 @@ use anyhow::{bail, ensure, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::eval::kitti::MeanScores;
+use probmot::fit::stats::median;
+use probmot::fit::timing::{interval_s, mixed_periods};
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::detection_frame::describe_skips;
 use probmot::pipeline::overrides::Overrides;
+use probmot::pipeline::rosbag_dir::resolve_input;
 use probmot::tracker::TrackerConfig;
 
 use super::config_cmd::CoastArg;
@@ -82,11 +85,17 @@ pub struct TuneArgs {
     /// Number of cross-validation folds; 0 or 1: no cross-validation, only the final tune.
     #[arg(long, default_value_t = 2, value_name = "K")]
     folds: usize,
-    /// Base config file (JSON); its settings are the search's starting point.
-    #[arg(long, value_name = "CONFIG", conflicts_with = "preset")]
+    /// Base config file (JSON); its settings are the search's starting point. `--base-config`
+    /// as in `fit`.
+    #[arg(
+        long,
+        visible_alias = "base-config",
+        value_name = "CONFIG",
+        conflicts_with = "preset"
+    )]
     base: Option<PathBuf>,
-    /// Base preset (default nuscenes-chiu2019).
-    #[arg(long, value_name = "NAME")]
+    /// Base preset (default nuscenes-chiu2019); `--base-preset` as in `fit`.
+    #[arg(long, visible_alias = "base-preset", value_name = "NAME")]
     preset: Option<String>,
     /// Set the base's coasted-frame reporting for every class, as `track --coast` (all, gaps,
     /// none); classes that are not searched keep it. Example: --coast gaps
@@ -210,7 +219,20 @@ fn pct(v: f64) -> String {
     }
 }
 
-fn table(cv: &CvReport, metric: &str) -> String {
+/// What a class that was not searched got: the same words in the table and the summary.
+/// `kept_on_loss`: the final tune kept it for its held-out loss (the folds never do).
+fn not_searched(o: &TuneOptions, kept_on_loss: bool) -> &'static str {
+    if kept_on_loss {
+        "lost held-out (--keep-base-on-loss): the base's own settings"
+    } else if o.limits.shared {
+        "too few trajectories: shared settings"
+    } else {
+        "too few trajectories: the base's own settings"
+    }
+}
+
+fn table(cv: &CvReport, o: &TuneOptions) -> String {
+    let metric = o.scoring.metric();
     let mut s = String::new();
     let _ = writeln!(s, "held-out {metric} (x100): base (fitted noise) vs tuned");
     let _ = writeln!(
@@ -226,9 +248,9 @@ fn table(cv: &CvReport, metric: &str) -> String {
             let t = tuned.get(c).copied().unwrap_or(f64::NAN);
             let note = match search.iter().find(|x| &x.label == c) {
                 Some(x) if x.refined => format!("{} (searched)", x.trajectories),
-                Some(x) => format!("{} (too few: not searched)", x.trajectories),
+                Some(x) => format!("{} ({})", x.trajectories, not_searched(o, false)),
                 None if search.is_empty() => String::new(),
-                None => "none (no training detections)".into(),
+                None => "none (no detections in the training folds: folds are the logs in the order given)".into(),
             };
             let line = format!("{name:<28} {c:<12} {:>8} {:>8}  {note}", pct(*b), pct(t));
             let _ = writeln!(s, "{}", line.trim_end());
@@ -242,7 +264,8 @@ fn table(cv: &CvReport, metric: &str) -> String {
         );
     };
     for (i, f) in cv.folds.iter().enumerate() {
-        let name = format!("fold {} ({} logs)", i + 1, f.held_out.len());
+        let n = f.held_out.len();
+        let name = format!("fold {} ({n} log{})", i + 1, if n == 1 { "" } else { "s" });
         rows(&name, &f.base, &f.tuned, &f.search);
     }
     rows("all held-out together", &cv.base, &cv.tuned, &[]);
@@ -264,7 +287,10 @@ fn table(cv: &CvReport, metric: &str) -> String {
 }
 
 /// Runs `probmot tune`.
-pub fn run(a: TuneArgs) -> Result<ExitCode> {
+pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
+    a.inputs = (a.inputs.iter())
+        .map(|p| resolve_input(p))
+        .collect::<Result<_>>()?;
     ensure!(a.budget >= 1, "--budget must be at least 1");
     ensure!(
         a.margin.is_finite() && a.margin >= 0.0,
@@ -345,26 +371,21 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         .par_iter()
         .map(|p| TuneLog::load(p, &a.truth_topic, &a.detections_topic))
         .collect::<Result<Vec<_>>>()?;
-    let warnings = skip_warnings(a, &logs);
+    let mut warnings = skip_warnings(a, &logs);
+    warnings.extend(period_warning(&logs));
     for w in &warnings {
         eprintln!("warning: {w}");
     }
     let o = options(a);
     let scoring = o.scoring;
     let all: Vec<&TuneLog> = logs.iter().collect();
-    let n_classes = tune::classes(&all, &o).len();
-    if n_classes == 0 {
-        bail!(
-            "no detections of the {:?} classes in the inputs",
-            scoring.classes()
-        );
-    }
+    let n_classes = scored_classes(&all, &o)?;
     let cv_folds = if a.folds >= 2 { a.folds } else { 0 };
     let pb = if super::show_progress(a.quiet) {
         let total = (cv_folds + 1) * (n_classes + 1) * a.budget;
         ProgressBar::new(total as u64).with_style(
             ProgressStyle::with_template(
-                "{spinner} [{bar:30}] {pos}/~{len} configs {msg} ETA {eta}",
+                "{spinner} [{bar:30}] {pos} configs of at most {len}, {elapsed} {msg}",
             )
             .expect("valid template"),
         )
@@ -421,6 +442,64 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// The number of classes the tune scores (the chosen classes, default the protocol's, that have
+/// detections; as [`tune::classes`]). An error when a class of `--classes` has none (a typo,
+/// say), or when none of the protocol's classes has: each names the labels there are.
+fn scored_classes(logs: &[&TuneLog], o: &TuneOptions) -> Result<usize> {
+    let labels: BTreeSet<&str> = (logs.iter())
+        .flat_map(|l| l.frames.iter().flat_map(|f| f.detections.iter()))
+        .map(|d| &*d.label)
+        .collect();
+    let listed = || labels.iter().copied().collect::<Vec<_>>().join(", ");
+    let missing: Vec<&str> = (o.classes.iter())
+        .map(String::as_str)
+        .filter(|c| !labels.contains(c))
+        .collect();
+    if !missing.is_empty() {
+        bail!(
+            "--classes: no detection of {} in the inputs (their labels: {})",
+            missing.join(", "),
+            listed()
+        );
+    }
+    let n = tune::classes(logs, o).len();
+    if n == 0 {
+        bail!(
+            "no detection of the {} protocol's classes ({}) in the inputs (their labels: {}); \
+             choose the protocol with --protocol or the classes with --classes",
+            protocol_name(o.scoring.protocol),
+            o.scoring.classes().join(", "),
+            listed()
+        );
+    }
+    Ok(n)
+}
+
+/// The protocol's name in messages.
+fn protocol_name(p: Protocol) -> &'static str {
+    match p {
+        Protocol::Kitti => "KITTI",
+        Protocol::Nuscenes => "nuScenes",
+    }
+}
+
+/// A warning when the logs' frame periods differ (the noise fit of each fold pools them at one
+/// period), as `probmot fit` gives it.
+fn period_warning(logs: &[TuneLog]) -> Option<String> {
+    let mut all = Vec::new();
+    let periods: Vec<(&str, f64)> = (logs.iter())
+        .filter_map(|l| {
+            let stamps: Vec<u64> = (l.frames.iter().filter(|f| f.has_truth))
+                .map(|f| f.stamp)
+                .collect();
+            let dts: Vec<f64> = stamps.windows(2).map(|w| interval_s(w[0], w[1])).collect();
+            all.extend(&dts);
+            Some((l.name.as_str(), median(&dts)?))
+        })
+        .collect();
+    mixed_periods(&periods, median(&all)?)
+}
+
 /// One warning per log that had detections left out when read (none is dropped unsaid).
 fn skip_warnings(a: &TuneArgs, logs: &[TuneLog]) -> Vec<String> {
     (a.inputs.iter().zip(logs))
@@ -455,26 +534,34 @@ fn report(
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
+        let scored: Vec<&str> = t.classes.iter().map(|c| c.label.as_str()).collect();
+        println!(
+            "scored with the {} protocol: {} (its classes with detections in the logs); other \
+             classes keep the base's settings with the fitted noise{}",
+            protocol_name(o.scoring.protocol),
+            scored.join(", "),
+            match a.pool_reporting {
+                true => " and the pooled reporting options",
+                false => "",
+            }
+        );
         if let Some(cv) = cv {
-            print!("{}", table(cv, o.scoring.metric()));
+            print!("{}", table(cv, o));
         }
         for c in &t.classes {
             println!(
-                "{}: {} trajectories, training {} base {} -> shared {} -> {} ({})",
+                "{}: {} trajector{}, training {} base {} -> shared {} -> {} ({})",
                 c.label,
                 c.trajectories,
+                if c.trajectories == 1 { "y" } else { "ies" },
                 o.scoring.search_metric(),
                 pct(c.base_score),
                 pct(c.shared_score),
                 pct(c.score),
                 if c.refined {
                     "searched"
-                } else if o.keep_base.contains(&c.label) {
-                    "lost held-out (--keep-base-on-loss): the base's own settings"
-                } else if o.limits.shared {
-                    "too few trajectories: shared settings"
                 } else {
-                    "too few trajectories: the base's own settings"
+                    not_searched(o, o.keep_base.contains(&c.label))
                 }
             );
         }

@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Result};
 use clap::Args;
 use probmot::mcapio::writer::check_output_path;
+use probmot::pipeline::rosbag_dir::resolve_input;
 
 use super::layer_topics::LayerTopics;
 
@@ -74,7 +75,8 @@ pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {
     check_output_path(input, out)
 }
 
-pub fn run(a: VizArgs) -> Result<ExitCode> {
+pub fn run(mut a: VizArgs) -> Result<ExitCode> {
+    a.file = resolve_input(&a.file)?;
     check_rrd_output(Some(&a.file), &a.output)?;
     if a.trail == 0 {
         bail!("--trail must be at least 1");

@@ -6,11 +6,13 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 
+use super::kitti_box::KittiFields;
 use super::scene::{check, check_finite, check_ids, Reads, Scene};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
+use crate::tracker::Box3;
 
 /// The boxes of one channel, frame by frame: frame `f`'s boxes are `at[f]..at[f + 1]`.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -68,11 +70,12 @@ impl Side {
         self.id.is_empty()
     }
 
-    fn push(&mut self, b: &LabelledBox, label: u16, geometry: bool) {
-        self.push_box(b.id, label, [b.center[0], b.center[1]], b.score);
+    fn push<B: KittiFields>(&mut self, b: &B, label: u16, geometry: bool) {
+        let Box3 { center, size, yaw } = b.box3();
+        self.push_box(b.id(), label, [center[0], center[1]], b.score());
         if geometry {
-            let [l, w, h] = b.size;
-            self.geometry.push([b.center[2], l, w, h, b.yaw]);
+            let [l, w, h] = size;
+            self.geometry.push([center[2], l, w, h, yaw]);
         }
     }
 
@@ -119,17 +122,18 @@ impl ColumnScene {
         label_or_add(&mut self.labels, name)
     }
 
-    /// The columns of a [`Scene`] (the same frames and boxes, in the same order).
-    pub fn from_scene(scene: &Scene) -> ColumnScene {
+    /// The columns of a [`Scene`] (the same frames and boxes, in the same order), of whole
+    /// boxes or of what the evaluations read of them ([`KittiBox`](super::kitti_box::KittiBox)).
+    pub fn from_scene<B: KittiFields>(scene: &Scene<B>) -> ColumnScene {
         Self::of_scene(scene, false)
     }
 
     /// [`ColumnScene::from_scene`] with the boxes' geometry ([`Side::geometry`]).
-    pub fn from_scene_with_geometry(scene: &Scene) -> ColumnScene {
+    pub fn from_scene_with_geometry<B: KittiFields>(scene: &Scene<B>) -> ColumnScene {
         Self::of_scene(scene, true)
     }
 
-    fn of_scene(scene: &Scene, geometry: bool) -> ColumnScene {
+    fn of_scene<B: KittiFields>(scene: &Scene<B>, geometry: bool) -> ColumnScene {
         let mut b = Builder {
             geometry,
             ..Builder::default()
@@ -217,11 +221,11 @@ impl Builder {
     }
 
     /// Appends one message of side `s` (0 truth, 1 tracks).
-    fn push(&mut self, s: usize, stamp: u64, boxes: &[LabelledBox]) {
+    fn push<B: KittiFields>(&mut self, s: usize, stamp: u64, boxes: &[B]) {
         let start = self.sides[s].cols.len();
         self.sides[s].messages.push((stamp, start));
         for b in boxes {
-            let l = self.label(&b.label);
+            let l = self.label(b.label());
             self.sides[s].cols.push(b, l, self.geometry);
         }
     }
@@ -302,7 +306,7 @@ pub fn load_columns(
         let reqs: Vec<TopicRequest> = sides.iter().map(|s| request(s.1)).collect();
         let mut found = vec![false; reqs.len()];
         let mut reported = 0u64;
-        recording::for_each_frame(path, &reqs, |event, stats| {
+        let topics = recording::for_each_frame(path, &reqs, |event, stats| {
             progress(weight * stats.bytes_read.saturating_sub(reported));
             reported = reported.max(stats.bytes_read);
             match event {
@@ -329,7 +333,7 @@ pub fn load_columns(
             Ok(())
         })?;
         if let Some(k) = found.iter().position(|f| !f) {
-            bail!("{}: no channel with topic {}", path.display(), sides[k].1);
+            return Err(recording::no_channel(path.display(), sides[k].1, &topics));
         }
         let size = std::fs::metadata(path).map_or(reported, |m| m.len());
         progress(weight * size.saturating_sub(reported));
@@ -362,7 +366,7 @@ mod tests {
         s.push(0, 10, &[b(2, "bus", 2.0), b(3, "car", 3.0)]);
         s.push(0, 20, &[b(4, "car", 4.0)]);
         s.push(1, 30, &[b(9, "pedestrian", 9.0)]);
-        s.push(1, 10, &[]);
+        s.push::<LabelledBox>(1, 10, &[]);
         let c = s.finish("x".into(), None).unwrap();
         assert_eq!(c.stamps, vec![10, 20, 30]);
         assert_eq!(c.labels, vec!["car", "bus", "pedestrian"]);

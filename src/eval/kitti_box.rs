@@ -90,21 +90,40 @@ impl KittiFields for LabelledBox {
     }
 }
 
-/// A box as the KITTI evaluation reads it, its fields parsed once ([`KittiBoxes::read`]).
+/// A box's label and lower-cased KITTI type, one copy shared by the boxes of a log that have
+/// both (a pointer in each box instead of two strings).
+#[derive(Debug, PartialEq, Eq)]
+pub struct KittiNames {
+    /// Label of the message.
+    pub label: Box<str>,
+    /// Lower-cased KITTI type: the `kitti_type` attribute, else the label.
+    pub kitti_type: Box<str>,
+}
+
+impl KittiNames {
+    /// Names not shared with any other box (tests, single boxes).
+    pub fn new(label: &str, kitti_type: &str) -> Arc<KittiNames> {
+        Arc::new(KittiNames {
+            label: label.into(),
+            kitti_type: kitti_type.into(),
+        })
+    }
+}
+
+/// A box as the KITTI evaluation reads it, its fields parsed once ([`KittiBoxes::read`]): 136
+/// bytes, where a whole box with its label and attribute map takes several hundred.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KittiBox {
     /// Track or instance id of the message.
     pub id: u64,
-    /// Label of the message (shared by the boxes of a log with the same label).
-    pub label: Arc<str>,
-    /// Lower-cased KITTI type (likewise shared).
-    pub kitti_type: Arc<str>,
+    /// Label and KITTI type (shared by the boxes of a log with the same two).
+    pub names: Arc<KittiNames>,
     /// KITTI track id of a ground-truth box.
     pub truth_track_id: i64,
-    /// Truncation level.
-    pub truncated: i64,
-    /// Occlusion level.
-    pub occluded: i64,
+    /// Truncation level, saturated to `i32` (the evaluation only compares it with 0 to 2).
+    pub truncated: i32,
+    /// Occlusion level, likewise.
+    pub occluded: i32,
     /// The 3D box.
     pub box3: Box3,
     /// Score.
@@ -113,17 +132,24 @@ pub struct KittiBox {
     pub image_box: Option<[f64; 4]>,
 }
 
+impl KittiBox {
+    /// Label of the message.
+    pub fn label(&self) -> &str {
+        &self.names.label
+    }
+}
+
 impl KittiFields for KittiBox {
     fn id(&self) -> u64 {
         self.id
     }
 
     fn label(&self) -> &str {
-        &self.label
+        &self.names.label
     }
 
     fn kitti_type(&self) -> Cow<'_, str> {
-        Cow::Borrowed(&self.kitti_type)
+        Cow::Borrowed(&self.names.kitti_type)
     }
 
     fn truth_track_id(&self) -> i64 {
@@ -131,11 +157,11 @@ impl KittiFields for KittiBox {
     }
 
     fn truncated(&self) -> i64 {
-        self.truncated
+        self.truncated.into()
     }
 
     fn occluded(&self) -> i64 {
-        self.occluded
+        self.occluded.into()
     }
 
     fn box3(&self) -> Box3 {
@@ -151,10 +177,25 @@ impl KittiFields for KittiBox {
     }
 }
 
-/// Makes [`KittiBox`]es of one log, sharing each distinct label and type string.
+impl From<&LabelledBox> for KittiBox {
+    /// The KITTI fields of one box, its strings not shared (see [`KittiBoxes`] for a log).
+    fn from(b: &LabelledBox) -> KittiBox {
+        KittiBoxes::default().read(b)
+    }
+}
+
+/// Makes [`KittiBox`]es of one log, sharing each distinct pair of label and type (and, for
+/// other users, each distinct string: [`KittiBoxes::shared`]).
 #[derive(Debug, Default)]
 pub struct KittiBoxes {
+    /// By label, then by KITTI type.
+    names: HashMap<String, HashMap<String, Arc<KittiNames>>>,
     strings: HashMap<String, Arc<str>>,
+}
+
+/// `v` saturated to `i32`: the same answer to every comparison with a small number.
+fn saturate(v: i64) -> i32 {
+    v.clamp(i32::MIN.into(), i32::MAX.into()) as i32
 }
 
 impl KittiBoxes {
@@ -162,18 +203,33 @@ impl KittiBoxes {
     pub fn read(&mut self, b: &LabelledBox) -> KittiBox {
         KittiBox {
             id: b.id,
-            label: self.shared(&b.label),
-            kitti_type: self.shared(&b.kitti_type()),
+            names: self.names(&b.label, &b.kitti_type()),
             truth_track_id: b.truth_track_id(),
-            truncated: b.truncated(),
-            occluded: b.occluded(),
+            truncated: saturate(b.truncated()),
+            occluded: saturate(b.occluded()),
             box3: b.box3(),
             score: b.score,
             image_box: b.image_box,
         }
     }
 
-    fn shared(&mut self, s: &str) -> Arc<str> {
+    /// The shared names of a label and type.
+    fn names(&mut self, label: &str, kitti_type: &str) -> Arc<KittiNames> {
+        if let Some(n) = self
+            .names
+            .get(label)
+            .and_then(|by_type| by_type.get(kitti_type))
+        {
+            return n.clone();
+        }
+        let n = KittiNames::new(label, kitti_type);
+        let by_type = self.names.entry(label.to_string()).or_default();
+        by_type.insert(kitti_type.to_string(), n.clone());
+        n
+    }
+
+    /// The shared copy of `s` (a label, say): one allocation per distinct string of the log.
+    pub fn shared(&mut self, s: &str) -> Arc<str> {
         if let Some(a) = self.strings.get(s) {
             return a.clone();
         }
@@ -226,15 +282,24 @@ mod tests {
             assert_eq!((k.score(), k.image_box()), (b.score(), b.image_box()));
         }
         let k = boxes.read(&with);
-        assert_eq!(&*k.kitti_type, "person_sitting");
+        assert_eq!(&*k.names.kitti_type, "person_sitting");
         assert_eq!((k.truncated, k.occluded, k.truth_track_id), (1, 2, 7));
         assert_eq!(
             boxes.read(&without).truth_track_id,
             2,
             "no attribute: id - 1"
         );
-        assert_eq!(&*boxes.read(&without).kitti_type, "car");
-        // One string per distinct label and type.
-        assert!(Arc::ptr_eq(&boxes.read(&with).label, &k.label));
+        assert_eq!(&*boxes.read(&without).names.kitti_type, "car");
+        // One copy per distinct label and type.
+        assert!(Arc::ptr_eq(&boxes.read(&with).names, &k.names));
+        assert!(!Arc::ptr_eq(&boxes.read(&without).names, &k.names));
+        // Levels beyond i32 compare as they did: above the thresholds.
+        let huge = LabelledBox {
+            attributes: [(ATTR_TRUNCATED.to_string(), "1e12".to_string())].into(),
+            ..without.clone()
+        };
+        assert_eq!(huge.truncated(), 1_000_000_000_000);
+        assert_eq!(boxes.read(&huge).truncated, i32::MAX);
+        assert_eq!(std::mem::size_of::<KittiBox>(), 136);
     }
 }

@@ -34,11 +34,18 @@ impl<B> Default for Scene<B> {
 /// message (the stamp is the message's, or its `log_time` when that is 0). A box with a
 /// non-finite centre, size, yaw or score is an error ([`check_finite`]).
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
-    let (frames, bad) = read_boxes(path, topic, &|_| {}, false, &mut |b| b)?;
-    match bad {
-        Some(e) => Err(e),
-        None => Ok(frames),
-    }
+    read_boxes(path, topic, &|_| {}, false, &mut |b| b)
+}
+
+/// [`read_tracks_topic`], each box kept as what the evaluations read of it ([`KittiBox`]: the
+/// nuScenes protocol reads its id, label, centre and score), its strings shared through
+/// `boxes`: a few times smaller than a whole box with its attribute map.
+pub fn read_kitti_topic(
+    path: &Path,
+    topic: &str,
+    boxes: &mut KittiBoxes,
+) -> Result<Vec<(u64, Vec<KittiBox>)>> {
+    read_boxes(path, topic, &|_| {}, false, &mut |b| boxes.read(&b))
 }
 
 /// Whether the evaluation reads an attribute: the KITTI fields (`kitti_*`) and the nuScenes
@@ -53,16 +60,16 @@ pub fn is_evaluated_attribute(key: &str) -> bool {
 type Messages<B> = Vec<(u64, Vec<B>)>;
 
 /// The boxes of a tracks topic, message by message, each made into what the caller keeps of it
-/// by `keep`; also the first message with a box the evaluation cannot score ([`check_finite`])
-/// or, with `truth_ids`, a truth box without id ([`check_ids`]), as an error for the caller to
-/// raise when it is its turn.
+/// by `keep`. The first message with a box the evaluation cannot score ([`check_finite`]) or,
+/// with `truth_ids`, a truth box without id ([`check_ids`]) stops the reading with its error:
+/// the rest of a long log is not read for nothing.
 fn read_boxes<B>(
     path: &Path,
     topic: &str,
     progress: &dyn Fn(u64),
     truth_ids: bool,
     keep: &mut dyn FnMut(LabelledBox) -> B,
-) -> Result<(Messages<B>, Option<anyhow::Error>)> {
+) -> Result<Messages<B>> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
@@ -71,8 +78,7 @@ fn read_boxes<B>(
     let mut out = Vec::new();
     let mut found = false;
     let mut reported = 0u64;
-    let mut bad = None;
-    recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
+    let topics = recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         match event {
@@ -82,11 +88,9 @@ fn read_boxes<B>(
                     Boxes::Tracks(t) => t.into_iter().map(LabelledBox::from_track).collect(),
                     Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
                 };
-                if bad.is_none() {
-                    bad = check_finite(path, (topic, f.stamp), &boxes, Reads::Box3d).err();
-                }
-                if truth_ids && bad.is_none() {
-                    bad = check_ids(path, topic, f.stamp, &boxes).err();
+                check_finite(path, (topic, f.stamp), &boxes, Reads::Box3d)?;
+                if truth_ids {
+                    check_ids(path, topic, f.stamp, &boxes)?;
                 }
                 // A new allocation of the kept size: `collect` would reuse the decoded
                 // boxes' larger one in place, and a long log holds millions of them.
@@ -98,11 +102,11 @@ fn read_boxes<B>(
         Ok(())
     })?;
     if !found {
-        bail!("{}: no channel with topic {topic}", path.display());
+        return Err(recording::no_channel(path.display(), topic, &topics));
     }
     let size = std::fs::metadata(path).map_or(reported, |m| m.len());
     progress(size.saturating_sub(reported));
-    Ok((out, bad))
+    Ok(out)
 }
 
 /// Loads one scene: truth and tracks topics (possibly of the same file), checked: truth boxes
@@ -153,11 +157,8 @@ fn load_scene_as<B>(
     progress: &dyn Fn(u64),
     keep: &mut dyn FnMut(LabelledBox) -> B,
 ) -> Result<Scene<B>> {
-    let (gt, gt_bad) = read_boxes(truth, truth_topic, progress, !allow_unlabelled, keep)?;
-    let (tr, tr_bad) = read_boxes(tracks, tracks_topic, progress, false, keep)?;
-    if let Some(e) = gt_bad.or(tr_bad) {
-        return Err(e);
-    }
+    let gt = read_boxes(truth, truth_topic, progress, !allow_unlabelled, keep)?;
+    let tr = read_boxes(tracks, tracks_topic, progress, false, keep)?;
     // Frames are the union of both channels' stamps.
     let stamps = |v: &[(u64, Vec<B>)]| v.iter().map(|m| m.0).collect::<Vec<_>>();
     check(

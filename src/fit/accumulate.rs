@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use super::data::{FitFrame, FitLog};
 use super::measurement::{MeasurementState, MeasurementStatsByLabel};
 use super::process::{ProcessStats, ProcessWindow};
+use super::stats::median;
 use super::timing::{interval_s, period_of_intervals, FramePeriod};
 use crate::msgs::detection_frame::SkipReason;
 
@@ -20,6 +21,8 @@ pub struct FitAccumulator {
     pub(super) detections: u64,
     pub(super) unmatched_detection_messages: u64,
     pub(super) intervals: Vec<f64>,
+    /// Per log (as `names`), where its intervals start in `intervals`.
+    pub(super) log_starts: Vec<usize>,
     /// Per log with skipped detection boxes: its name and the counts by reason.
     pub(super) skipped: Vec<(String, BTreeMap<SkipReason, u64>)>,
     /// Per log with skipped ground-truth boxes: its name and how many.
@@ -45,6 +48,7 @@ impl FitAccumulator {
     /// Starts the log `name`; its frames go through the returned state.
     pub fn begin_log(&mut self, name: &str) -> LogState {
         self.names.push(name.to_string());
+        self.log_starts.push(self.intervals.len());
         LogState::default()
     }
 
@@ -88,6 +92,19 @@ impl FitAccumulator {
     /// each log.
     pub fn frame_period(&self) -> Option<FramePeriod> {
         period_of_intervals(&self.intervals)
+    }
+
+    /// Per log with two frames or more: its name and median frame interval, seconds.
+    pub fn log_periods(&self) -> Vec<(&str, f64)> {
+        let ends = self
+            .log_starts
+            .iter()
+            .skip(1)
+            .copied()
+            .chain([self.intervals.len()]);
+        (self.names.iter().zip(self.log_starts.iter().zip(ends)))
+            .filter_map(|(name, (&a, b))| Some((name.as_str(), median(&self.intervals[a..b])?)))
+            .collect()
     }
 
     /// Adds a whole log.

@@ -4,7 +4,7 @@
 use std::collections::{BTreeMap, HashSet};
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 
 use super::accumulate::FitAccumulator;
 use super::data::{assemble_frames, FitFrame, FitLog};
@@ -32,7 +32,7 @@ fn read_topics(
     let mut out: Vec<Option<TopicBoxes>> = vec![None; wanted.len()];
     let mut skipped = Skipped::new();
     let mut reported = 0u64;
-    recording::for_each_frame(path, wanted, |event, stats| {
+    let topics = recording::for_each_frame(path, wanted, |event, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         match event {
@@ -59,10 +59,11 @@ fn read_topics(
         }
         Ok(())
     })?;
-    let topics = out.into_iter().zip(wanted).map(|(o, r)| {
-        o.with_context(|| format!("{}: no channel with topic {}", path.display(), r.topic))
-    });
-    Ok((topics.collect::<Result<_>>()?, skipped))
+    let read = out
+        .into_iter()
+        .zip(wanted)
+        .map(|(o, r)| o.ok_or_else(|| recording::no_channel(path.display(), &r.topic, &topics)));
+    Ok((read.collect::<Result<_>>()?, skipped))
 }
 
 fn request(topic: &str, kind: TopicKind, role: &str) -> TopicRequest {
@@ -176,7 +177,7 @@ fn stream_ordered(
                 }
             }
         };
-    recording::for_each_frame(path, &wanted, |event, stats| {
+    let topics = recording::for_each_frame(path, &wanted, |event, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         let (i, f) = match event {
@@ -218,7 +219,7 @@ fn stream_ordered(
         return Ok(false);
     }
     if let Some(k) = found.iter().position(|f| !f) {
-        bail!("{file}: no channel with topic {}", wanted[k].topic);
+        return Err(recording::no_channel(&file, &wanted[k].topic, &topics));
     }
     if newest[0].is_none() {
         bail!("{file}: topic {truth_topic} (ground truth) has no messages");

@@ -35,7 +35,7 @@ pub use timing::FramePeriod;
 
 use crate::msgs::detection_frame::describe_skips;
 pub use accumulate::FitAccumulator;
-use timing::{q_scale, velocity_variance_scale};
+use timing::{mixed_periods, q_scale, velocity_variance_scale};
 
 /// Settings of a fit.
 #[derive(Debug, Clone, PartialEq)]
@@ -157,6 +157,9 @@ pub fn fit_gathered(acc: FitAccumulator, options: &FitOptions) -> FitReport {
             options.dt_nominal
         }
     };
+    if let Some(w) = mixed_periods(&acc.log_periods(), data_period) {
+        warnings.push(w);
+    }
     if let Some(p) = period {
         if p.irregular > 0 {
             warnings.push(format!(

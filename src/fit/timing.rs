@@ -59,6 +59,29 @@ pub fn period_of_intervals(dts: &[f64]) -> Option<FramePeriod> {
     })
 }
 
+/// A warning when the logs' own frame periods (`(name, median interval)`) differ by more than
+/// [`IRREGULAR_FRACTION`]: the fit pools their intervals at one period (`pooled`) that may be
+/// none of them (a 2 Hz and a 10 Hz log pool at 0.3 s), and its second differences mix them.
+pub fn mixed_periods(periods: &[(&str, f64)], pooled: f64) -> Option<String> {
+    let (lo, hi) = periods
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(lo, hi), (_, p)| {
+            (lo.min(*p), hi.max(*p))
+        });
+    if periods.len() < 2 || hi - lo <= IRREGULAR_FRACTION * lo {
+        return None;
+    }
+    let each: Vec<String> = periods
+        .iter()
+        .map(|(n, p)| format!("{n} {p:.4} s"))
+        .collect();
+    Some(format!(
+        "the logs have different frame periods ({}); the fit pools them at {pooled:.4} s: fit \
+         logs of one frame rate together",
+        each.join(", ")
+    ))
+}
+
 /// Factor applied to the fitted `Q` (per data frame of `data_period` seconds) to express it per
 /// nominal frame of `dt_nominal` seconds: `(dt_nominal / data_period)^3`.
 pub fn q_scale(data_period: f64, dt_nominal: f64) -> f64 {

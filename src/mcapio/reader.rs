@@ -58,12 +58,27 @@ pub fn read_records(
     let mut stats = ReadStats::default();
     let mut chunk_buf = Vec::new();
     while let Some(event) = reader.next_event() {
-        let event = event.with_context(|| {
-            format!(
-                "{}: not a readable MCAP file (failed near byte {})",
+        let event = event.map_err(|e| {
+            // A file cut short (a recorder that crashed or was killed) is common enough to say
+            // how to get back what it holds.
+            let cut_short = match e {
+                mcap::McapError::UnexpectedEof if stats.bytes_read == 0 => "; the file is empty",
+                // Not even the 8-byte magic: nothing a recorder wrote.
+                mcap::McapError::UnexpectedEof if stats.bytes_read < 8 => {
+                    "; the file is too short to be an MCAP file"
+                }
+                mcap::McapError::UnexpectedEof => {
+                    "; the file is cut short (a recording that did not finish?): `mcap recover \
+                     IN.mcap -o OUT.mcap` (the mcap CLI, https://mcap.dev) rebuilds the \
+                     messages it holds"
+                }
+                _ => "",
+            };
+            anyhow::Error::new(e).context(format!(
+                "{}: not a readable MCAP file (failed near byte {}){cut_short}",
                 path.display(),
                 stats.bytes_read
-            )
+            ))
         })?;
         match event {
             LinearReadEvent::ReadRequest(need) => {

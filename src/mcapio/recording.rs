@@ -265,6 +265,28 @@ fn decode_frame(decoder: &Decoder, data: &[u8], log_time: u64) -> Result<Frame> 
     })
 }
 
+/// The error for a topic the file has no channel for: it names the topics the file has, and for
+/// `/tracks` (the tracks `probmot track` writes) says where they come from, since an untracked
+/// log is the usual cause.
+pub fn no_channel(
+    file: impl fmt::Display,
+    topic: &str,
+    topics: &BTreeSet<String>,
+) -> anyhow::Error {
+    let has = match topics.is_empty() {
+        true => "the file has no channels".to_string(),
+        false => {
+            let names: Vec<&str> = topics.iter().map(String::as_str).collect();
+            format!("topics: {}", names.join(", "))
+        }
+    };
+    let hint = match topic {
+        "/tracks" => "; `probmot track` writes /tracks: track the log first",
+        _ => "",
+    };
+    anyhow::anyhow!("{file}: no channel with topic {topic} ({has}){hint}")
+}
+
 /// The frames of one tracks topic (`probmot.Tracks3D` or ROS 2 tracks, [`TopicKind::Tracks`]):
 /// `(stamp, tracks)` per message in file order; an error when the file has no such channel.
 pub fn tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Track3D>)>> {
@@ -275,7 +297,7 @@ pub fn tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Track3D>)>
     };
     let read = frames(path, std::slice::from_ref(&req))?;
     let Some(frames) = read.frames.into_iter().next().flatten() else {
-        bail!("{}: no channel with topic {topic}", path.display());
+        return Err(no_channel(path.display(), topic, &read.topics));
     };
     frames
         .into_iter()

@@ -1,12 +1,13 @@
 //! Reading the decoded messages of one topic of a probmot schema.
 
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use mcap::records::{Channel, MessageHeader, Record};
 
 use super::reader::read_records;
+use super::recording::no_channel;
 use crate::msgs::{self, Encoding};
 
 /// Calls `on_channel` for every channel of `topic` with its schema's name (it checks the
@@ -53,12 +54,14 @@ pub fn for_each_message<M>(
     topic: &str,
     schema: &str,
     mut on_message: impl FnMut(&MessageHeader, M) -> Result<()>,
-    on_other: impl FnMut(Record<'_>) -> Result<()>,
+    mut on_other: impl FnMut(Record<'_>) -> Result<()>,
 ) -> Result<()>
 where
     M: prost::Message + Default + serde::de::DeserializeOwned,
 {
     let file = path.display().to_string();
+    // The other topics, for the error when `topic` is missing.
+    let mut topics = BTreeSet::new();
     let found = for_each_payload(
         path,
         topic,
@@ -83,10 +86,15 @@ where
             })?;
             on_message(header, m)
         },
-        on_other,
+        |rec| {
+            if let Record::Channel(c) = &rec {
+                topics.insert(c.topic.clone());
+            }
+            on_other(rec)
+        },
     )?;
     if !found {
-        bail!("{file}: no channel with topic {topic}");
+        return Err(no_channel(&file, topic, &topics));
     }
     Ok(())
 }

@@ -182,9 +182,18 @@ pub fn library_string() -> String {
     format!("probmot {}", env!("CARGO_PKG_VERSION"))
 }
 
-/// Checks an output path before any work: it is not a directory, its directory exists and it is
-/// not the input.
+/// Checks an output path before any work: it is not a directory (nor written as one, with a
+/// trailing slash), its directory exists and it is not the input.
 pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {
+    let text = dest.as_os_str().to_string_lossy();
+    if text.ends_with(std::path::is_separator) {
+        bail!(
+            "output {} names a directory (it ends with a slash); give the path of a file to \
+             write, e.g. {}",
+            dest.display(),
+            dest.join("out.mcap").display()
+        );
+    }
     if dest.is_dir() {
         bail!(
             "output {} is a directory; give the path of a file to write",

@@ -77,13 +77,16 @@ pub struct DetectionFrame {
     pub rejected: Vec<Rejected>,
 }
 
-/// `N detection boxes: a (reason), b (reason)`: the boxes a reader of detections skipped, by
-/// reason, as `track`, `fit` and `tune` report them.
+/// `N detection boxes (reason)`, or `N detection boxes: a (reason), b (reason)` for several
+/// reasons: the boxes a reader of detections skipped, as `track`, `fit` and `tune` report them.
 pub fn describe_skips(skipped: &BTreeMap<SkipReason, u64>) -> String {
+    let total: u64 = skipped.values().sum();
+    if let [(r, _)] = skipped.iter().collect::<Vec<_>>()[..] {
+        return format!("{total} detection boxes ({})", r.describe());
+    }
     let parts: Vec<String> = (skipped.iter())
         .map(|(r, n)| format!("{n} ({})", r.describe()))
         .collect();
-    let total: u64 = skipped.values().sum();
     format!("{total} detection boxes: {}", parts.join(", "))
 }
 

@@ -20,6 +20,9 @@ pub struct InputCounters {
     pub score_outside_unit: u64,
     /// Detections given to the tracker, per label.
     pub per_label: BTreeMap<String, u64>,
+    /// Boxes skipped because the config has no entry for their label, per label: what the
+    /// warning names, so that a preset for other classes does not drop them unsaid.
+    pub unknown_labels: BTreeMap<String, u64>,
 }
 
 impl InputCounters {
@@ -82,6 +85,7 @@ pub fn convert(
     origin: &Origin<'_>,
 ) -> Result<Option<Detection>> {
     let Some(class) = tracker.class_id(&d.label) else {
+        count_label(&mut counters.unknown_labels, &d.label);
         skip(
             d.index,
             &d.label,
@@ -95,15 +99,29 @@ pub fn convert(
     if !(0.0..=1.0).contains(&d.score) {
         counters.score_outside_unit += 1;
     }
-    match counters.per_label.get_mut(d.label.as_str()) {
-        Some(n) => *n += 1,
-        None => {
-            counters.per_label.insert(d.label.clone(), 1);
-        }
-    }
+    count_label(&mut counters.per_label, &d.label);
     Ok(Some(Detection {
         bbox: d.bbox,
         class,
         score: d.score,
     }))
+}
+
+/// Adds one to `label`'s count; the label is copied only the first time it is seen.
+fn count_label(counts: &mut BTreeMap<String, u64>, label: &str) {
+    match counts.get_mut(label) {
+        Some(n) => *n += 1,
+        None => {
+            counts.insert(label.to_string(), 1);
+        }
+    }
+}
+
+/// The labels the config has no entry for, with their counts (`bicycle 131, bus 81`), most
+/// frequent first: the words of the skip warning.
+pub fn describe_unknown_labels(counts: &BTreeMap<String, u64>) -> String {
+    let mut v: Vec<(&String, &u64)> = counts.iter().collect();
+    v.sort_by(|a, b| b.1.cmp(a.1).then(a.0.cmp(b.0)));
+    let named: Vec<String> = v.iter().map(|(l, n)| format!("{l:?} {n}")).collect();
+    named.join(", ")
 }

@@ -9,7 +9,9 @@
 //!
 //! A message whose transform is missing at its stamp (frame not in the tree, not connected to
 //! the fixed frame, or the stamp outside the transforms' time range beyond the tolerance) has
-//! its boxes skipped and is counted; with `--strict` it is an error.
+//! its boxes skipped and is counted; with `--strict` it is an error. A `--fixed-frame` that no
+//! transform of the log names is always an error (a typo would otherwise skip every message):
+//! the tree is complete before tracking starts, so no later message could be moved into it.
 
 use std::collections::BTreeMap;
 
@@ -70,6 +72,8 @@ pub struct EgoMotion {
     /// Per stamp not yet tracked: the first message's frame and its frame-to-fixed transform.
     ego_of_stamp: BTreeMap<u64, (String, Isometry3<f64>)>,
     first_failure: Option<String>,
+    /// Whether the fixed frame is `--fixed-frame`'s (not the tree's root).
+    fixed_given: bool,
     summary: EgoSummary,
 }
 
@@ -97,6 +101,7 @@ impl EgoMotion {
             strict,
             ego_of_stamp: BTreeMap::new(),
             first_failure: None,
+            fixed_given: opts.fixed_frame.is_some(),
             summary,
         })
     }
@@ -142,6 +147,7 @@ impl EgoMotion {
                 Ok(())
             }
             Err(e) => {
+                self.check_fixed_in_tree(&fixed, &msg.frame_id, &where_)?;
                 let text = format!(
                     "{}: no transform from '{}' to the fixed frame '{}': {e}",
                     where_(),
@@ -162,6 +168,29 @@ impl EgoMotion {
                 Ok(())
             }
         }
+    }
+
+    /// An error when the fixed frame came from `--fixed-frame` and no transform names it: no
+    /// message in another frame (`source`) could ever be moved into it.
+    fn check_fixed_in_tree(
+        &self,
+        fixed: &str,
+        source: &str,
+        where_: &impl Fn() -> String,
+    ) -> Result<()> {
+        let buffer = &self.collector.buffer;
+        if !self.fixed_given || buffer.frame_index(fixed).is_some() {
+            return Ok(());
+        }
+        let frames = match buffer.frame_names() {
+            [] => "the log has no transforms".to_string(),
+            names => format!("its transforms name {}", names.join(", ")),
+        };
+        bail!(
+            "{}: --fixed-frame '{fixed}' is in no transform of the log, so detections in \
+             '{source}' cannot be moved into it; {frames}",
+            where_()
+        )
     }
 
     /// The detection frame of a tracked stamp and the transform from the fixed frame into it

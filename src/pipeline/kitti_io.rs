@@ -353,8 +353,23 @@ fn result_track(r: &KittiRow) -> Track3D {
     }
 }
 
-/// The time base written by `import kitti`: `(first_stamp_ns, frame_period_ns)`.
-pub fn kitti_time_base(path: &Path) -> Result<(u64, u64)> {
+/// The object types of KITTI's tracking labels (its devkit's readme); the evaluation scores
+/// Car and Pedestrian (and Cyclist), with Van and Person_sitting as their neighbours.
+pub const KITTI_TYPES: [&str; 9] = [
+    "Car",
+    "Van",
+    "Truck",
+    "Pedestrian",
+    "Person_sitting",
+    "Cyclist",
+    "Tram",
+    "Misc",
+    "DontCare",
+];
+
+/// The time base written by `import kitti`: `(first_stamp_ns, frame_period_ns)`, if the file
+/// has one.
+pub fn kitti_time_base(path: &Path) -> Result<Option<(u64, u64)>> {
     let mut base = None;
     read_records(path, |rec, _| {
         if let mcap::records::Record::Metadata(m) = rec {
@@ -371,7 +386,7 @@ pub fn kitti_time_base(path: &Path) -> Result<(u64, u64)> {
         }
         Ok(())
     })?;
-    Ok(base.unwrap_or((START_NS, KITTI_PERIOD_NS)))
+    Ok(base)
 }
 
 /// Counts of an export.
@@ -381,6 +396,87 @@ pub struct ExportSummary {
     pub rows: u64,
     /// Frames with at least one row.
     pub frames: u64,
+    /// What the file may not say as the reader expects (frames numbered by order, types KITTI
+    /// does not know).
+    pub warnings: Vec<String>,
+}
+
+/// The KITTI frame number of each message of `frames`: on `import kitti`'s time base
+/// (`base`: a stamp off it is an error), else 0, 1, 2, ... in the order of the distinct stamps,
+/// with a warning saying so.
+fn frame_numbers(
+    input: &Path,
+    topic: &str,
+    base: Option<(u64, u64)>,
+    frames: &[(u64, Vec<Track3D>)],
+    warnings: &mut Vec<String>,
+) -> Result<Vec<u32>> {
+    let Some((first, period)) = base else {
+        let mut stamps: Vec<u64> = frames.iter().map(|f| f.0).collect();
+        stamps.sort_unstable();
+        stamps.dedup();
+        warnings.push(format!(
+            "{}: not written by `probmot import kitti` (no KITTI time base): frames are \
+             numbered 0, 1, 2, ... in the order of the {} stamps of topic {topic}",
+            input.display(),
+            stamps.len()
+        ));
+        let index = |s: &u64| stamps.binary_search(s).expect("a stamp of the topic") as u32;
+        return Ok(frames.iter().map(|f| index(&f.0)).collect());
+    };
+    (frames.iter())
+        .map(|(stamp, _)| {
+            if *stamp < first || (stamp - first) % period != 0 {
+                bail!(
+                    "{}: topic {topic} has a frame at stamp {stamp} ns, not on the KITTI time \
+                     base ({first} + k * {period} ns)",
+                    input.display()
+                );
+            }
+            Ok(((stamp - first) / period) as u32)
+        })
+        .collect()
+}
+
+/// One box as a KITTI row of frame `frame`: a label row for ground truth (`truth`: original
+/// id, truncation and occlusion, no score), else a result row.
+fn kitti_row(b: &Track3D, frame: u32, truth: bool) -> KittiRow {
+    let (c, s) = (b.center.unwrap_or_default(), b.size.unwrap_or_default());
+    let bx = Box3 {
+        center: [c.x, c.y, c.z],
+        yaw: b.yaw,
+        size: [s.length, s.width, s.height],
+    };
+    let (hwl, xyz, ry) = box_to_camera(&bx);
+    let a = &b.attributes;
+    let parse = |k: &str, d: f64| number_attr(a, k).unwrap_or(d);
+    // Imported results (and ground truth) keep their original id in an attribute.
+    let own_id = if truth {
+        b.id as f64 - 1.0
+    } else {
+        b.id as f64
+    };
+    KittiRow {
+        frame,
+        track_id: parse(attr::TRACK_ID, own_id) as i64,
+        kind: (a.get(attr::TYPE).cloned()).unwrap_or_else(|| capitalize(&b.label)),
+        truncated: if truth {
+            parse(attr::TRUNCATED, 0.0)
+        } else {
+            0.0
+        },
+        occluded: if truth {
+            parse(attr::OCCLUDED, 0.0) as i64
+        } else {
+            0
+        },
+        alpha: parse(attr::ALPHA, -10.0),
+        bbox: b.image_box.map_or([0.0; 4], |i| [i.x1, i.y1, i.x2, i.y2]),
+        hwl,
+        xyz,
+        rotation_y: ry,
+        score: if truth { None } else { Some(b.score) },
+    }
 }
 
 /// Writes a `Tracks3D` topic as a KITTI tracking result (or label) file. Type, 2D box, alpha,
@@ -394,64 +490,25 @@ pub fn export_kitti(
     scores: bool,
 ) -> Result<ExportSummary> {
     check_output_path(Some(input), output)?;
-    let (first, period) = kitti_time_base(input)?;
+    let base = kitti_time_base(input)?;
     let frames = tracks_topic(input, topic)?;
     let mut text = String::new();
     let mut summary = ExportSummary::default();
     let truth = topic != "/tracks" && !scores;
-    for (stamp, boxes) in &frames {
-        if *stamp < first || (stamp - first) % period != 0 {
-            bail!(
-                "{}: topic {topic} has a frame at stamp {stamp} ns, not on the KITTI time base \
-                 ({first} + k * {period} ns)",
-                input.display()
-            );
-        }
-        let frame = ((stamp - first) / period) as u32;
+    let numbers = frame_numbers(input, topic, base, &frames, &mut summary.warnings)?;
+    let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
+    for ((stamp, boxes), frame) in frames.iter().zip(numbers) {
         if !boxes.is_empty() {
             summary.frames += 1;
         }
         for (i, b) in boxes.iter().enumerate() {
-            let (c, s) = (b.center.unwrap_or_default(), b.size.unwrap_or_default());
-            let bx = Box3 {
-                center: [c.x, c.y, c.z],
-                yaw: b.yaw,
-                size: [s.length, s.width, s.height],
-            };
-            let (hwl, xyz, ry) = box_to_camera(&bx);
-            let a = &b.attributes;
-            let parse = |k: &str, d: f64| number_attr(a, k).unwrap_or(d);
-            let kind = a
-                .get(attr::TYPE)
-                .cloned()
-                .unwrap_or_else(|| capitalize(&b.label));
-            // Imported results (and ground truth) keep their original id in an attribute.
-            let track_id = if truth {
-                parse(attr::TRACK_ID, b.id as f64 - 1.0) as i64
-            } else {
-                parse(attr::TRACK_ID, b.id as f64) as i64
-            };
-            let row = KittiRow {
-                frame,
-                track_id,
-                kind,
-                truncated: if truth {
-                    parse(attr::TRUNCATED, 0.0)
-                } else {
-                    0.0
-                },
-                occluded: if truth {
-                    parse(attr::OCCLUDED, 0.0) as i64
-                } else {
-                    0
-                },
-                alpha: parse(attr::ALPHA, -10.0),
-                bbox: b.image_box.map_or([0.0; 4], |i| [i.x1, i.y1, i.x2, i.y2]),
-                hwl,
-                xyz,
-                rotation_y: ry,
-                score: if truth { None } else { Some(b.score) },
-            };
+            let row = kitti_row(b, frame, truth);
+            if !KITTI_TYPES
+                .iter()
+                .any(|t| t.eq_ignore_ascii_case(&row.kind))
+            {
+                *unknown_types.entry(row.kind.clone()).or_default() += 1;
+            }
             if !row.is_finite() {
                 bail!(
                     "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite \
@@ -465,6 +522,18 @@ pub fn export_kitti(
             text.push('\n');
             summary.rows += 1;
         }
+    }
+    if !unknown_types.is_empty() {
+        let each: Vec<String> = unknown_types
+            .iter()
+            .map(|(t, n)| format!("{t} {n}"))
+            .collect();
+        summary.warnings.push(format!(
+            "{}: rows of types KITTI's labels do not have, written as they are (its evaluation \
+             scores Car, Pedestrian and Cyclist): {}",
+            input.display(),
+            each.join(", ")
+        ));
     }
     write_file_atomic(output, text.as_bytes())?;
     Ok(summary)

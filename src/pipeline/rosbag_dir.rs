@@ -53,6 +53,12 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
     }
 }
 
+/// `path`, or for a bag directory its MCAP file: what the commands that read one file at a time
+/// (`info`, `plot`, `viz`, `fit`, `tune`, `export`) open.
+pub fn resolve_input(path: &Path) -> Result<PathBuf> {
+    Ok(bag_mcap(path)?.unwrap_or_else(|| path.to_path_buf()))
+}
+
 /// Creates the output bag directory (it must not exist, or be empty, as for `ros2 bag record`)
 /// and returns the path of its MCAP file (named after the input's).
 pub fn prepare_output(dir: &Path, input_mcap: &Path) -> Result<PathBuf> {

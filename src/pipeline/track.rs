@@ -216,7 +216,7 @@ pub fn track_file(
     check_output_path(Some(input), output)?;
     let file = input.display().to_string();
     let size = std::fs::metadata(input)
-        .with_context(|| format!("cannot read {}", input.display()))?
+        .with_context(|| format!("cannot open {}", input.display()))?
         .len();
     if opts.no_track {
         progress(Progress::Length(size));

@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
 
-use super::detections::{convert, reject, InputCounters, Origin};
+use super::detections::{convert, describe_unknown_labels, reject, InputCounters, Origin};
 use super::ego::EgoMotion;
 use super::frame_schedule::Schedule;
 use super::progress::Progress;
@@ -22,7 +22,7 @@ use crate::msgs::detection_frame::{describe_skips, DetectionFrame};
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::track_encode::fill_track3d;
 use crate::msgs::{ImageBox, Track3D, Tracks3D};
-use crate::tracker::{Detection, Lookback, TrackReport, Tracker};
+use crate::tracker::{Detection, Lookback, TrackReport, Tracker, TrackerConfig};
 
 /// The error of a detection message that does not decode.
 pub(super) fn undecodable(
@@ -337,8 +337,25 @@ impl<S: RecordSink> TrackSession<'_, S> {
         };
         summary.merged_messages = summary.detection_messages - summary.tracks_messages;
         if counters.total_skipped() > 0 {
-            let skipped = describe_skips(&counters.skipped);
-            summary.warnings.push(format!("{file}: skipped {skipped}"));
+            let mut warning = format!("{file}: skipped {}", describe_skips(&counters.skipped));
+            if !counters.unknown_labels.is_empty() {
+                let known: Vec<&str> = tracker
+                    .config()
+                    .classes
+                    .keys()
+                    .map(|k| k.as_str())
+                    .collect();
+                warning.push_str(&format!(
+                    "; labels not in the config: {}; the config has entries for {} (add an \
+                     entry for a label, or a \"default\" one, to track it: `probmot config`)",
+                    describe_unknown_labels(&counters.unknown_labels),
+                    known.join(", ")
+                ));
+            }
+            summary.warnings.push(warning);
+        }
+        if let Some(w) = unused_entries(file, tracker.config(), &counters) {
+            summary.warnings.push(w);
         }
         if counters.score_outside_unit > 0 {
             summary.warnings.push(format!(
@@ -356,6 +373,34 @@ impl<S: RecordSink> TrackSession<'_, S> {
         summary.ego = ego.finish(file, &mut summary.warnings);
         (out, summary)
     }
+}
+
+/// A warning when a config entry saw no detection while a label close to its name (`car` for
+/// an entry `cars`: the same but for case or an edit or two) fell to the default entry: the
+/// entry's settings would otherwise go unused without a word. Entries for classes a log simply
+/// lacks, beside other labels (a nuScenes scene without buses), are not named.
+fn unused_entries(file: &str, config: &TrackerConfig, counters: &InputCounters) -> Option<String> {
+    let near = |entry: &str, label: &str| {
+        let (e, l) = (entry.to_lowercase(), label.to_lowercase());
+        let allowed = (e.chars().count().min(l.chars().count()) / 4).max(1);
+        e == l || strsim::levenshtein(&e, &l) <= allowed
+    };
+    let pairs: Vec<String> = (config.classes.keys())
+        .filter(|c| !counters.per_label.contains_key(*c))
+        .flat_map(|entry| {
+            (counters.per_label.keys())
+                .filter(|l| !config.classes.contains_key(*l) && near(entry, l))
+                .map(move |l| format!("entry {entry:?}, label {l:?}"))
+        })
+        .collect();
+    if pairs.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "{file}: config entries that no detection's label matches, beside a near label that \
+         went to the default entry ({}): labels are compared exactly",
+        pairs.join("; ")
+    ))
 }
 
 /// Image box and attributes of a track's last matched detection.

@@ -183,6 +183,11 @@ impl TransformBuffer {
         }
     }
 
+    /// The names of the frames in the tree, in the order they were first seen.
+    pub fn frame_names(&self) -> &[String] {
+        &self.names
+    }
+
     /// The root of the tree holding `frame` (the frame itself if it has no parent).
     pub fn root_of(&self, frame: &str) -> Option<&str> {
         let mut i = self.frame_index(frame)?;

@@ -4,10 +4,12 @@
 
 use std::collections::BTreeMap;
 use std::path::Path;
+use std::sync::Arc;
 
 use anyhow::{bail, Context, Result};
 
-use crate::eval::scene::read_tracks_topic;
+use crate::eval::kitti_box::{KittiBox, KittiBoxes};
+use crate::eval::scene::read_kitti_topic;
 use crate::fit::{FitAccumulator, FitFrame};
 use crate::mcapio::topic::for_each_message;
 use crate::mcapio::LabelledBox;
@@ -18,8 +20,8 @@ use crate::tracker::Box3;
 /// One detection, reduced to what tracking and scoring need.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TuneDet {
-    /// Class label.
-    pub label: String,
+    /// Class label (shared by the log's detections and truth with that label).
+    pub label: Arc<str>,
     /// Box.
     pub bbox: Box3,
     /// Detector score.
@@ -39,8 +41,10 @@ pub struct TuneFrame {
     pub has_detections: bool,
     /// Detections of this stamp (valid boxes only).
     pub detections: Vec<TuneDet>,
-    /// Ground-truth boxes of this stamp.
-    pub truth: Vec<LabelledBox>,
+    /// Ground-truth boxes of this stamp, as the evaluations read them (KITTI's fields with the
+    /// id, label, box and score: what both protocols and the fit read), a few times smaller
+    /// than whole boxes with their attribute maps.
+    pub truth: Vec<KittiBox>,
 }
 
 /// One log in memory.
@@ -60,7 +64,8 @@ impl TuneLog {
     /// detections from `detections_topic` (`probmot.Detections3D`). Errors name the file.
     pub fn load(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<TuneLog> {
         let file = path.display().to_string();
-        let truth = read_tracks_topic(path, truth_topic)?;
+        let mut shared = KittiBoxes::default();
+        let truth = read_kitti_topic(path, truth_topic, &mut shared)?;
         if truth.is_empty() {
             bail!("{file}: topic {truth_topic} (ground truth) has no messages; tune needs logs with ground truth, as `probmot import kitti|nuscenes` writes them");
         }
@@ -82,10 +87,13 @@ impl TuneLog {
                 f.stamp = stamp;
                 f.has_detections = true;
                 n_msgs += 1;
+                // Exactly the message's boxes: grown push by push, a frame's vector would keep
+                // up to twice its size for as long as the tune runs.
+                f.detections.reserve_exact(m.detections.len());
                 for d in &m.detections {
                     match check_box(d) {
                         Ok(bbox) => f.detections.push(TuneDet {
-                            label: d.label.clone(),
+                            label: shared.shared(&d.label),
                             bbox,
                             score: d.score,
                             image_box: d.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
@@ -132,10 +140,7 @@ impl TuneLog {
                 continue;
             }
             let truth = (f.truth.iter().filter(|b| b.id != 0))
-                .map(|b| {
-                    let (center, size, yaw) = (b.center, b.size, b.yaw);
-                    fit_box(b.id, &b.label, Box3 { center, size, yaw })
-                })
+                .map(|b| fit_box(b.id, b.label(), b.box3))
                 .collect();
             let detections = (f.detections.iter())
                 .map(|d| fit_box(0, &d.label, d.bbox))
@@ -155,7 +160,7 @@ impl TuneLog {
         self.frames
             .iter()
             .flat_map(|f| f.detections.iter())
-            .filter(move |d| d.label == label)
+            .filter(move |d| &*d.label == label)
             .map(|d| d.score)
     }
 }
@@ -166,8 +171,8 @@ mod tests {
     use crate::fit::data::assemble_frames;
     use crate::fit::{fit, fit_gathered, FitOptions, YawMode};
 
-    fn truth(id: u64, label: &str, x: f64) -> LabelledBox {
-        LabelledBox {
+    fn truth(id: u64, label: &str, x: f64) -> KittiBox {
+        KittiBox::from(&LabelledBox {
             id,
             label: label.into(),
             center: [x, 0.5 * x, 0.8],
@@ -175,7 +180,7 @@ mod tests {
             yaw: 0.01 * x,
             score: 1.0,
             ..Default::default()
-        }
+        })
     }
 
     /// A log with a detection stamp without truth, a truth stamp without detections and a
@@ -236,10 +241,8 @@ mod tests {
         };
         let truth = (log.frames.iter().filter(|f| f.has_truth))
             .map(|f| {
-                let boxes = (f.truth.iter().filter(|b| b.id != 0)).map(|b| {
-                    let (center, size, yaw) = (b.center, b.size, b.yaw);
-                    as_fit_box(b.id, &b.label, Box3 { center, size, yaw })
-                });
+                let boxes = (f.truth.iter().filter(|b| b.id != 0))
+                    .map(|b| as_fit_box(b.id, b.label(), b.box3));
                 (f.stamp, boxes.collect())
             })
             .collect();

@@ -19,6 +19,7 @@ pub use data::TuneLog;
 pub use score::{Protocol, Scoring};
 pub use search::{ClassTune, SearchLimits, Step};
 
+use crate::eval::kitti_box::KittiBox;
 use crate::eval::scene::Scene;
 use crate::fit::{fit_gathered, fitted_config, FitAccumulator, FitOptions, YawMode};
 use crate::tracker::{ClassConfig, TrackerConfig};
@@ -125,7 +126,7 @@ pub fn trajectories(logs: &[&TuneLog], label: &str) -> usize {
                 .frames
                 .iter()
                 .flat_map(|f| f.truth.iter())
-                .filter(|b| b.label == label && b.id != 0)
+                .filter(|b| b.label() == label && b.id != 0)
                 .map(|b| b.id)
                 .collect();
             ids.len()
@@ -350,7 +351,7 @@ pub fn overall(scores: &BTreeMap<String, f64>) -> f64 {
     }
 }
 
-fn track_all(logs: &[&TuneLog], cfg: &TrackerConfig) -> Result<Vec<Scene>> {
+fn track_all(logs: &[&TuneLog], cfg: &TrackerConfig) -> Result<Vec<Scene<KittiBox>>> {
     logs.iter().map(|l| score::track_log(l, cfg)).collect()
 }
 

@@ -8,6 +8,7 @@ use anyhow::{anyhow, Result};
 use super::data::TuneLog;
 use crate::eval::columns::{ColumnScene, Side};
 use crate::eval::kitti::{self, KittiParams, MeanScores, RowKind, TrackRow};
+use crate::eval::kitti_box::{KittiBox, KittiBoxes};
 use crate::eval::nuscenes::{self, NuscenesParams};
 use crate::eval::scene::Scene;
 use crate::mcapio::LabelledBox;
@@ -63,7 +64,11 @@ impl Scoring {
 
     /// The headline metric per class over `scenes` (NaN for a class that is not evaluated, e.g.
     /// without ground truth or without tracks).
-    pub fn evaluate(&self, scenes: &[Scene], classes: &[String]) -> BTreeMap<String, f64> {
+    pub fn evaluate(
+        &self,
+        scenes: &[Scene<KittiBox>],
+        classes: &[String],
+    ) -> BTreeMap<String, f64> {
         self.evaluate_with_once(scenes, classes).0
     }
 
@@ -72,7 +77,7 @@ impl Scoring {
     /// `probmot eval --means`). The second map is empty for nuScenes.
     pub fn evaluate_with_once(
         &self,
-        scenes: &[Scene],
+        scenes: &[Scene<KittiBox>],
         classes: &[String],
     ) -> (BTreeMap<String, f64>, BTreeMap<String, f64>) {
         let per_class = |f: &dyn Fn(&str) -> f64| -> BTreeMap<String, f64> {
@@ -98,7 +103,9 @@ impl Scoring {
                     classes: classes.to_vec(),
                     ..NuscenesParams::default()
                 };
-                let r = nuscenes::evaluate(scenes, &p);
+                let columns: Vec<ColumnScene> =
+                    scenes.iter().map(ColumnScene::from_scene).collect();
+                let r = nuscenes::evaluate_columns(&columns, &p);
                 let amota = per_class(&|c| r.classes.get(c).map_or(f64::NAN, |m| m.amota));
                 (amota, BTreeMap::new())
             }
@@ -120,10 +127,12 @@ pub fn single_class(cfg: &TrackerConfig, label: &str, cc: ClassConfig) -> Tracke
 /// step per detection message stamp, detections of labels the config does not know skipped,
 /// each track carrying the 2D box of its last matched detection. Returns the scene (truth and
 /// tracks) for the evaluation.
-pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
-    let mut tracks: Vec<Vec<LabelledBox>> = vec![Vec::new(); log.frames.len()];
+pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene<KittiBox>> {
+    let mut tracks: Vec<Vec<KittiBox>> = vec![Vec::new(); log.frames.len()];
+    let mut boxes = KittiBoxes::default();
     run_tracker(log, cfg, |fi, r, label, image_box| {
-        tracks[fi].push(LabelledBox {
+        // What the evaluations read of the box `probmot track` would write.
+        let written = LabelledBox {
             id: r.id,
             label: label.to_string(),
             center: r.bbox.center,
@@ -132,7 +141,8 @@ pub fn track_log(log: &TuneLog, cfg: &TrackerConfig) -> Result<Scene> {
             score: r.score,
             image_box,
             ..Default::default()
-        })
+        };
+        tracks[fi].push(boxes.read(&written))
     })?;
     let frames = (log.frames.iter().zip(tracks))
         .map(|(f, t)| (f.stamp, f.truth.clone(), t))
@@ -178,7 +188,7 @@ pub fn class_truth(logs: &[&TuneLog], label: &str, scoring: &Scoring) -> ClassTr
 /// evaluation fills gaps by id across classes). Every frame of the log is a frame.
 fn nuscenes_truth(log: &TuneLog, label: &str) -> ColumnScene {
     let ids: HashSet<u64> = (log.frames.iter())
-        .flat_map(|f| f.truth.iter().filter(|b| b.label == label).map(|b| b.id))
+        .flat_map(|f| f.truth.iter().filter(|b| b.label() == label).map(|b| b.id))
         .collect();
     let mut scene = ColumnScene {
         name: log.name.clone(),
@@ -189,10 +199,10 @@ fn nuscenes_truth(log: &TuneLog, label: &str) -> ColumnScene {
     };
     for f in &log.frames {
         for b in f.truth.iter().filter(|b| ids.contains(&b.id)) {
-            let l = scene.label_or_add(&b.label);
+            let l = scene.label_or_add(b.label());
             scene
                 .truth
-                .push_box(b.id, l, [b.center[0], b.center[1]], b.score);
+                .push_box(b.id, l, [b.box3.center[0], b.box3.center[1]], b.score);
         }
         scene.truth.end_frame();
     }

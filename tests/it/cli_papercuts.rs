@@ -39,6 +39,23 @@ fn output_paths_are_checked_before_any_work() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(stderr.contains("not a directory"), "{stderr}");
+
+    // `-o newdir/`: a path written as a directory, which does not exist, fails at once (it
+    // used to fail only when the finished output was renamed into place).
+    let newdir = format!("{}/newdir/", dir.path().display());
+    let city = repo("sample_logs/city.mcap");
+    let runs: [&[&str]; 3] = [
+        &["track", s(&missing), "-o", &newdir],
+        &["fit", s(&city), "-o", &newdir],
+        &["simulate", "--scenario", "city", "-o", &newdir],
+    ];
+    for args in runs {
+        let run = probmot(args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains("ends with a slash"), "{args:?}: {stderr}");
+    }
+    assert!(!dir.path().join("newdir").exists());
 }
 
 #[test]
@@ -168,4 +185,170 @@ fn info_prints_iso_times_and_duration_and_no_empty_profile() {
     );
     assert_eq!(v["profile"], "", "the sample has no profile");
     assert!(!text.contains("profile:"), "{text}");
+}
+
+/// The first `eval` a new user runs is often on the untracked log: the error names the topics
+/// the file has and says that `probmot track` writes the tracks. `--classes` naming no class of
+/// the ground truth lists the classes it has (both protocols).
+#[test]
+fn eval_errors_say_what_the_file_has() {
+    let city = repo("sample_logs/city.mcap");
+    let run = probmot(&["eval", "--truth", s(&city)]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no channel with topic /tracks (topics: /detections, /ground_truth); `probmot track` writes /tracks"),
+        "{stderr}"
+    );
+    let gt = ["--tracks-topic", "/ground_truth"];
+    let classes = ["--classes", "Car,unicorn"];
+    let run = probmot(&[&["eval", "--truth", s(&city)][..], &gt, &classes].concat());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("its classes: bicycle, bus, car, motorcycle, pedestrian, trailer, truck"),
+        "{stderr}"
+    );
+    let kitti = ["--protocol", "kitti", "--classes", "unicorn"];
+    let run = probmot(&[&["eval", "--truth", s(&city)][..], &gt, &kitti].concat());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("its classes: bicycle, bus, car"),
+        "{stderr}"
+    );
+}
+
+/// A negative number is a value, not a flag: `--score-floor -2` (PointRCNN's scores are logits)
+/// is accepted, and `--min-hits -1` gets a range error instead of clap's "use '-- -1'" tip.
+#[test]
+fn negative_numbers_are_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let out = dir.path().join("out.mcap");
+    let args = ["track", s(&city), "-o", s(&out), "--quiet"];
+    probmot_ok(&[&args[..], &["--score-floor", "-2"]].concat());
+    let run = probmot(&[&args[..], &["--min-hits", "-1"]].concat());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("invalid value '-1' for '--min-hits") && !stderr.contains("'-- -1'"),
+        "{stderr}"
+    );
+    // A negative gate would fail an unchanged result: refused.
+    let eval = ["eval", "--truth", s(&out), "--baseline", s(&out)];
+    let run = probmot(&[&eval[..], &["--max-drop", "-1"]].concat());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("--max-drop must be a number of points >= 0"),
+        "{stderr}"
+    );
+}
+
+/// `export kitti` of a log `import kitti` did not write (a 2 Hz simulated drive) numbers its
+/// frames 0, 1, 2, ... by stamp instead of placing them on a 10 Hz grid (it wrote frames 0, 5,
+/// 10, ... without a word), and names the types KITTI's labels do not have.
+#[test]
+fn export_kitti_of_another_log_numbers_frames_in_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let tracked = dir.path().join("city.tracked.mcap");
+    probmot_ok(&["track", s(&city), "-o", s(&tracked), "--quiet"]);
+    let out = dir.path().join("city.txt");
+    let run = probmot_ok(&["export", "kitti", s(&tracked), "-o", s(&out)]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("frames are numbered 0, 1, 2, ... in the order of the 40 stamps"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("types KITTI's labels do not have") && stderr.contains("Bicycle 118"),
+        "{stderr}"
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let frames: std::collections::BTreeSet<u32> = text
+        .lines()
+        .map(|l| l.split(' ').next().unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(frames, (0..40).collect());
+}
+
+/// A bag directory (`ros2 bag record`'s folder holding one .mcap) is read by every command, as
+/// `track` and `eval` already did: `info`, `plot`, `fit` and `export kitti` open its MCAP file
+/// (they failed with "Is a directory").
+#[test]
+fn every_command_reads_a_bag_directory() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("drive_bag");
+    std::fs::create_dir(&bag).unwrap();
+    std::fs::copy(repo("sample_logs/city.mcap"), bag.join("drive_bag_0.mcap")).unwrap();
+    let tracked = dir.path().join("tracked_bag");
+    probmot_ok(&["track", s(&bag), "-o", s(&tracked), "--quiet"]);
+    let (png, noise, txt) = (
+        dir.path().join("p.png"),
+        dir.path().join("n.json"),
+        dir.path().join("t.txt"),
+    );
+    let runs: [Vec<&str>; 4] = [
+        vec!["info", s(&bag)],
+        vec!["plot", s(&tracked), "-o", s(&png), "--quiet"],
+        vec!["fit", s(&bag), "-o", s(&noise)],
+        vec!["export", "kitti", s(&tracked), "-o", s(&txt)],
+    ];
+    for args in runs {
+        probmot_ok(&args);
+    }
+    for f in [&png, &noise, &txt] {
+        assert!(f.is_file(), "{}", f.display());
+    }
+}
+
+/// `fit` and `tune` take the base under either command's names (`fit --base-preset`, `tune
+/// --preset`): each accepts the other's spelling.
+#[test]
+fn fit_and_tune_take_each_others_base_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = repo("sample_logs/pedestrians.mcap");
+    let out = dir.path().join("out.json");
+    let base = ["--quiet", "-o", s(&out)];
+    probmot_ok(&[&["fit", s(&log), "--preset", "ab3dmot-kitti"][..], &base].concat());
+    let cfg = std::fs::read_to_string(&out).unwrap();
+    assert!(cfg.contains("on ab3dmot-kitti"), "{cfg}");
+    let tune = [
+        "tune",
+        s(&log),
+        "--base-preset",
+        "ab3dmot-kitti",
+        "--folds",
+        "1",
+    ];
+    probmot_ok(&[&tune[..], &["--budget", "2"], &base].concat());
+    let cfg = std::fs::read_to_string(&out).unwrap();
+    assert!(cfg.contains("on ab3dmot-kitti"), "{cfg}");
+}
+
+/// `info` on a tracked log marks the `/tracks/scene` SceneUpdate as probmot's own output, not as
+/// "usable as detections" beside the real detections.
+#[test]
+fn info_marks_probmots_own_outputs() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracked = dir.path().join("t.mcap");
+    let city = repo("sample_logs/city.mcap");
+    probmot_ok(&["track", s(&city), "-o", s(&tracked), "--quiet"]);
+    let text = String::from_utf8(probmot_ok(&["info", s(&tracked)]).stdout).unwrap();
+    let line = |topic: &str| {
+        let l = text.lines().find(|l| l.contains(&format!(") {topic} ")));
+        l.unwrap_or_else(|| panic!("no {topic} line: {text}"))
+            .to_string()
+    };
+    assert!(
+        line("/detections").ends_with("<- usable as detections"),
+        "{text}"
+    );
+    let scene = line("/tracks/scene");
+    assert!(
+        scene.ends_with("<- probmot's own output (read as detections only when named)"),
+        "{scene}"
+    );
 }

@@ -245,13 +245,57 @@ fn a_missing_transform_skips_the_frame_with_a_warning_or_fails_with_strict() {
     );
     assert!(!dir.path().join("strict.mcap").exists());
 
-    // A fixed frame that is not in the tree: every frame is skipped.
-    let s = track(
-        &ego,
-        &dir.path().join("odom.mcap"),
-        &["--fixed-frame", "odom"],
+    // The one-line summary counts the boxes skipped for a missing transform.
+    let plain = probmot_ok(&[
+        "track",
+        cut.to_str().unwrap(),
+        "-o",
+        dir.path().join("plain.mcap").to_str().unwrap(),
+        "--tf-tolerance",
+        "0.2",
+    ]);
+    let skipped = s["ego"]["boxes_without_transform"].as_u64().unwrap();
+    let line = String::from_utf8_lossy(&plain.stdout);
+    assert!(
+        line.contains(&format!(", {skipped} boxes skipped,")),
+        "{line}"
     );
-    assert_eq!(s["ego"]["messages_without_transform"], 40);
+}
+
+/// A `--fixed-frame` that no transform of the log names (a typo, say) would skip every message
+/// in another frame: it is an error naming the frames the transforms have, and nothing is
+/// written. Detections already in the named frame need no transform.
+#[test]
+fn a_fixed_frame_outside_the_transform_tree_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let ego = simulate(dir.path(), "ego.mcap", &["--ego-frame"]);
+    let city = repo("sample_logs/city.mcap");
+    let cases = [
+        (&ego, "odom", "its transforms name map, base_link"),
+        (&city, "mapp", "the log has no transforms"),
+    ];
+    for (input, frame, frames) in cases {
+        let out = dir.path().join(format!("{frame}.mcap"));
+        let args = [
+            "track",
+            input.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        let r = probmot(&[&args[..], &["--fixed-frame", frame]].concat());
+        assert_eq!(r.status.code(), Some(2), "{frame}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        let want = format!("--fixed-frame '{frame}' is in no transform of the log");
+        assert!(err.contains(&want) && err.contains(frames), "{err}");
+        assert!(err.contains("topic /detections"), "{err}");
+        assert!(!out.exists(), "{frame}");
+    }
+    let s = track(
+        &city,
+        &dir.path().join("map.mcap"),
+        &["--fixed-frame", "map"],
+    );
+    assert_eq!(s["ego"]["messages_without_transform"], 0);
 }
 
 #[test]

@@ -420,3 +420,68 @@ fn fit_detections(log: &Path, dir: &Path) -> u64 {
     let v: Value = serde_json::from_slice(&r.stdout).unwrap();
     v["detections"].as_u64().unwrap()
 }
+
+/// Logs of different frame rates pool at a period that is neither: `fit` and `tune` say so,
+/// naming each log's period; two logs of one rate give no such warning. A log whose detection
+/// messages hold no box leaves nothing to fit: an error, and no config written.
+#[test]
+fn mixed_frame_rates_are_named_and_no_detections_is_an_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let (slow, fast) = (dir.path().join("slow.mcap"), dir.path().join("fast.mcap"));
+    let sim = |out: &Path, rate: &str| {
+        let o = out.to_str().unwrap();
+        probmot_ok(&[
+            "simulate",
+            "--scenario",
+            "city",
+            "--rate",
+            rate,
+            "-o",
+            o,
+            "--quiet",
+        ]);
+    };
+    sim(&slow, "2");
+    sim(&fast, "10");
+    let (s, f) = (slow.to_str().unwrap(), fast.to_str().unwrap());
+    let out = dir.path().join("noise.json");
+    let o = out.to_str().unwrap();
+    let warned = |args: &[&str]| {
+        let r = probmot_ok(args);
+        let err = String::from_utf8_lossy(&r.stderr).to_string();
+        err.contains("the logs have different frame periods")
+            && err.contains("slow.mcap 0.5000 s")
+            && err.contains("fast.mcap 0.1000 s")
+    };
+    assert!(warned(&["fit", s, f, "-o", o]));
+    assert!(warned(&[
+        "tune",
+        s,
+        f,
+        "-o",
+        o,
+        "--protocol",
+        "nuscenes",
+        "--budget",
+        "2",
+        "--quiet"
+    ]));
+    assert!(!warned(&["fit", s, s, "-o", o]));
+
+    let empty = dir.path().join("empty.mcap");
+    city_with_messages(&empty, "/detections", |_, data| {
+        use prost::Message as _;
+        let mut d = probmot::msgs::Detections3D::decode(data).unwrap();
+        d.detections.clear();
+        d.encode_to_vec()
+    });
+    std::fs::remove_file(&out).unwrap();
+    let r = probmot(&["fit", empty.to_str().unwrap(), "-o", o]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no detection box on topic /detections in"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

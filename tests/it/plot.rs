@@ -247,6 +247,23 @@ fn plot_errors_are_clear_and_write_nothing() {
     let e = stderr(&out);
     assert!(e.contains("no box of class bus"), "{e}");
     assert!(e.contains("classes in the file: car"), "{e}");
+    // Beside a class it has, the missing one is drawn without, with a warning naming it.
+    let out = probmot(&[
+        "plot",
+        untracked.to_str().unwrap(),
+        "-o",
+        p,
+        "--class",
+        "car,bus",
+    ]);
+    assert!(out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("warning: ")
+            && e.contains("no box of class bus on the plotted topics (classes: car)"),
+        "{e}"
+    );
+    std::fs::remove_file(p).unwrap(); // the errors below must write nothing
 
     // Unknown layer, reversed window, not a PNG name.
     for (args, needle) in [

@@ -170,6 +170,8 @@ fn bad_boxes_are_skipped_and_counted_or_refused_with_strict() {
     assert!(!out3.exists());
 }
 
+/// A box whose label the config has no entry for is skipped and counted, and the warning names
+/// the label and the config's classes (a preset for other classes drops nothing unsaid).
 #[test]
 fn unknown_labels_without_default_entry_are_counted() {
     let dir = tempfile::tempdir().unwrap();
@@ -193,10 +195,48 @@ fn unknown_labels_without_default_entry_are_counted() {
         "--config",
         cfg_path.to_str().unwrap(),
     ]);
-    assert_eq!(
-        json_summary(&run)["detections"]["skipped"]["unknown_label"],
-        1
+    let s = json_summary(&run);
+    assert_eq!(s["detections"]["skipped"]["unknown_label"], 1);
+    assert_eq!(s["detections"]["unknown_labels"]["forklift"], 1);
+    let w = s["warnings"][0].as_str().unwrap();
+    assert!(
+        w.contains("skipped 1 detection boxes (label not in the config")
+            && w.contains("labels not in the config: \"forklift\" 1;")
+            && w.contains("entries for bicycle, bus, car, motorcycle, pedestrian, trailer, truck"),
+        "{w}"
     );
+}
+
+/// A config entry whose class name matches no label (`cars` for `car`) while that label falls to
+/// the default entry is named in a warning; a config with entries for classes the log lacks,
+/// all its labels known, gives none.
+#[test]
+fn a_config_entry_that_matches_no_label_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut cfg = probmot::tracker::TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let car = cfg.classes.remove("car").unwrap();
+    cfg.classes.insert("cars".into(), car);
+    let cfg_path = dir.path().join("cfg.json");
+    std::fs::write(&cfg_path, cfg.to_json()).unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let out = dir.path().join("out.mcap");
+    let run = |extra: &[&str]| {
+        let args = [
+            "track",
+            city.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+        ];
+        json_summary(&probmot_ok(&[&args[..], extra].concat()))["warnings"].to_string()
+    };
+    let w = run(&["--config", cfg_path.to_str().unwrap()]);
+    assert!(
+        w.contains("config entries that no detection's label matches, beside a near label that went to the default entry (entry \\\"cars\\\", label \\\"car\\\")"),
+        "{w}"
+    );
+    let w = run(&[]);
+    assert!(!w.contains("no detection's label matches"), "{w}");
 }
 
 #[test]
@@ -285,6 +325,7 @@ fn bad_files_fail_with_status_2_and_leave_nothing() {
             b[1] = b'X';
             b
         }),
+        ("short", b"hello".to_vec()),
         ("truncated", good[..good.len() / 2].to_vec()),
         ("tail", good[..good.len() - 9].to_vec()),
     ];
@@ -306,6 +347,20 @@ fn bad_files_fail_with_status_2_and_leave_nothing() {
         let err = String::from_utf8_lossy(&r.stderr);
         assert!(err.contains(&format!("{name}.mcap")), "{name}: {err}");
         assert!(!err.contains("panicked"), "{name}: {err}");
+        // A file cut off mid-record (a recorder that was killed) gets the recovery hint.
+        let cut_short = matches!(*name, "truncated" | "tail");
+        assert_eq!(
+            err.contains("the file is empty"),
+            *name == "empty",
+            "{name}: {err}"
+        );
+        let short = err.contains("too short to be an MCAP file");
+        assert_eq!(short, *name == "short", "{name}: {err}");
+        assert_eq!(
+            err.contains("cut short") && err.contains("mcap recover"),
+            cut_short,
+            "{name}: {err}"
+        );
         assert!(!out.exists(), "{name}: output left behind");
         assert_eq!(
             &std::fs::read(&input).unwrap(),
@@ -488,6 +543,38 @@ fn non_finite_truth_is_an_error_naming_the_box() {
             .any(|w| w == &warned),
         "{v}"
     );
+}
+
+/// The first box `eval` cannot score stops the reading there, under both protocols: the rest
+/// of a long log is not read for an error already known. Every later ground-truth message is
+/// garbage the reader could not decode, and the tracks file does not exist; the error is still
+/// the first message's box.
+#[test]
+fn eval_stops_at_the_first_box_it_cannot_score() {
+    use probmot::msgs::Tracks3D;
+    use prost::Message as _;
+    let dir = tempfile::tempdir().unwrap();
+    let nan = dir.path().join("nan_then_garbage.mcap");
+    city_with_messages(&nan, "/ground_truth", |i, data| match i {
+        0 => {
+            let mut t = Tracks3D::decode(data).unwrap();
+            t.tracks[0].center.as_mut().unwrap().x = f64::NAN;
+            t.encode_to_vec()
+        }
+        _ => vec![0xff; 7],
+    });
+    let missing = dir.path().join("missing.mcap");
+    let (n, m) = (nan.to_str().unwrap(), missing.to_str().unwrap());
+    for protocol in ["nuscenes", "kitti"] {
+        let r = probmot(&["eval", "--protocol", protocol, "--truth", n, "--tracks", m]);
+        assert_eq!(r.status.code(), Some(2), "{protocol}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        let want = format!("{n}: topic /ground_truth, stamp 1767225600000000000: box 0 ");
+        assert!(
+            err.contains(&want) && err.contains("non-finite"),
+            "{protocol}: {err}"
+        );
+    }
 }
 
 /// The nuScenes protocol reads a box's ground-plane centre and score only: a truth box whose

@@ -280,7 +280,7 @@ fn offline_reporting_keeps_the_order_and_shows_what_the_library_shows() {
         .iter()
         .map(|(stamp, _, tracks)| {
             let boxes = tracks.iter().map(|t| {
-                let c = t.center;
+                let c = t.box3.center;
                 (
                     t.id,
                     [(c[0] * 1e6).round() as i64, (c[1] * 1e6).round() as i64],

@@ -6,7 +6,9 @@ use crate::common;
 use std::path::Path;
 
 use indicatif::ProgressBar;
+use probmot::eval::columns::ColumnScene;
 use probmot::eval::kitti::{KittiParams, MeanScores};
+use probmot::eval::kitti_box::{KittiBox, KittiNames};
 use probmot::mcapio::LabelledBox;
 use probmot::tracker::{Box3, TrackerConfig};
 use probmot::tune::data::{TuneDet, TuneFrame};
@@ -73,7 +75,7 @@ fn synthetic_log(seed: u64) -> TuneLog {
             let mut f = frame(i);
             for car in 0..3u64 {
                 let (x, y) = (2.5 * i as f64 + 10.0 * car as f64, 6.0 * car as f64);
-                f.truth.push(truth(car + 1, x, y));
+                f.truth.push(KittiBox::from(&truth(car + 1, x, y)));
                 let n = |r: &mut Lcg| 0.2 * (r.next() - 0.5);
                 f.detections.push(det(
                     x + n(&mut rng),
@@ -191,7 +193,7 @@ fn leaving_log(seed: u64) -> TuneLog {
                 if visible(k, i) {
                     let mut t = truth(k + 1, x, y);
                     t.label = label.into();
-                    f.truth.push(t);
+                    f.truth.push(KittiBox::from(&t));
                     let (dx, dy) = (n(&mut rng), n(&mut rng));
                     let mut d = det(x + dx, y + dy, 0.6 + 0.3 * rng.next());
                     d.label = label.into();
@@ -324,13 +326,13 @@ fn nuscenes_class_score_on_the_prepared_truth_equals_the_full_truth() {
         let i = f.stamp / PERIOD - 1;
         let b = f.truth.iter_mut().find(|b| b.id == 3).unwrap();
         if (10..12).contains(&i) {
-            b.label = "truck".into();
+            b.names = KittiNames::new("truck", "truck");
         }
         // A pedestrian that no car shares an id with.
-        f.truth.push(LabelledBox {
+        f.truth.push(KittiBox::from(&LabelledBox {
             label: "pedestrian".into(),
             ..truth(40, -20.0, 3.0 + 0.1 * i as f64)
-        });
+        }));
     }
     let refs: Vec<&TuneLog> = logs.iter().collect();
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
@@ -341,7 +343,8 @@ fn nuscenes_class_score_on_the_prepared_truth_equals_the_full_truth() {
         classes: vec!["car".into()],
         ..Default::default()
     };
-    let want = probmot::eval::nuscenes::evaluate(&full, &p).classes["car"].amota;
+    let full: Vec<ColumnScene> = full.iter().map(ColumnScene::from_scene).collect();
+    let want = probmot::eval::nuscenes::evaluate_columns(&full, &p).classes["car"].amota;
     let got = score_class(&refs, &cfg, "car", &scoring).unwrap();
     assert_eq!(got.to_bits(), want.to_bits(), "{got} vs {want}");
     assert!(want > 0.3 && want < 1.0, "{want}");
@@ -433,9 +436,17 @@ fn cli_tune_writes_a_config_that_track_accepts() {
         .filter(|l| l.starts_with("fold ") && !l.contains("overall"));
     assert!(
         fold_rows.clone().count() > 0
-            && fold_rows
-                .clone()
-                .all(|l| l.ends_with("searched)") || l.ends_with("detections)")),
+            && fold_rows.clone().all(|l| l.ends_with("(searched)")
+                || l.ends_with(
+                    "(no detections in the training folds: folds are the logs in the order given)"
+                )
+                || l.ends_with("(too few trajectories: the base's own settings)")),
+        "{text}"
+    );
+    // It says which classes the protocol scored, and what the others get.
+    assert!(
+        text.contains("scored with the nuScenes protocol: ")
+            && text.contains("other classes keep the base's settings with the fitted noise"),
         "{text}"
     );
     let cfg = TrackerConfig::from_json(&std::fs::read_to_string(&out).unwrap()).unwrap();
@@ -470,6 +481,16 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     assert_eq!(r.status.code(), Some(2));
     let err = String::from_utf8_lossy(&r.stderr);
     assert!(err.contains("'nsm'") && err.contains("nms_iou"), "{err}");
+    // A class of --classes without detections (a typo) is named, with the labels there are.
+    let r = common::probmot(&["tune", l0, l1, "-o", o, "--classes", "cars", "--quiet"]);
+    assert_eq!(r.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains(
+            "--classes: no detection of cars in the inputs (their labels: car, pedestrian)"
+        ),
+        "{err}"
+    );
     // --search-means belongs to the KITTI protocol.
     let r = common::probmot(&[
         "tune",

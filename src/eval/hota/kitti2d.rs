@@ -193,6 +193,14 @@ pub fn kitti_hota<B: KittiFields + Sync>(
                 continue;
             }
         };
+        if let Some(side) = without_image_boxes(scenes, cls) {
+            notes.push(format!(
+                "HOTA: class {c} is not evaluated: its {side} have no 2D image boxes, which \
+                 Kitti2DBox matches and selects by (`probmot import kitti` keeps the label \
+                 file's; a track carries its detection's)"
+            ));
+            continue;
+        }
         let prepared = eval_scenes(scenes, |scene| {
             scene
                 .frames
@@ -210,6 +218,28 @@ pub fn kitti_hota<B: KittiFields + Sync>(
         }
     }
     (out, notes)
+}
+
+/// Which side of class `cls` has boxes but not one 2D image box ("ground-truth boxes" or
+/// "tracks"): its HOTA would be 0 by construction, not by the tracks' quality.
+fn without_image_boxes<B: KittiFields>(scenes: &[Scene<B>], cls: u8) -> Option<&'static str> {
+    let of_class = |b: &&B| class_id(&b.kitti_type()) == Some(cls);
+    // Whether the truth (`truth`) or the tracks have boxes of the class, none with an image box.
+    let lacks = |truth: bool| {
+        let mut boxes = (scenes.iter())
+            .flat_map(|s| s.frames.iter())
+            .flat_map(|f| if truth { &f.1 } else { &f.2 })
+            .filter(of_class)
+            .peekable();
+        boxes.peek().is_some() && boxes.all(|b| b.image_box().is_none())
+    };
+    if lacks(true) {
+        Some("ground-truth boxes")
+    } else if lacks(false) {
+        Some("tracks")
+    } else {
+        None
+    }
 }
 
 #[cfg(test)]
@@ -273,5 +303,45 @@ mod tests {
         // Only the nonzero similarity is kept: (car 1, track 11); track 15 overlaps nothing.
         assert_eq!(s.len(), 1);
         assert!(s[0].0 == 0 && (s[0].1 - 0.9).abs() < 1e-12);
+    }
+
+    /// A class whose truth (or tracks) carry no image box at all is left out with a note,
+    /// instead of a row of zeros; a class with image boxes on both sides is evaluated.
+    #[test]
+    fn a_class_without_image_boxes_is_not_evaluated() {
+        let no_image = |mut x: LabelledBox| {
+            x.image_box = None;
+            x
+        };
+        let car = |id| b(id, "Car", [0.0, 0.0, 100.0, 100.0], 0, 0);
+        let ped = |id| b(id, "Pedestrian", [0.0, 0.0, 50.0, 100.0], 0, 0);
+        let scene = |truth, tracks| Scene {
+            name: "s".into(),
+            frames: vec![(0, truth, tracks)],
+        };
+        let classes = ["car".to_string(), "pedestrian".to_string()];
+        let cases = [
+            (
+                vec![no_image(car(1)), ped(2)],
+                vec![car(11), ped(12)],
+                "ground-truth boxes",
+            ),
+            (
+                vec![car(1), ped(2)],
+                vec![no_image(car(11)), ped(12)],
+                "tracks",
+            ),
+        ];
+        for (truth, tracks, side) in cases {
+            let (h, notes) = kitti_hota(&[scene(truth, tracks)], &classes, KittiSimilarity::Image);
+            assert_eq!(h.keys().collect::<Vec<_>>(), ["pedestrian"], "{side}");
+            assert_eq!(notes.len(), 1, "{notes:?}");
+            assert!(
+                notes[0].starts_with(&format!(
+                    "HOTA: class car is not evaluated: its {side} have no"
+                )),
+                "{notes:?}"
+            );
+        }
     }
 }

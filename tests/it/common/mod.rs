@@ -223,11 +223,21 @@ pub fn import_kitti_sequence(data: &Path, seq: &str, out: &Path) {
 
 /// A copy of `sample_logs/city.mcap` with the first message of `topic` rewritten by `edit`.
 pub fn city_with_first_message(out: &Path, topic: &str, edit: impl FnOnce(&[u8]) -> Vec<u8>) {
+    let mut edit = Some(edit);
+    city_with_messages(out, topic, |i, data| match edit.take_if(|_| i == 0) {
+        Some(f) => f(data),
+        None => data.to_vec(),
+    });
+}
+
+/// A copy of `sample_logs/city.mcap` with each message of `topic` rewritten by `edit`, which is
+/// given the message's index on that topic.
+pub fn city_with_messages(out: &Path, topic: &str, mut edit: impl FnMut(usize, &[u8]) -> Vec<u8>) {
     let bytes = std::fs::read(repo("sample_logs/city.mcap")).unwrap();
     let file = std::fs::File::create(out).unwrap();
     let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
     let mut channels = std::collections::BTreeMap::new();
-    let mut edit = Some(edit);
+    let mut index = 0;
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         let id = *channels.entry(m.channel.id).or_insert_with(|| {
@@ -236,9 +246,12 @@ pub fn city_with_first_message(out: &Path, topic: &str, edit: impl FnOnce(&[u8])
             let (topic, enc) = (&m.channel.topic, &m.channel.message_encoding);
             w.add_channel(sid, topic, enc, &m.channel.metadata).unwrap()
         });
-        let data = match edit.take_if(|_| m.channel.topic == topic) {
-            Some(f) => f(&m.data),
-            None => m.data.to_vec(),
+        let data = match m.channel.topic == topic {
+            true => {
+                index += 1;
+                edit(index - 1, &m.data)
+            }
+            false => m.data.to_vec(),
         };
         let header = mcap::records::MessageHeader {
             channel_id: id,
