@@ -2,7 +2,8 @@
 //! renamed over the destination only when complete. An error removes the partial file, an
 //! interrupt too ([`abandon_partials`], called by the binary's signal handler); one left by a
 //! hard kill (SIGKILL, power loss) is named so that a user can tell what it is, and the next run
-//! writing the same output removes it.
+//! writing the same output removes it. A destination that exists and is not a regular file
+//! (`/dev/null`, a FIFO) is written in place: renaming over it would replace the device node.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -10,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Mutex, MutexGuard};
 
 use anyhow::{bail, Context, Result};
+use mcap::write::NoSeek;
 use mcap::{WriteOptions, Writer};
 
 /// Compression of the output's chunks.
@@ -71,10 +73,16 @@ impl Default for OutputOptions {
     }
 }
 
+/// What the MCAP writer of an output writes into: the file, buffered, counting its position
+/// instead of seeking, so that a device or a FIFO written in place works like a file (the
+/// writer buffers each chunk, at most the chunk size, rather than going back to fill in its
+/// length; the bytes are the same).
+pub type OutputSink = NoSeek<BufWriter<File>>;
+
 /// An MCAP writer on a partial file that becomes `dest` on [`AtomicOutput::commit`].
 pub struct AtomicOutput {
     /// The MCAP writer.
-    pub writer: Writer<BufWriter<File>>,
+    pub writer: Writer<OutputSink>,
     partial: Partial,
 }
 
@@ -116,15 +124,36 @@ pub fn abandon_partials() -> Vec<PathBuf> {
 
 /// A partial output file, removed on drop unless [`Partial::persist`]ed.
 struct Partial {
-    path: PathBuf,
+    /// The partial file; `None` when the destination exists and is not a regular file (a device
+    /// such as `/dev/null`, a FIFO): that is written in place, because renaming a file over it
+    /// would replace the device node with an ordinary file.
+    path: Option<PathBuf>,
     dest: PathBuf,
     done: bool,
+}
+
+/// Whether `dest` exists and is neither a regular file nor a directory (a device, FIFO or
+/// socket, symbolic links followed).
+fn is_special_file(dest: &Path) -> bool {
+    std::fs::metadata(dest).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
 
 impl Partial {
     /// Creates the partial file of `dest` (mode 0644, an ordinary file once renamed), replacing a
     /// stale one of a killed run, and registers it for removal on an interrupt.
     fn create(dest: &Path) -> Result<(File, Partial)> {
+        if is_special_file(dest) {
+            let file = std::fs::OpenOptions::new()
+                .write(true)
+                .open(dest)
+                .with_context(|| format!("cannot open {} for writing", dest.display()))?;
+            let partial = Partial {
+                path: None,
+                dest: dest.to_path_buf(),
+                done: false,
+            };
+            return Ok((file, partial));
+        }
         let path = partial_path(dest);
         let mut registry = partials();
         match std::fs::remove_file(&path) {
@@ -149,30 +178,43 @@ impl Partial {
             .with_context(|| format!("cannot create the partial file {}", path.display()))?;
         registry.push((path.clone(), dest.to_path_buf()));
         let partial = Partial {
-            path,
+            path: Some(path),
             dest: dest.to_path_buf(),
             done: false,
         };
         Ok((file, partial))
     }
 
-    /// Renames the partial file over the destination.
-    fn persist(mut self) -> Result<()> {
-        let mut registry = partials();
-        std::fs::rename(&self.path, &self.dest)
-            .with_context(|| format!("renaming the output to {}", self.dest.display()))?;
-        registry.retain(|(p, _)| p != &self.path);
+    /// Syncs the complete `file` and renames the partial file over the destination (a
+    /// destination written in place is left as it is: a device need not support syncing).
+    fn persist(mut self, file: File) -> Result<()> {
         self.done = true;
-        Ok(())
+        let Some(path) = self.path.take() else {
+            return Ok(());
+        };
+        let mut registry = partials();
+        let result = file
+            .sync_all()
+            .with_context(|| format!("syncing {}", self.dest.display()))
+            .and_then(|()| {
+                drop(file);
+                std::fs::rename(&path, &self.dest)
+                    .with_context(|| format!("renaming the output to {}", self.dest.display()))
+            });
+        if result.is_err() {
+            let _ = std::fs::remove_file(&path);
+        }
+        registry.retain(|(p, _)| p != &path);
+        result
     }
 }
 
 impl Drop for Partial {
     fn drop(&mut self) {
-        if !self.done {
+        if let (false, Some(path)) = (self.done, &self.path) {
             let mut registry = partials();
-            let _ = std::fs::remove_file(&self.path);
-            registry.retain(|(p, _)| p != &self.path);
+            let _ = std::fs::remove_file(path);
+            registry.retain(|(p, _)| p != path);
         }
     }
 }
@@ -231,15 +273,14 @@ fn parent_dir(p: &Path) -> PathBuf {
 }
 
 /// Writes `bytes` to `dest` atomically: a partial file in the same directory, synced, then
-/// renamed over `dest`. Permissions are those of an ordinary file (0644).
+/// renamed over `dest`. Permissions are those of an ordinary file (0644). A device or FIFO is
+/// written in place.
 pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
     let (mut file, partial) = Partial::create(dest)?;
     file.write_all(bytes)
-        .and_then(|_| file.sync_all())
         .with_context(|| format!("writing {}", dest.display()))?;
-    drop(file);
-    partial.persist()
+    partial.persist(file)
 }
 
 impl AtomicOutput {
@@ -256,7 +297,8 @@ impl AtomicOutput {
             .compression_threads(0)
             .compression_level(1)
             .chunk_size(Some(opts.chunk_size))
-            .create(BufWriter::with_capacity(1 << 16, file))
+            .disable_seeking(true)
+            .create(NoSeek::new(BufWriter::with_capacity(1 << 16, file)))
             .with_context(|| format!("cannot start MCAP output {}", dest.display()))?;
         Ok(AtomicOutput { writer, partial })
     }
@@ -267,14 +309,13 @@ impl AtomicOutput {
         self.writer
             .finish()
             .with_context(|| format!("finishing {}", dest.display()))?;
-        let buf = self.writer.into_inner();
-        let file = buf
+        let file = self
+            .writer
+            .into_inner()
+            .into_inner()
             .into_inner()
             .map_err(|e| e.into_error())
             .with_context(|| format!("flushing {}", dest.display()))?;
-        file.sync_all()
-            .with_context(|| format!("syncing {}", dest.display()))?;
-        drop(file);
-        self.partial.persist()
+        self.partial.persist(file)
     }
 }

@@ -1,15 +1,13 @@
 //! Writing one imported scene's MCAP file (all channels and metadata records).
 
 use std::collections::{BTreeMap, HashMap};
-use std::fs::File;
-use std::io::BufWriter;
 
 use anyhow::Result;
 use mcap::records::{MessageHeader, Metadata};
 use mcap::Writer;
 use serde::Serialize;
 
-use crate::mcapio::writer::{AtomicOutput, OutputOptions};
+use crate::mcapio::writer::{AtomicOutput, OutputOptions, OutputSink};
 use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 
 use super::plan::ScenePlan;
@@ -76,7 +74,7 @@ struct Channels {
     ego: Option<u16>,
 }
 
-type McapWriter = Writer<BufWriter<File>>;
+type McapWriter = Writer<OutputSink>;
 
 /// Writes one scene's file atomically (channels, metadata, then a message per sample and
 /// channel) and returns its counts.
