@@ -163,6 +163,12 @@ pub struct TrackerArgs {
     #[arg(long, help_heading = "Levers", value_name = "BOOL", num_args = 0..=1,
           default_missing_value = "true")]
     pub backfill: Option<bool>,
+    /// Two-point initialization for every class: a detection left unmatched may continue a
+    /// track born in the previous frame within this speed (m/s), which then takes the
+    /// velocity of the two detections; for objects that move further per frame than the gate
+    /// allows (fast cars at nuScenes' 2 Hz). Example: --two-point-speed 40
+    #[arg(long, value_name = "M/S", help_heading = "Levers")]
+    pub two_point_speed: Option<f64>,
 }
 
 /// Coasted-frame reporting on the command line.
@@ -233,6 +239,7 @@ impl TrackerArgs {
             birth_score: self.birth_score,
             coast: self.coast.map(CoastArg::mode),
             backfill: self.backfill,
+            two_point_speed: self.two_point_speed,
         }
     }
 }

@@ -46,6 +46,8 @@ pub struct Overrides {
     pub coast: Option<Coast>,
     /// Backfill of every class (`levers.backfill`: report a confirmed track from its birth).
     pub backfill: Option<bool>,
+    /// Two-point initialization speed of every class (`levers.two_point_speed`, m/s).
+    pub two_point_speed: Option<f64>,
 }
 
 impl Overrides {
@@ -106,6 +108,9 @@ impl Overrides {
             }
             if let Some(b) = self.backfill {
                 c.levers.backfill = b;
+            }
+            if let Some(v) = self.two_point_speed {
+                c.levers.two_point_speed = Some(v);
             }
         });
         cfg.validate()?;
@@ -228,6 +233,7 @@ mod tests {
             birth_score: Some(0.5),
             coast: Some(Coast::Gaps),
             backfill: Some(true),
+            two_point_speed: Some(40.0),
             ..Default::default()
         };
         o.apply(&mut cfg).unwrap();
@@ -238,6 +244,7 @@ mod tests {
             assert_eq!(c.levers.birth_score, Some(0.5));
             assert_eq!(c.levers.coast, Coast::Gaps);
             assert!(c.levers.backfill);
+            assert_eq!(c.levers.two_point_speed, Some(40.0));
         }
         let clash = Overrides {
             motion: Some(Motion::Ctrv),

@@ -123,6 +123,26 @@ impl KalmanState {
         KalmanState { x, p: noise.p0 }
     }
 
+    /// Two-point initialization ([`super::two_point`]) of a track that has one detection and
+    /// has since been predicted with zero velocity (so its x, y, z are still those of its first
+    /// box): the state restarts at box `b`, seen `k` nominal frames later, with x, y, z velocity
+    /// `(b - first) / k` and per axis the covariance of that difference of two measurements,
+    /// `[[r, r/k], [r/k, 2r/k^2]]` (`r` the measurement variance); every other entry as at a
+    /// birth. `P` keeps its block structure (module doc).
+    pub fn restart_two_point(&mut self, b: &Box3, k: f64, noise: &Noise) {
+        let first = self.x;
+        *self = KalmanState::new(b, noise);
+        for i in 0..3 {
+            let j = i + 7;
+            let r = noise.r[(i, i)];
+            self.x[j] = (self.x[i] - first[i]) / k;
+            self.p[(i, i)] = r;
+            self.p[(i, j)] = r / k;
+            self.p[(j, i)] = r / k;
+            self.p[(j, j)] = 2.0 * r / (k * k);
+        }
+    }
+
     /// Prediction over `k` nominal frames: `x = A x`, `P = A P A^T + k Q`.
     pub fn predict(&mut self, k: f64, noise: &Noise) {
         if noise.dense() {
@@ -290,6 +310,33 @@ mod tests {
             yaw,
             size: [4.0, 2.0, 1.5],
         }
+    }
+
+    /// Two-point restart after two frames (k = 2) from x = 0 to x = 6, y = 1 to 3: velocity
+    /// (3, 1) per frame, and per axis P = [[r, r/k], [r/k, 2r/k^2]] with r = 1: [[1, 0.5],
+    /// [0.5, 0.5]]; yaw, size and yaw rate as at a birth.
+    #[test]
+    fn two_point_restart_by_hand() {
+        let n = noise();
+        let mut s = KalmanState::new(&bx(0.0, 1.0, 0.0), &n);
+        s.predict(2.0, &n);
+        s.restart_two_point(&bx(6.0, 3.0, 0.2), 2.0, &n);
+        assert_eq!(&s.x.as_slice()[..4], &[6.0, 3.0, 0.0, 0.2]);
+        assert_eq!(&s.x.as_slice()[7..], &[3.0, 1.0, 0.0, 0.0]);
+        for i in 0..3 {
+            assert_eq!(
+                [
+                    s.p[(i, i)],
+                    s.p[(i, i + 7)],
+                    s.p[(i + 7, i)],
+                    s.p[(i + 7, i + 7)]
+                ],
+                [1.0, 0.5, 0.5, 0.5]
+            );
+        }
+        assert_eq!(s.p[(3, 3)], n.p0[(3, 3)]);
+        assert_eq!(s.p[(10, 10)], n.p0[(10, 10)]);
+        assert!(s.p.cholesky().is_some(), "positive definite");
     }
 
     /// Hand-worked predict and update on the x / dx block (the blocks are independent):

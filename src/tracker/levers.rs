@@ -1,6 +1,6 @@
 //! Per-class options beyond the paper: track confidence, two-stage association, non-maximum
-//! suppression of duplicate detections, a life cycle by confidence, and which frames of a track
-//! are reported (offline: from its first detection, coasted frames only inside gaps). All are
+//! suppression of duplicate detections, a life cycle by confidence, two-point initialization of
+//! fast objects, and which frames of a track are reported (offline: from its first detection, coasted frames only inside gaps). All are
 //! off by default, so a config without them runs the method of Chiu et al. (2019) exactly.
 //!
 //! Sources of the ideas (own implementation): CBMOT (Benbarka et al. 2021) for score refinement,
@@ -84,6 +84,13 @@ pub struct Levers {
     /// frames are held (see [`super::lookback`]).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub backfill: bool,
+    /// Two-point initialization ([`super::two_point`]): a detection left unmatched may continue
+    /// a track born in the previous frame within this speed, m/s (ground-plane centre distance
+    /// over the elapsed time); the track takes the velocity of the displacement. For objects
+    /// faster than the gate allows at the frame rate (`None`: off, the paper). Not written when
+    /// off, so earlier configs keep their bytes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub two_point_speed: Option<f64>,
 }
 
 impl Default for Levers {
@@ -99,6 +106,7 @@ impl Default for Levers {
             motion: Motion::Cv,
             coast: Coast::All,
             backfill: false,
+            two_point_speed: None,
         }
     }
 }
@@ -146,6 +154,14 @@ impl Levers {
         {
             return Err(ConfigError(format!(
                 "levers.nms_iou must lie in [0, 1], got {v}"
+            )));
+        }
+        if let Some(v) = self
+            .two_point_speed
+            .filter(|v| !(v.is_finite() && *v > 0.0))
+        {
+            return Err(ConfigError(format!(
+                "levers.two_point_speed must be a positive speed in m/s, got {v}"
             )));
         }
         if self.keep_score.is_some() && self.decay <= 0.0 {

@@ -22,6 +22,7 @@ pub mod presets;
 pub mod track;
 #[allow(clippy::module_inception)]
 pub mod tracker;
+pub mod two_point;
 pub mod two_stage;
 
 pub use boxes::{Box3, ClassId, Detection};

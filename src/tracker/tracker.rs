@@ -11,6 +11,7 @@ use super::levers::{Coast, Levers};
 use super::matching::{greedy, hungarian, Pair, NOT_A_CANDIDATE};
 use super::nms::{suppress, NmsScratch};
 use super::track::{ReportStatus, Track, TrackReport};
+use super::two_point;
 use super::two_stage::split;
 
 /// Why a frame was refused. The tracker state is unchanged when an error is returned.
@@ -337,6 +338,9 @@ fn step_class(
         }
     }
     update_matched(c, all_dets, s);
+    if let (Some(speed), Some(k)) = (c.cfg.levers.two_point_speed, k) {
+        two_point_round(c, all_dets, s, n_high, k, speed * k * dt_nominal);
+    }
     birth(c, all_dets, s, n_high, next_id, stats);
     report_and_delete(c, frame_count, dt_nominal, s, reports, deleted, stats);
 }
@@ -352,10 +356,60 @@ fn update_matched(c: &mut ClassState, all_dets: &[Detection], s: &mut Scratch) {
         let det = &all_dets[c.dets[d as usize] as usize];
         let trk = &mut c.tracks[t as usize];
         trk.kf.update(&det.bbox.to_origin(c.cfg.origin), &c.noise);
-        trk.hits += 1;
-        trk.time_since_update = 0;
-        trk.score = det.score;
-        trk.conf.on_match(det.score, &c.cfg.levers);
+        count_match(trk, det.score, &c.cfg.levers);
+        s.matched_det[d as usize] = true;
+        s.track_match[t as usize] = Some(c.dets[d as usize]);
+    }
+}
+
+/// The life-cycle side of a match (the filter is updated by the caller): a hit, the score.
+fn count_match(trk: &mut Track, score: f64, levers: &Levers) {
+    trk.hits += 1;
+    trk.time_since_update = 0;
+    trk.score = score;
+    trk.conf.on_match(score, levers);
+}
+
+/// The two-point round ([`super::two_point`]): unmatched detections of the first round continue
+/// tracks born in the previous frame within `radius` metres, nearest first; each such track
+/// restarts with the velocity of its two detections.
+fn two_point_round(
+    c: &mut ClassState,
+    all_dets: &[Detection],
+    s: &mut Scratch,
+    n_high: usize,
+    k: f64,
+    radius: f64,
+) {
+    two_point::candidates(
+        &c.tracks,
+        &c.dets,
+        all_dets,
+        &s.matched_det,
+        n_high,
+        radius,
+        &mut s.pairs,
+    );
+    if s.pairs.is_empty() {
+        return;
+    }
+    s.round.clear();
+    let (n_det, n_trk) = (c.dets.len(), c.tracks.len());
+    greedy(
+        &mut s.pairs,
+        radius,
+        &mut s.det_taken,
+        &mut s.trk_taken,
+        n_det,
+        n_trk,
+        &mut s.round,
+    );
+    for &(d, t) in &s.round {
+        let det = &all_dets[c.dets[d as usize] as usize];
+        let trk = &mut c.tracks[t as usize];
+        trk.kf
+            .restart_two_point(&det.bbox.to_origin(c.cfg.origin), k, &c.noise);
+        count_match(trk, det.score, &c.cfg.levers);
         s.matched_det[d as usize] = true;
         s.track_match[t as usize] = Some(c.dets[d as usize]);
     }

@@ -157,6 +157,22 @@ fn config_help_examples_run() {
     for (label, c) in &config_classes(&off) {
         assert!(c["levers"].get("backfill").is_none(), "{label}: {c}");
     }
+    // Two-point initialization for every class; a speed that is not positive is refused.
+    let two_point = [
+        "config",
+        "--preset",
+        "nuscenes-chiu2019",
+        "--two-point-speed",
+        "40",
+    ];
+    let classes = config_classes(&two_point);
+    assert_eq!(classes.len(), 7);
+    for (label, c) in &classes {
+        assert_eq!(c["levers"]["two_point_speed"], 40.0, "{label}");
+    }
+    let bad = probmot(&["config", "--two-point-speed", "-5"]);
+    assert_eq!(bad.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&bad.stderr).contains("two_point_speed"));
     let clash = ["config", "--motion", "ctrv", "--no-angular-velocity"];
     assert_eq!(probmot(&clash).status.code(), Some(2));
 }

@@ -474,3 +474,94 @@ proptest! {
         }
     }
 }
+
+/// Frames of one car at constant `speed` m/s along `heading`, nuScenes keyframes (0.5 s).
+fn fast_car_frames(speed: f64, heading: f64, n: usize) -> Vec<Detection> {
+    (0..n)
+        .map(|f| {
+            let s = speed * 0.5 * f as f64;
+            Detection {
+                bbox: Box3 {
+                    center: [s * heading.cos(), 3.0 + s * heading.sin(), 0.0],
+                    yaw: heading,
+                    size: [4.5, 1.9, 1.6],
+                },
+                class: 0,
+                score: 0.8,
+            }
+        })
+        .collect()
+}
+
+/// The paper's preset with `two_point_speed` on every class; per frame the ids and velocities.
+fn run_keyframes(two_point_speed: Option<f64>, dets: &[Detection]) -> Vec<Vec<(u64, [f64; 3])>> {
+    let mut cfg = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    cfg.for_each_class(|c| c.levers.two_point_speed = two_point_speed);
+    let mut t = Tracker::new(cfg).unwrap();
+    let car = t.class_id("car").unwrap();
+    dets.iter()
+        .enumerate()
+        .map(|(f, d)| {
+            let d = Detection { class: car, ..*d };
+            let r = t.step(f as u64 * 500_000_000 + 1, &[d]).unwrap();
+            r.iter().map(|r| (r.id, r.velocity)).collect()
+        })
+        .collect()
+}
+
+#[test]
+fn two_point_initialization_keeps_a_fast_car_in_one_track() {
+    // 20 m/s is 10 m between keyframes: past the paper's gate for a track without velocity.
+    let dets = fast_car_frames(20.0, 0.0, 20);
+    let paper = run_keyframes(None, &dets);
+    let ids: std::collections::BTreeSet<u64> = paper.iter().flatten().map(|r| r.0).collect();
+    assert!(ids.len() > 2, "the paper's method keeps it: {ids:?}");
+    assert!(
+        paper[10].is_empty(),
+        "no confirmed track mid-run: {:?}",
+        paper[10]
+    );
+
+    let two_point = run_keyframes(Some(40.0), &dets);
+    for (f, reports) in two_point.iter().enumerate() {
+        assert_eq!(reports.len(), 1, "frame {f}: {reports:?}");
+        assert_eq!(reports[0].0, 1, "frame {f}: one id throughout");
+    }
+    let v = two_point[10][0].1;
+    assert!(
+        (v[0] - 20.0).abs() < 1e-6 && v[1].abs() < 1e-6,
+        "velocity {v:?}"
+    );
+
+    // A limit under the car's speed leaves it as the paper does.
+    assert_eq!(run_keyframes(Some(15.0), &dets), paper);
+    // A car the gate follows anyway is tracked identically with the option.
+    let slow = fast_car_frames(4.0, 0.3, 20);
+    assert_eq!(run_keyframes(Some(40.0), &slow), run_keyframes(None, &slow));
+}
+
+#[test]
+fn two_point_speed_is_validated() {
+    let mut cfg = config(Levers {
+        two_point_speed: Some(-1.0),
+        ..Levers::default()
+    });
+    assert!(cfg.validate().unwrap_err().0.contains("two_point_speed"));
+    cfg.for_each_class(|c| c.levers.two_point_speed = Some(30.0));
+    cfg.validate().unwrap();
+    let back = TrackerConfig::from_json(&cfg.to_json()).unwrap();
+    assert_eq!(back, cfg);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Any car up to the two-point speed, in any direction, keeps one id from its first frame.
+    #[test]
+    fn two_point_tracks_any_heading_and_speed(speed in 0.0f64..35.0, heading in -3.1f64..3.1) {
+        let frames = run_keyframes(Some(36.0), &fast_car_frames(speed, heading, 12));
+        for reports in &frames {
+            prop_assert_eq!(reports.len(), 1);
+            prop_assert_eq!(reports[0].0, 1);
+        }
+    }
+}
