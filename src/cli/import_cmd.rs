@@ -23,6 +23,9 @@ use probmot::pipeline::rosbag_dir::resolve_input;
 pub struct ImportArgs {
     #[command(subcommand)]
     format: ImportFormat,
+    /// No summary line (warnings still go to stderr), e.g. in a loop over sequences.
+    #[arg(short, long, global = true)]
+    quiet: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -89,6 +92,9 @@ struct ImportKitti {
 pub struct ExportArgs {
     #[command(subcommand)]
     format: ExportFormat,
+    /// No summary line (warnings still go to stderr).
+    #[arg(short, long, global = true)]
+    quiet: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -221,6 +227,15 @@ struct ExportNuscenes {
     no_lidar: bool,
 }
 
+/// Prints a summary line unless the first argument (`--quiet`) is set.
+macro_rules! say {
+    ($quiet:expr, $($fmt:tt)*) => {
+        if !$quiet {
+            println!($($fmt)*);
+        }
+    };
+}
+
 pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
     match a.format {
         ImportFormat::Kitti(k) => {
@@ -252,7 +267,8 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                 &sequence,
                 &k.output,
             )?;
-            println!(
+            say!(
+                a.quiet,
                 "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows{}",
                 k.output.display(),
                 s.frames,
@@ -277,7 +293,8 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                 eprintln!("warning: {w}");
             }
             for sc in &s.scenes {
-                println!(
+                say!(
+                    a.quiet,
                     "{}: {} frames, {} detections, {} track boxes, {} ground-truth boxes, {} \
                      bicycle racks, {} ego poses",
                     sc.output,
@@ -289,7 +306,8 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                     sc.ego_poses
                 );
             }
-            println!(
+            say!(
+                a.quiet,
                 "{}: {} scenes, {} frames, {} detections, {} track boxes, {} bicycle racks, {}, {}",
                 n.output.display(),
                 s.scenes.len(),
@@ -325,7 +343,8 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
             for w in &s.warnings {
                 eprintln!("warning: {w}");
             }
-            println!(
+            say!(
+                a.quiet,
                 "{}: {} rows in {} frames",
                 k.output.display(),
                 s.rows,
@@ -348,7 +367,8 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
             for w in &s.warnings {
                 eprintln!("warning: {w}");
             }
-            println!(
+            say!(
+                a.quiet,
                 "{}: {} scenes, {} samples, {} boxes ({} dropped over the 500-per-sample cap, {} \
                  with a non-tracking label skipped)",
                 n.output.display(),

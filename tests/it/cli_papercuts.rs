@@ -368,3 +368,56 @@ fn info_marks_probmots_own_outputs() {
         "{scene}"
     );
 }
+
+/// `import` and `export` take `--quiet` (before or after the format) like the other commands:
+/// no summary line, the same files.
+#[test]
+fn import_and_export_are_quiet_on_request() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::create_dir(d.join("dets")).unwrap();
+    let label = |f: u32, z: f64| {
+        format!("{f} 1 Car 0 0 -1.5 100 150 200 220 1.5 1.7 4.0 2.0 1.6 {z} -1.57\n")
+    };
+    std::fs::write(d.join("labels.txt"), label(0, 15.0) + &label(1, 15.5)).unwrap();
+    let det =
+        |f: u32, z: f64| format!("{f},2,100,150,200,220,0.9,1.5,1.7,4.0,2.0,1.6,{z},-1.57,-1.5\n");
+    std::fs::write(d.join("dets/0000.txt"), det(0, 15.0) + &det(1, 15.5)).unwrap();
+    let (labels, dets) = (d.join("labels.txt"), d.join("dets"));
+    let import = |out: &str, quiet: &[&str], after: &[&str]| {
+        let out = d.join(out);
+        let args = [
+            &["import"][..],
+            quiet,
+            &["kitti", "--labels", s(&labels), "--sequence", "0000"],
+            &["--detections", s(&dets), "-o", s(&out)],
+            after,
+        ]
+        .concat();
+        (probmot_ok(&args).stdout, std::fs::read(out).unwrap())
+    };
+    let (said, loud) = import("loud.mcap", &[], &[]);
+    assert!(String::from_utf8_lossy(&said).contains("2 ground-truth rows"));
+    for (quiet, after) in [(&["-q"][..], &[][..]), (&[], &["--quiet"])] {
+        let (said, bytes) = import("quiet.mcap", quiet, after);
+        assert!(said.is_empty(), "{}", String::from_utf8_lossy(&said));
+        assert_eq!(bytes, loud);
+    }
+    let loud_log = d.join("loud.mcap");
+    let export = |quiet: &[&str]| {
+        let out = d.join("gt.txt");
+        let args = [
+            &["export", "kitti", s(&loud_log), "--topic", "/ground_truth"][..],
+            &["-o", s(&out)],
+            quiet,
+        ]
+        .concat();
+        (
+            probmot_ok(&args).stdout,
+            std::fs::read_to_string(out).unwrap(),
+        )
+    };
+    let (said, rows) = export(&[]);
+    assert!(String::from_utf8_lossy(&said).contains("2 rows in 2 frames"));
+    assert_eq!(export(&["--quiet"]), (Vec::new(), rows));
+}
