@@ -124,36 +124,90 @@ pub fn abandon_partials() -> Vec<PathBuf> {
 
 /// A partial output file, removed on drop unless [`Partial::persist`]ed.
 struct Partial {
-    /// The partial file; `None` when the destination exists and is not a regular file (a device
-    /// such as `/dev/null`, a FIFO): that is written in place, because renaming a file over it
-    /// would replace the device node with an ordinary file.
+    /// The partial file; `None` when the destination is written in place
+    /// ([`Destination::InPlace`]): renaming a file over a device node, a FIFO or a link to one
+    /// would replace it with an ordinary file.
     path: Option<PathBuf>,
     dest: PathBuf,
     done: bool,
 }
 
-/// Whether `dest` exists and is neither a regular file nor a directory (a device, FIFO or
-/// socket, symbolic links followed).
-fn is_special_file(dest: &Path) -> bool {
-    std::fs::metadata(dest).is_ok_and(|m| !m.is_file() && !m.is_dir())
+/// Where the bytes of an output go.
+enum Destination {
+    /// Written in place: a device, FIFO or socket (symbolic links followed, so `/dev/stdout`
+    /// too), or a link whose regular file has no path to write beside (a deleted file).
+    InPlace,
+    /// A regular file, written atomically: the path given, or the file its symbolic link points
+    /// to, existing or not (the link stays a link).
+    File(PathBuf),
+}
+
+/// Resolves an output path: a rename over a symbolic link would replace the link itself (as
+/// root, `-o /dev/stdout` turned the machine's `/dev/stdout` into an ordinary file).
+fn destination(dest: &Path) -> Result<Destination> {
+    let link = std::fs::symlink_metadata(dest).is_ok_and(|m| m.file_type().is_symlink());
+    match std::fs::metadata(dest) {
+        Ok(m) if !m.is_file() && !m.is_dir() => Ok(Destination::InPlace),
+        Ok(_) if link => Ok(std::fs::canonicalize(dest)
+            .map(Destination::File)
+            .unwrap_or(Destination::InPlace)),
+        Err(_) if link => {
+            // A link to a file not written yet: the file is created where the link points.
+            let target = std::fs::read_link(dest)
+                .with_context(|| format!("cannot read the link {}", dest.display()))?;
+            let target = parent_dir(dest).join(target);
+            if !parent_dir(&target).is_dir() {
+                bail!(
+                    "output {} is a symbolic link to {}, whose directory does not exist",
+                    dest.display(),
+                    target.display()
+                );
+            }
+            Ok(Destination::File(target))
+        }
+        _ => Ok(Destination::File(dest.to_path_buf())),
+    }
+}
+
+/// When `output` is the pipe or socket this process's standard output writes to
+/// (`-o /dev/stdout | ...`), everything the command prints to stdout from now on (its summary
+/// line) goes to stderr instead, so the reader at the other end gets the output's bytes only.
+#[cfg(unix)]
+fn leave_stdout_to(output: &File) -> Result<()> {
+    use std::io::Write;
+    use std::os::fd::AsFd;
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    let out = output.metadata()?;
+    if !(out.file_type().is_fifo() || out.file_type().is_socket()) {
+        return Ok(());
+    }
+    let Ok(stdout) = std::io::stdout().as_fd().try_clone_to_owned() else {
+        return Ok(());
+    };
+    let Ok(ours) = File::from(stdout).metadata() else {
+        return Ok(());
+    };
+    if (ours.dev(), ours.ino()) == (out.dev(), out.ino()) {
+        std::io::stdout().flush()?;
+        // SAFETY: dup2 on two descriptors this process holds open (1 and 2); afterwards fd 1
+        // refers to stderr's file, the output keeps its own descriptor.
+        if unsafe { libc::dup2(2, 1) } < 0 {
+            return Err(std::io::Error::last_os_error())
+                .context("cannot move standard output to stderr");
+        }
+    }
+    Ok(())
 }
 
 impl Partial {
     /// Creates the partial file of `dest` (mode 0644, an ordinary file once renamed), replacing a
     /// stale one of a killed run, and registers it for removal on an interrupt.
     fn create(dest: &Path) -> Result<(File, Partial)> {
-        if is_special_file(dest) {
-            let file = std::fs::OpenOptions::new()
-                .write(true)
-                .open(dest)
-                .with_context(|| format!("cannot open {} for writing", dest.display()))?;
-            let partial = Partial {
-                path: None,
-                dest: dest.to_path_buf(),
-                done: false,
-            };
-            return Ok((file, partial));
-        }
+        let dest = match destination(dest)? {
+            Destination::File(path) => path,
+            Destination::InPlace => return Partial::in_place(dest),
+        };
+        let dest = dest.as_path();
         let path = partial_path(dest);
         let mut registry = partials();
         match std::fs::remove_file(&path) {
@@ -179,6 +233,27 @@ impl Partial {
         registry.push((path.clone(), dest.to_path_buf()));
         let partial = Partial {
             path: Some(path),
+            dest: dest.to_path_buf(),
+            done: false,
+        };
+        Ok((file, partial))
+    }
+
+    /// Opens `dest` to be written in place (see [`Destination::InPlace`]): nothing to rename,
+    /// nothing to remove.
+    fn in_place(dest: &Path) -> Result<(File, Partial)> {
+        // A regular file behind an unresolvable link is rewritten from its start; O_TRUNC on a
+        // device or FIFO would do nothing, but stays off there.
+        let regular = std::fs::metadata(dest).is_ok_and(|m| m.is_file());
+        let file = std::fs::OpenOptions::new()
+            .write(true)
+            .truncate(regular)
+            .open(dest)
+            .with_context(|| format!("cannot open {} for writing", dest.display()))?;
+        #[cfg(unix)]
+        leave_stdout_to(&file)?;
+        let partial = Partial {
+            path: None,
             dest: dest.to_path_buf(),
             done: false,
         };

@@ -1,16 +1,19 @@
-//! Outputs whose destination is not a regular file (`/dev/null`, a FIFO) are written in place:
-//! the atomic rename of a finished file would replace the device node, which as root turns
-//! `/dev/null` into an ordinary file for every process on the machine. A FIFO stands for every
-//! such destination here (it needs no privileges, unlike a device node).
+//! Outputs whose destination is not a regular file (`/dev/null`, a FIFO, `/dev/stdout`) are
+//! written in place, and a symbolic link is written through: the atomic rename of a finished
+//! file would replace the device node or the link, which as root turns `/dev/null` or
+//! `/dev/stdout` into an ordinary file for every process on the machine. A FIFO and links in a
+//! temporary directory stand for those here (no privileges needed, and a regression cannot
+//! touch the machine's `/dev`).
 #![cfg(unix)]
 
 use std::ffi::CString;
 use std::os::unix::ffi::OsStrExt;
-use std::os::unix::fs::FileTypeExt;
+use std::os::unix::fs::{symlink, FileTypeExt};
 use std::path::Path;
+use std::process::Stdio;
 use std::thread::JoinHandle;
 
-use crate::common::{probmot_ok, repo};
+use crate::common::{bin, probmot_ok, repo};
 
 /// Makes a FIFO at `path` and starts a thread reading it to the end.
 fn fifo_reader(path: &Path) -> JoinHandle<Vec<u8>> {
@@ -70,4 +73,102 @@ fn track_writes_its_mcap_into_a_fifo_in_place() {
 fn plot_writes_its_png_into_a_fifo_in_place() {
     let city = repo("sample_logs/city.mcap");
     fifo_gets_the_file_bytes(&["plot", city.to_str().unwrap()], "city.png");
+}
+
+/// `track -o LINK`: the tracked bytes end up where the link points, the link stays a link.
+fn track_through_link(link_target: &Path, dir: &Path) -> Vec<u8> {
+    let city = repo("sample_logs/city.mcap");
+    let link = dir.join("out.mcap");
+    symlink(link_target, &link).unwrap();
+    probmot_ok(&[
+        "track",
+        city.to_str().unwrap(),
+        "-o",
+        link.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    let plain = dir.join("plain.mcap");
+    probmot_ok(&[
+        "track",
+        city.to_str().unwrap(),
+        "-o",
+        plain.to_str().unwrap(),
+        "-q",
+    ]);
+    std::fs::read(plain).unwrap()
+}
+
+#[test]
+fn a_link_to_a_file_is_written_through() {
+    let dir = tempfile::tempdir().unwrap();
+    let target = dir.path().join("target.mcap");
+    std::fs::write(&target, b"old").unwrap();
+    let plain = track_through_link(&target, dir.path());
+    assert!(std::fs::read(&target).unwrap() == plain);
+    // A link to a file not written yet: created where the link points.
+    let dir = tempfile::tempdir().unwrap();
+    let plain = track_through_link(Path::new("new.mcap"), dir.path());
+    assert!(std::fs::read(dir.path().join("new.mcap")).unwrap() == plain);
+    let mut names = entries(dir.path());
+    names.retain(|n| n != "plain.mcap");
+    assert_eq!(names, ["new.mcap", "out.mcap"]);
+}
+
+#[test]
+fn a_link_to_a_fifo_is_written_in_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("fifo");
+    let reader = fifo_reader(&fifo);
+    let plain = track_through_link(&fifo, dir.path());
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+    assert!(reader.join().unwrap() == plain);
+}
+
+/// `-o /dev/stdout | reader`: the reader gets the output's bytes only; the summary line goes to
+/// stderr. (A link to `/proc/self/fd/1` in a temporary directory stands for `/dev/stdout`.)
+#[cfg(target_os = "linux")]
+#[test]
+fn standard_output_through_a_pipe_gets_the_output_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("stdout");
+    symlink("/proc/self/fd/1", &link).unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let out = bin()
+        .args([
+            "track",
+            city.to_str().unwrap(),
+            "-o",
+            link.to_str().unwrap(),
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stderr).contains("1048 detections"));
+    let plain = dir.path().join("plain.mcap");
+    probmot_ok(&[
+        "track",
+        city.to_str().unwrap(),
+        "-o",
+        plain.to_str().unwrap(),
+        "-q",
+    ]);
+    assert!(
+        out.stdout == std::fs::read(plain).unwrap(),
+        "{} bytes on stdout",
+        out.stdout.len()
+    );
+    assert!(std::fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
 }
