@@ -419,4 +419,32 @@ mod with_feature {
         assert!(!bad.exists());
         no_leftovers(dir.path());
     }
+
+    /// `--rerun` reads the tracked output back: an output that is a FIFO (or a device, or
+    /// standard output) is refused before any work.
+    #[cfg(unix)]
+    #[test]
+    fn track_rerun_needs_a_file_output() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("out.mcap");
+        let status = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap();
+        assert!(status.success());
+        let rrd = dir.path().join("run.rrd");
+        let city = repo("sample_logs/city.mcap");
+        let out = probmot(&[
+            "track",
+            city.to_str().unwrap(),
+            "-o",
+            fifo.to_str().unwrap(),
+            "--rerun",
+            rrd.to_str().unwrap(),
+        ]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--rerun reads the tracked file back"), "{err}");
+        assert!(!rrd.exists());
+    }
 }

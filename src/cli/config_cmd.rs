@@ -163,10 +163,11 @@ pub struct TrackerArgs {
     #[arg(long, help_heading = "Levers", value_name = "BOOL", num_args = 0..=1,
           default_missing_value = "true")]
     pub backfill: Option<bool>,
-    /// Two-point initialization for every class: a detection left unmatched may continue a
-    /// track born in the previous frame within this speed (m/s), which then takes the
-    /// velocity of the two detections; for objects that move further per frame than the gate
-    /// allows (fast cars at nuScenes' 2 Hz). Example: --two-point-speed 40
+    /// Two-point initialization for every class: a detection left unmatched (one that could
+    /// start a track) may continue a track born in the previous frame within this speed
+    /// (m/s), which then takes the velocity of the two detections; for objects that move
+    /// further per frame than the gate allows (fast cars at nuScenes' 2 Hz). Per class (cars,
+    /// not pedestrians) in a config file. Example: --two-point-speed 40
     #[arg(long, value_name = "M/S", help_heading = "Levers")]
     pub two_point_speed: Option<f64>,
 }

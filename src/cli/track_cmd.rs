@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Result};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
+use probmot::mcapio::destination::{destination, Destination};
 use probmot::mcapio::writer::{check_output_path, OutputCompression};
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::many::{out_dir_outputs, track_many};
@@ -225,6 +226,15 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
                 "--rerun {} is also the -o output; give two paths",
                 rrd.display()
             );
+        }
+        if let Some(out) = &a.output {
+            if !matches!(destination(out)?, Destination::File(_)) {
+                bail!(
+                    "--rerun reads the tracked file back, and -o {} is not a file (a device, \
+                     pipe or standard output); write to a file",
+                    out.display()
+                );
+            }
         }
     }
     if !(a.tf_tolerance.is_finite() && a.tf_tolerance >= 0.0) {

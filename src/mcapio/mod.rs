@@ -3,6 +3,7 @@
 //! ([`recording`]) and the one box type its readers hand on ([`LabelledBox`]).
 
 pub mod background;
+pub mod destination;
 pub mod labelled_box;
 pub mod reader;
 pub mod recording;

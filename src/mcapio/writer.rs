@@ -2,8 +2,9 @@
 //! renamed over the destination only when complete. An error removes the partial file, an
 //! interrupt too ([`abandon_partials`], called by the binary's signal handler); one left by a
 //! hard kill (SIGKILL, power loss) is named so that a user can tell what it is, and the next run
-//! writing the same output removes it. A destination that exists and is not a regular file
-//! (`/dev/null`, a FIFO) is written in place: renaming over it would replace the device node.
+//! writing the same output removes it. A destination that is not a regular file (`/dev/null`,
+//! a FIFO, standard output) is written in place and a symbolic link is followed
+//! ([`super::destination`]): renaming over them would replace the device node or the link.
 
 use std::fs::File;
 use std::io::BufWriter;
@@ -12,6 +13,8 @@ use std::sync::{Mutex, MutexGuard};
 
 use anyhow::{bail, Context, Result};
 use mcap::write::NoSeek;
+
+use super::destination::{destination, parent_dir, take_stdout, Destination};
 use mcap::{WriteOptions, Writer};
 
 /// Compression of the output's chunks.
@@ -125,78 +128,11 @@ pub fn abandon_partials() -> Vec<PathBuf> {
 /// A partial output file, removed on drop unless [`Partial::persist`]ed.
 struct Partial {
     /// The partial file; `None` when the destination is written in place
-    /// ([`Destination::InPlace`]): renaming a file over a device node, a FIFO or a link to one
-    /// would replace it with an ordinary file.
+    /// ([`Destination::InPlace`], [`Destination::Stdout`]): renaming a file over a device node,
+    /// a FIFO or a link to one would replace it with an ordinary file.
     path: Option<PathBuf>,
     dest: PathBuf,
     done: bool,
-}
-
-/// Where the bytes of an output go.
-enum Destination {
-    /// Written in place: a device, FIFO or socket (symbolic links followed, so `/dev/stdout`
-    /// too), or a link whose regular file has no path to write beside (a deleted file).
-    InPlace,
-    /// A regular file, written atomically: the path given, or the file its symbolic link points
-    /// to, existing or not (the link stays a link).
-    File(PathBuf),
-}
-
-/// Resolves an output path: a rename over a symbolic link would replace the link itself (as
-/// root, `-o /dev/stdout` turned the machine's `/dev/stdout` into an ordinary file).
-fn destination(dest: &Path) -> Result<Destination> {
-    let link = std::fs::symlink_metadata(dest).is_ok_and(|m| m.file_type().is_symlink());
-    match std::fs::metadata(dest) {
-        Ok(m) if !m.is_file() && !m.is_dir() => Ok(Destination::InPlace),
-        Ok(_) if link => Ok(std::fs::canonicalize(dest)
-            .map(Destination::File)
-            .unwrap_or(Destination::InPlace)),
-        Err(_) if link => {
-            // A link to a file not written yet: the file is created where the link points.
-            let target = std::fs::read_link(dest)
-                .with_context(|| format!("cannot read the link {}", dest.display()))?;
-            let target = parent_dir(dest).join(target);
-            if !parent_dir(&target).is_dir() {
-                bail!(
-                    "output {} is a symbolic link to {}, whose directory does not exist",
-                    dest.display(),
-                    target.display()
-                );
-            }
-            Ok(Destination::File(target))
-        }
-        _ => Ok(Destination::File(dest.to_path_buf())),
-    }
-}
-
-/// When `output` is the pipe or socket this process's standard output writes to
-/// (`-o /dev/stdout | ...`), everything the command prints to stdout from now on (its summary
-/// line) goes to stderr instead, so the reader at the other end gets the output's bytes only.
-#[cfg(unix)]
-fn leave_stdout_to(output: &File) -> Result<()> {
-    use std::io::Write;
-    use std::os::fd::AsFd;
-    use std::os::unix::fs::{FileTypeExt, MetadataExt};
-    let out = output.metadata()?;
-    if !(out.file_type().is_fifo() || out.file_type().is_socket()) {
-        return Ok(());
-    }
-    let Ok(stdout) = std::io::stdout().as_fd().try_clone_to_owned() else {
-        return Ok(());
-    };
-    let Ok(ours) = File::from(stdout).metadata() else {
-        return Ok(());
-    };
-    if (ours.dev(), ours.ino()) == (out.dev(), out.ino()) {
-        std::io::stdout().flush()?;
-        // SAFETY: dup2 on two descriptors this process holds open (1 and 2); afterwards fd 1
-        // refers to stderr's file, the output keeps its own descriptor.
-        if unsafe { libc::dup2(2, 1) } < 0 {
-            return Err(std::io::Error::last_os_error())
-                .context("cannot move standard output to stderr");
-        }
-    }
-    Ok(())
 }
 
 impl Partial {
@@ -206,10 +142,17 @@ impl Partial {
         let dest = match destination(dest)? {
             Destination::File(path) => path,
             Destination::InPlace => return Partial::in_place(dest),
+            Destination::Stdout => return Ok((take_stdout()?, Partial::unnamed(dest))),
         };
         let dest = dest.as_path();
         let path = partial_path(dest);
         let mut registry = partials();
+        if registry.iter().any(|(p, _)| p == &path) {
+            bail!(
+                "{} is already being written by this run (two outputs lead to the same file)",
+                dest.display()
+            );
+        }
         match std::fs::remove_file(&path) {
             Ok(()) => eprintln!(
                 "note: removed {}, left by an interrupted run writing {}",
@@ -242,22 +185,23 @@ impl Partial {
     /// Opens `dest` to be written in place (see [`Destination::InPlace`]): nothing to rename,
     /// nothing to remove.
     fn in_place(dest: &Path) -> Result<(File, Partial)> {
-        // A regular file behind an unresolvable link is rewritten from its start; O_TRUNC on a
-        // device or FIFO would do nothing, but stays off there.
+        // A regular file behind a link that names no path is rewritten from its start.
         let regular = std::fs::metadata(dest).is_ok_and(|m| m.is_file());
         let file = std::fs::OpenOptions::new()
             .write(true)
             .truncate(regular)
             .open(dest)
             .with_context(|| format!("cannot open {} for writing", dest.display()))?;
-        #[cfg(unix)]
-        leave_stdout_to(&file)?;
-        let partial = Partial {
+        Ok((file, Partial::unnamed(dest)))
+    }
+
+    /// The bookkeeping of an output written in place: no partial file.
+    fn unnamed(dest: &Path) -> Partial {
+        Partial {
             path: None,
             dest: dest.to_path_buf(),
             done: false,
-        };
-        Ok((file, partial))
+        }
     }
 
     /// Syncs the complete `file` and renames the partial file over the destination (a
@@ -267,19 +211,25 @@ impl Partial {
         let Some(path) = self.path.take() else {
             return Ok(());
         };
-        let mut registry = partials();
         let result = file
             .sync_all()
             .with_context(|| format!("syncing {}", self.dest.display()))
             .and_then(|()| {
                 drop(file);
-                std::fs::rename(&path, &self.dest)
-                    .with_context(|| format!("renaming the output to {}", self.dest.display()))
+                // Locked for the rename only: an interrupt sees the partial file or the output.
+                let mut registry = partials();
+                let renamed = std::fs::rename(&path, &self.dest)
+                    .with_context(|| format!("renaming the output to {}", self.dest.display()));
+                if renamed.is_ok() {
+                    registry.retain(|(p, _)| p != &path);
+                }
+                renamed
             });
         if result.is_err() {
+            let mut registry = partials();
             let _ = std::fs::remove_file(&path);
+            registry.retain(|(p, _)| p != &path);
         }
-        registry.retain(|(p, _)| p != &path);
         result
     }
 }
@@ -338,13 +288,6 @@ pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {
         }
     }
     Ok(())
-}
-
-fn parent_dir(p: &Path) -> PathBuf {
-    match p.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    }
 }
 
 /// Writes `bytes` to `dest` atomically: a partial file in the same directory, synced, then

@@ -84,8 +84,9 @@ pub struct Levers {
     /// frames are held (see [`super::lookback`]).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub backfill: bool,
-    /// Two-point initialization ([`super::two_point`]): a detection left unmatched may continue
-    /// a track born in the previous frame within this speed, m/s (ground-plane centre distance
+    /// Two-point initialization ([`super::two_point`]): a detection left unmatched that could
+    /// start a track (at or above `birth_score`) may continue a track born in the previous
+    /// frame within this speed, m/s (ground-plane centre distance
     /// over the elapsed time); the track takes the velocity of the displacement. For objects
     /// faster than the gate allows at the frame rate (`None`: off, the paper). Not written when
     /// off, so earlier configs keep their bytes.

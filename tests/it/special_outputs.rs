@@ -128,47 +128,58 @@ fn a_link_to_a_fifo_is_written_in_place() {
     assert!(reader.join().unwrap() == plain);
 }
 
-/// `-o /dev/stdout | reader`: the reader gets the output's bytes only; the summary line goes to
-/// stderr. (A link to `/proc/self/fd/1` in a temporary directory stands for `/dev/stdout`.)
+/// `track -o LINK` with LINK -> /proc/self/fd/1 (standing for `/dev/stdout`) in `dir` and the
+/// given stdout: the run's output (the summary checked to be on stderr) and the bytes `track`
+/// writes to a plain file.
 #[cfg(target_os = "linux")]
-#[test]
-fn standard_output_through_a_pipe_gets_the_output_alone() {
-    let dir = tempfile::tempdir().unwrap();
-    let link = dir.path().join("stdout");
+fn track_to_stdout(dir: &Path, stdout: Stdio) -> (std::process::Output, Vec<u8>) {
+    let link = dir.join("stdout");
     symlink("/proc/self/fd/1", &link).unwrap();
     let city = repo("sample_logs/city.mcap");
+    let city = city.to_str().unwrap();
     let out = bin()
-        .args([
-            "track",
-            city.to_str().unwrap(),
-            "-o",
-            link.to_str().unwrap(),
-        ])
-        .stdout(Stdio::piped())
+        .args(["track", city, "-o", link.to_str().unwrap()])
+        .stdout(stdout)
         .stderr(Stdio::piped())
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    assert!(String::from_utf8_lossy(&out.stderr).contains("1048 detections"));
-    let plain = dir.path().join("plain.mcap");
-    probmot_ok(&[
-        "track",
-        city.to_str().unwrap(),
-        "-o",
-        plain.to_str().unwrap(),
-        "-q",
-    ]);
-    assert!(
-        out.stdout == std::fs::read(plain).unwrap(),
-        "{} bytes on stdout",
-        out.stdout.len()
-    );
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("1048 detections"), "{err}");
     assert!(std::fs::symlink_metadata(&link)
         .unwrap()
         .file_type()
         .is_symlink());
+    let plain = dir.join("plain.mcap");
+    probmot_ok(&["track", city, "-o", plain.to_str().unwrap(), "-q"]);
+    (out, std::fs::read(plain).unwrap())
+}
+
+/// `-o /dev/stdout | reader`: the reader gets the output's bytes only; the summary line goes to
+/// stderr.
+#[cfg(target_os = "linux")]
+#[test]
+fn standard_output_through_a_pipe_gets_the_output_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let (out, plain) = track_to_stdout(dir.path(), Stdio::piped());
+    assert!(out.stdout == plain, "{} bytes on stdout", out.stdout.len());
+}
+
+/// `-o /dev/stdout >> log`: the output is appended where stdout writes (its offset and append
+/// mode kept, the file not replaced), the summary goes to stderr.
+#[cfg(target_os = "linux")]
+#[test]
+fn standard_output_redirected_to_a_file_is_appended_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("log.bin");
+    std::fs::write(&log, b"HEAD").unwrap();
+    let appending = std::fs::OpenOptions::new().append(true).open(&log).unwrap();
+    let (_, plain) = track_to_stdout(dir.path(), appending.into());
+    let expected = [&b"HEAD"[..], &plain].concat();
+    assert!(std::fs::read(&log).unwrap() == expected);
+    assert_eq!(
+        entries(dir.path()),
+        ["log.bin", "plain.mcap", "stdout"],
+        "nothing else written beside"
+    );
 }
