@@ -36,6 +36,11 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     }
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
+    // An output that is (a link to) another input would replace that input.
+    let canonical_inputs: std::collections::HashMap<PathBuf, &PathBuf> = inputs
+        .iter()
+        .filter_map(|i| Some((i.canonicalize().ok()?, i)))
+        .collect();
     let mut outputs = Vec::new();
     for i in inputs {
         let o = output_in(dir, i)?;
@@ -43,6 +48,14 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
             bail!("two inputs would both be written to {}", o.display());
         }
         check_output_path(Some(i), &o)?;
+        if let Some(other) = o.canonicalize().ok().and_then(|c| canonical_inputs.get(&c)) {
+            bail!(
+                "output {} is the input {}; probmot never modifies its inputs, choose another \
+                 --out-dir",
+                o.display(),
+                other.display()
+            );
+        }
         outputs.push(o);
     }
     Ok(outputs)
@@ -152,5 +165,25 @@ mod tests {
         std::fs::write(&file, b"").unwrap();
         let e = out_dir_outputs(&file, &inputs).unwrap_err().to_string();
         assert!(e.contains("exists and is not a directory"), "{e}");
+    }
+
+    /// An output that is a link to another input is refused: writing through the link would
+    /// replace that input.
+    #[cfg(unix)]
+    #[test]
+    fn out_dir_outputs_refuse_a_link_to_another_input() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::create_dir_all(d.join("in")).unwrap();
+        std::fs::create_dir_all(d.join("out")).unwrap();
+        for n in ["x.mcap", "y.mcap"] {
+            std::fs::write(d.join("in").join(n), b"input").unwrap();
+        }
+        std::os::unix::fs::symlink(d.join("in/y.mcap"), d.join("out/x.mcap")).unwrap();
+        let inputs = vec![d.join("in/x.mcap"), d.join("in/y.mcap")];
+        let e = out_dir_outputs(&d.join("out"), &inputs)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("is the input") && e.contains("y.mcap"), "{e}");
     }
 }
