@@ -8,7 +8,7 @@
 
 use std::path::PathBuf;
 
-use probmot::mcapio::writer::abandon_partials;
+use probmot::mcapio::writer::{abandon_in_place, abandon_partials};
 
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 
@@ -34,7 +34,8 @@ pub fn install() {
             .spawn(move || {
                 if let Some(sig) = signals.forever().next() {
                     let unwritten = abandon_partials();
-                    eprintln!("{}", message(sig, &unwritten));
+                    let partly = abandon_in_place();
+                    eprintln!("{}", message(sig, &unwritten, &partly));
                     std::process::exit(128 + sig);
                 }
             })
@@ -52,22 +53,33 @@ fn ignored(sig: i32) -> bool {
     }
 }
 
-/// The one line printed on an interrupt.
-fn message(sig: i32, unwritten: &[PathBuf]) -> String {
+/// The one line printed on an interrupt: the outputs not written (their partial files removed)
+/// and those written in place (a device, FIFO or stdout) that got part of an output.
+fn message(sig: i32, unwritten: &[PathBuf], partly: &[PathBuf]) -> String {
     let name = match sig {
         SIGINT => "SIGINT",
         SIGTERM => "SIGTERM",
         SIGHUP => "SIGHUP",
         _ => "a signal",
     };
-    if unwritten.is_empty() {
+    let list = |paths: &[PathBuf]| {
+        let names: Vec<String> = paths.iter().map(|p| p.display().to_string()).collect();
+        names.join(", ")
+    };
+    let mut parts = Vec::new();
+    if !unwritten.is_empty() {
+        parts.push(format!(
+            "not written (partial file removed): {}",
+            list(unwritten)
+        ));
+    }
+    if !partly.is_empty() {
+        parts.push(format!("partly written (in place): {}", list(partly)));
+    }
+    if parts.is_empty() {
         return format!("probmot: interrupted by {name}; no output was being written");
     }
-    let list: Vec<String> = unwritten.iter().map(|p| p.display().to_string()).collect();
-    format!(
-        "probmot: interrupted by {name}; not written (partial file removed): {}",
-        list.join(", ")
-    )
+    format!("probmot: interrupted by {name}; {}", parts.join("; "))
 }
 
 #[cfg(test)]
@@ -79,11 +91,16 @@ mod tests {
         let m = message(
             SIGTERM,
             &[PathBuf::from("a.mcap"), PathBuf::from("out/b.mcap")],
+            &[],
         );
         assert_eq!(
             m,
             "probmot: interrupted by SIGTERM; not written (partial file removed): a.mcap, out/b.mcap"
         );
-        assert!(message(SIGHUP, &[]).contains("SIGHUP; no output was being written"));
+        assert!(message(SIGHUP, &[], &[]).contains("SIGHUP; no output was being written"));
+        assert_eq!(
+            message(SIGINT, &[], &[PathBuf::from("/dev/stdout")]),
+            "probmot: interrupted by SIGINT; partly written (in place): /dev/stdout"
+        );
     }
 }

@@ -99,6 +99,23 @@ fn partials() -> MutexGuard<'static, Vec<(PathBuf, PathBuf)>> {
     PARTIALS.lock().unwrap_or_else(|e| e.into_inner())
 }
 
+/// Outputs being written in place now (no partial file): what an interrupt leaves half written.
+static IN_PLACE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn in_place_outputs() -> MutexGuard<'static, Vec<PathBuf>> {
+    IN_PLACE.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The outputs being written in place (a device, FIFO or standard output) when the process is
+/// interrupted: nothing to remove, but their readers got part of an output. Like
+/// [`abandon_partials`], for the way out of the process only (the list stays locked).
+pub fn abandon_in_place() -> Vec<PathBuf> {
+    let guard = in_place_outputs();
+    let dests = guard.clone();
+    std::mem::forget(guard);
+    dests
+}
+
 /// The partial file of output `dest`: `.NAME.probmot-partial` in the same directory (the same
 /// file system, so the final rename is atomic).
 pub fn partial_path(dest: &Path) -> PathBuf {
@@ -195,12 +212,22 @@ impl Partial {
         Ok((file, Partial::unnamed(dest)))
     }
 
-    /// The bookkeeping of an output written in place: no partial file.
+    /// The bookkeeping of an output written in place: no partial file, listed for an interrupt.
     fn unnamed(dest: &Path) -> Partial {
+        in_place_outputs().push(dest.to_path_buf());
         Partial {
             path: None,
             dest: dest.to_path_buf(),
             done: false,
+        }
+    }
+
+    /// Takes an output written in place off the interrupt's list (one entry: the same device
+    /// may be written twice at once).
+    fn forget_in_place(&self) {
+        let mut list = in_place_outputs();
+        if let Some(k) = list.iter().position(|d| d == &self.dest) {
+            list.remove(k);
         }
     }
 
@@ -209,6 +236,7 @@ impl Partial {
     fn persist(mut self, file: File) -> Result<()> {
         self.done = true;
         let Some(path) = self.path.take() else {
+            self.forget_in_place();
             return Ok(());
         };
         let result = file
@@ -236,10 +264,14 @@ impl Partial {
 
 impl Drop for Partial {
     fn drop(&mut self) {
-        if let (false, Some(path)) = (self.done, &self.path) {
-            let mut registry = partials();
-            let _ = std::fs::remove_file(path);
-            registry.retain(|(p, _)| p != path);
+        match (self.done, &self.path) {
+            (false, Some(path)) => {
+                let mut registry = partials();
+                let _ = std::fs::remove_file(path);
+                registry.retain(|(p, _)| p != path);
+            }
+            (false, None) => self.forget_in_place(),
+            _ => {}
         }
     }
 }

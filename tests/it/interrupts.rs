@@ -211,3 +211,47 @@ fn sighup_stays_ignored_under_nohup() {
     assert_eq!(status.code(), Some(128 + libc::SIGTERM));
     assert_eq!(entries(dir.path()), Vec::<String>::new());
 }
+
+/// An output written in place (a FIFO here, as `/dev/stdout | reader`) has no partial file to
+/// remove: the interrupt line says it was partly written, and nothing else is left beside it.
+#[test]
+fn sigint_while_writing_into_a_fifo_says_partly_written() {
+    use std::io::Read;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("out.mcap");
+    let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: mkfifo(3) with a NUL-terminated path; the result is checked.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+    let mut cmd = bin();
+    // SAFETY: as in start_track: only signal(2) between fork and exec.
+    unsafe {
+        use std::os::unix::process::CommandExt;
+        cmd.pre_exec(|| {
+            libc::signal(libc::SIGINT, libc::SIG_DFL);
+            Ok(())
+        });
+    }
+    let log = long_log().to_str().unwrap();
+    let child = cmd
+        .args(["track", log, "-o", fifo.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Blocks until track opens the FIFO; the first bytes show the writing has started.
+    let mut reader = std::fs::File::open(&fifo).unwrap();
+    let mut first = [0u8; 4096];
+    reader.read_exact(&mut first).unwrap();
+    signal(&child, libc::SIGINT);
+    let mut rest = Vec::new();
+    reader.read_to_end(&mut rest).unwrap();
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(128 + libc::SIGINT), "{stderr}");
+    assert!(
+        stderr.contains("interrupted by SIGINT; partly written (in place): ")
+            && stderr.contains("out.mcap"),
+        "{stderr}"
+    );
+    assert_eq!(entries(dir.path()), ["out.mcap"]);
+}
