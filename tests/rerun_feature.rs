@@ -432,6 +432,10 @@ mod with_feature {
             .status()
             .unwrap();
         assert!(status.success());
+        // Drains the FIFO should track open it (a regression), so that the test fails instead
+        // of hanging on the open.
+        let drain = fifo.clone();
+        std::thread::spawn(move || std::fs::read(drain));
         let rrd = dir.path().join("run.rrd");
         let city = repo("sample_logs/city.mcap");
         let out = probmot(&[

@@ -81,21 +81,29 @@ pub fn parent_dir(p: &Path) -> PathBuf {
     }
 }
 
+/// Device and inode of a descriptor's file.
+#[cfg(unix)]
+fn file_id(fd: std::os::fd::BorrowedFd<'_>) -> Option<(u64, u64)> {
+    use std::os::unix::fs::MetadataExt;
+    let m = File::from(fd.try_clone_to_owned().ok()?).metadata().ok()?;
+    Some((m.dev(), m.ino()))
+}
+
+/// The file standard output wrote to when the process first resolved an output (before
+/// [`take_stdout`] points fd 1 elsewhere), so a later `-o /dev/stdout` is still recognised.
+#[cfg(unix)]
+fn original_stdout() -> Option<(u64, u64)> {
+    use std::os::fd::AsFd;
+    static ORIGINAL: std::sync::OnceLock<Option<(u64, u64)>> = std::sync::OnceLock::new();
+    *ORIGINAL.get_or_init(|| file_id(std::io::stdout().as_fd()))
+}
+
 /// Whether `m` is the file this process's standard output writes to. Not for a character
 /// device: `-o /dev/null` with stdout also on `/dev/null` is not writing to the terminal.
 #[cfg(unix)]
 fn is_stdout(m: &Metadata) -> bool {
-    use std::os::fd::AsFd;
     use std::os::unix::fs::{FileTypeExt, MetadataExt};
-    if m.file_type().is_char_device() {
-        return false;
-    }
-    let Ok(fd) = std::io::stdout().as_fd().try_clone_to_owned() else {
-        return false;
-    };
-    File::from(fd)
-        .metadata()
-        .is_ok_and(|s| (s.dev(), s.ino()) == (m.dev(), m.ino()))
+    !m.file_type().is_char_device() && original_stdout() == Some((m.dev(), m.ino()))
 }
 
 #[cfg(not(unix))]
@@ -105,32 +113,64 @@ fn is_stdout(_: &Metadata) -> bool {
 
 /// Takes standard output for an output's bytes: returns a duplicate of it and points the
 /// process's stdout at stderr, so what the command prints afterwards (its summary line) does
-/// not land in the output (at `/dev/null` when stderr is closed).
+/// not land in the output. Once per process: a second output to stdout is refused, and so is
+/// stderr going to the same place (`2>&1`: warnings would be mixed into the output).
 #[cfg(unix)]
 pub fn take_stdout() -> Result<File> {
     use std::io::Write;
-    use std::os::fd::{AsFd, AsRawFd};
-    std::io::stdout().flush()?;
-    let out = std::io::stdout()
+    use std::os::fd::AsFd;
+    static TAKEN: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+    if TAKEN.swap(true, std::sync::atomic::Ordering::SeqCst) {
+        bail!("standard output already holds another output of this run; give a file path");
+    }
+    // Locked throughout, so that no other thread prints into the output meanwhile.
+    let mut lock = std::io::stdout().lock();
+    lock.flush()?;
+    if file_id(std::io::stderr().as_fd()) == file_id(lock.as_fd()) {
+        bail!(
+            "standard error goes where the output does (2>&1?): its warnings would be mixed \
+             into the output; send stderr elsewhere"
+        );
+    }
+    let out = lock
         .as_fd()
         .try_clone_to_owned()
         .context("cannot duplicate standard output")?;
-    // SAFETY: dup2 on descriptors this process holds open; afterwards fd 1 refers to stderr's
-    // file (or /dev/null) and the output keeps its own duplicate.
+    // SAFETY: dup2 on two descriptors this process holds open (Rust's runtime opens /dev/null
+    // on a closed fd 2 at start); afterwards fd 1 refers to stderr's file and the output keeps
+    // its own duplicate.
     if unsafe { libc::dup2(2, 1) } < 0 {
-        let null = File::options().write(true).open("/dev/null")?;
-        // SAFETY: as above, with /dev/null's descriptor.
-        if unsafe { libc::dup2(null.as_raw_fd(), 1) } < 0 {
-            return Err(std::io::Error::last_os_error())
-                .context("cannot move standard output away from the output");
-        }
+        return Err(std::io::Error::last_os_error())
+            .context("cannot move standard output away from the output");
     }
+    drop(lock);
     Ok(File::from(out))
 }
 
 #[cfg(not(unix))]
 pub fn take_stdout() -> Result<File> {
     bail!("writing an output to standard output needs a Unix system")
+}
+
+/// The absolute path an output's bytes go to when it is a file ([`Destination::File`], its
+/// directory canonical), else `None`: the key under which two outputs of one run are the same.
+pub fn resolved_file(dest: &Path) -> Result<Option<PathBuf>> {
+    match destination(dest)? {
+        Destination::File(path) => absolute(&path).map(Some),
+        _ => Ok(None),
+    }
+}
+
+/// `path` with its directory made canonical (the file itself need not exist).
+pub fn absolute(path: &Path) -> Result<PathBuf> {
+    let dir = parent_dir(path);
+    let dir = dir
+        .canonicalize()
+        .with_context(|| format!("output directory {} does not exist", dir.display()))?;
+    Ok(match path.file_name() {
+        Some(name) => dir.join(name),
+        None => dir,
+    })
 }
 
 #[cfg(all(test, unix))]

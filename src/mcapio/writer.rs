@@ -14,7 +14,7 @@ use std::sync::{Mutex, MutexGuard};
 use anyhow::{bail, Context, Result};
 use mcap::write::NoSeek;
 
-use super::destination::{destination, parent_dir, take_stdout, Destination};
+use super::destination::{absolute, destination, parent_dir, take_stdout, Destination};
 use mcap::{WriteOptions, Writer};
 
 /// Compression of the output's chunks.
@@ -157,7 +157,8 @@ impl Partial {
     /// stale one of a killed run, and registers it for removal on an interrupt.
     fn create(dest: &Path) -> Result<(File, Partial)> {
         let dest = match destination(dest)? {
-            Destination::File(path) => path,
+            // Absolute, so that two spellings of one file share one partial path (refused).
+            Destination::File(path) => absolute(&path)?,
             Destination::InPlace => return Partial::in_place(dest),
             Destination::Stdout => return Ok((take_stdout()?, Partial::unnamed(dest))),
         };

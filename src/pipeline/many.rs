@@ -10,6 +10,7 @@ use rayon::prelude::*;
 
 use super::progress::no_progress;
 use super::track::{track_file, TrackOptions, TrackSummary};
+use crate::mcapio::destination::resolved_file;
 use crate::mcapio::writer::check_output_path;
 
 /// The output of `input` in `dir`: the same file name.
@@ -42,9 +43,12 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
         .filter_map(|i| Some((i.canonicalize().ok()?, i)))
         .collect();
     let mut outputs = Vec::new();
+    let mut files = std::collections::HashSet::new();
     for i in inputs {
         let o = output_in(dir, i)?;
-        if outputs.contains(&o) {
+        // By the file the bytes go to: a link in the folder may lead to another output.
+        let file = resolved_file(&o)?.unwrap_or_else(|| o.clone());
+        if outputs.contains(&o) || !files.insert(file) {
             bail!("two inputs would both be written to {}", o.display());
         }
         check_output_path(Some(i), &o)?;
@@ -185,5 +189,12 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("is the input") && e.contains("y.mcap"), "{e}");
+        // A link in the folder leading to another output: both would write one file.
+        std::fs::remove_file(d.join("out/x.mcap")).unwrap();
+        std::os::unix::fs::symlink("y.mcap", d.join("out/x.mcap")).unwrap();
+        let e = out_dir_outputs(&d.join("out"), &inputs)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("two inputs would both be written to"), "{e}");
     }
 }

@@ -238,6 +238,17 @@ fn sigint_while_writing_into_a_fifo_says_partly_written() {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
+    // Should track end without opening the FIFO, a watchdog opens it for writing, so that the
+    // open below returns and the test fails instead of hanging.
+    let unblock = fifo.clone();
+    std::thread::spawn(move || {
+        use std::os::unix::fs::OpenOptionsExt;
+        std::thread::sleep(Duration::from_secs(120));
+        let _ = std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(unblock);
+    });
     // Blocks until track opens the FIFO; the first bytes show the writing has started.
     let mut reader = std::fs::File::open(&fifo).unwrap();
     let mut first = [0u8; 4096];

@@ -183,3 +183,27 @@ fn standard_output_redirected_to_a_file_is_appended_to() {
         "nothing else written beside"
     );
 }
+
+/// `-o /dev/stdout 2>&1 | reader`: warnings would be mixed into the output, so it is refused
+/// with a message (which the reader gets), before any work.
+#[cfg(target_os = "linux")]
+#[test]
+fn standard_output_with_stderr_joined_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let link = dir.path().join("stdout");
+    symlink("/proc/self/fd/1", &link).unwrap();
+    let got = dir.path().join("got");
+    let city = repo("sample_logs/city.mcap");
+    let script = r#""$0" track "$1" -o "$2" 2>&1 | cat > "$3"; exit "${PIPESTATUS[0]}""#;
+    let status = std::process::Command::new("bash")
+        .args(["-c", script, env!("CARGO_BIN_EXE_probmot")])
+        .args([city.as_os_str(), link.as_os_str(), got.as_os_str()])
+        .status()
+        .unwrap();
+    assert_eq!(status.code(), Some(2));
+    let text = std::fs::read_to_string(&got).unwrap();
+    assert!(
+        text.contains("standard error goes where the output does"),
+        "{text}"
+    );
+}
