@@ -153,14 +153,15 @@ struct Partial {
 }
 
 impl Partial {
-    /// Creates the partial file of `dest` (mode 0644, an ordinary file once renamed), replacing a
-    /// stale one of a killed run, and registers it for removal on an interrupt.
-    fn create(dest: &Path) -> Result<(File, Partial)> {
-        let dest = match destination(dest)? {
+    /// Creates the partial file of the output `given` (mode 0644, an ordinary file once
+    /// renamed) beside the file it resolves to, replacing a stale one of a killed run, and
+    /// registers it for removal on an interrupt; or opens a destination written in place.
+    fn create(given: &Path) -> Result<(File, Partial)> {
+        let dest = match destination(given)? {
             // Absolute, so that two spellings of one file share one partial path (refused).
             Destination::File(path) => absolute(&path)?,
-            Destination::InPlace => return Partial::in_place(dest),
-            Destination::Stdout => return Ok((take_stdout()?, Partial::unnamed(dest))),
+            Destination::InPlace => return Partial::in_place(given),
+            Destination::Stdout => return Ok((take_stdout()?, Partial::unnamed(given))),
         };
         let dest = dest.as_path();
         let path = partial_path(dest);
@@ -168,14 +169,14 @@ impl Partial {
         if registry.iter().any(|(p, _)| p == &path) {
             bail!(
                 "{} is already being written by this run (two outputs lead to the same file)",
-                dest.display()
+                given.display()
             );
         }
         match std::fs::remove_file(&path) {
             Ok(()) => eprintln!(
                 "note: removed {}, left by an interrupted run writing {}",
                 path.display(),
-                dest.display()
+                given.display()
             ),
             Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
             Err(e) => {
@@ -191,7 +192,8 @@ impl Partial {
         let file = open
             .open(&path)
             .with_context(|| format!("cannot create the partial file {}", path.display()))?;
-        registry.push((path.clone(), dest.to_path_buf()));
+        // Interrupt messages name the output as given.
+        registry.push((path.clone(), given.to_path_buf()));
         let partial = Partial {
             path: Some(path),
             dest: dest.to_path_buf(),
