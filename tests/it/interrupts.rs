@@ -11,7 +11,7 @@ use std::process::{Child, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use crate::common::{bin, probmot_ok, repo};
+use crate::common::{bin, entries, probmot_ok, repo};
 
 /// A log long enough that tracking it takes seconds (debug build): 1,500 frames of the city.
 fn long_log() -> &'static Path {
@@ -34,16 +34,6 @@ fn long_log() -> &'static Path {
         (dir, path)
     });
     path
-}
-
-/// Names of the entries of `dir`, hidden ones included.
-fn entries(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
 }
 
 /// Starts `probmot track ARGS` as from a terminal (SIGINT, SIGTERM and SIGHUP at their default

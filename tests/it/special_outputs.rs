@@ -13,7 +13,7 @@ use std::path::Path;
 use std::process::Stdio;
 use std::thread::JoinHandle;
 
-use crate::common::{bin, probmot_ok, repo};
+use crate::common::{bin, entries, probmot_ok, repo};
 
 /// Makes a FIFO at `path` and starts a thread reading it to the end.
 fn fifo_reader(path: &Path) -> JoinHandle<Vec<u8>> {
@@ -23,16 +23,6 @@ fn fifo_reader(path: &Path) -> JoinHandle<Vec<u8>> {
     assert_eq!(rc, 0, "mkfifo {}", path.display());
     let path = path.to_path_buf();
     std::thread::spawn(move || std::fs::read(path).unwrap())
-}
-
-/// The entries of `dir` (hidden ones too: a partial file would be one).
-fn entries(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    v.sort();
-    v
 }
 
 /// `args` with `-o DEST` written once into a FIFO and once into a file: the same bytes, the

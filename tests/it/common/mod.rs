@@ -204,6 +204,16 @@ pub fn track_ros2_fixture_both_ways(dir: &Path) -> (PathBuf, PathBuf) {
     (ros, pb)
 }
 
+/// The entries of `dir`, hidden ones included (a partial file would be one), sorted.
+pub fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
 /// `probmot import kitti` of one sequence of a KITTI tracking folder (`label_02/SEQ.txt` and the
 /// PointRCNN detections in `pointrcnn/`) into `out`.
 pub fn import_kitti_sequence(data: &Path, seq: &str, out: &Path) {
