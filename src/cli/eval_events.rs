@@ -13,6 +13,7 @@ use probmot::eval::events_log::{write_events_log, EventLabels, LogEvents};
 use probmot::mcapio::writer::check_output_path;
 use probmot::msgs::eval_event::Kind;
 use probmot::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
+use probmot::pipeline::many::refuse_outputs_onto_inputs;
 
 /// Worst moments listed in the report.
 const WORST: usize = 10;
@@ -82,6 +83,17 @@ impl EventsReport {
 /// Where each log's events go: `out` itself for one log, `out/<truth file name>` for several
 /// (`out` is then a directory, created if missing).
 fn output_paths(out: &Path, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<PathBuf>> {
+    let outputs = events_outputs(out, pairs)?;
+    let inputs: Vec<PathBuf> = pairs
+        .iter()
+        .flat_map(|(truth, tracks)| [truth.clone(), tracks.clone()])
+        .collect();
+    refuse_outputs_onto_inputs(&outputs, &inputs)?;
+    Ok(outputs)
+}
+
+/// [`output_paths`] before the check against every input.
+fn events_outputs(out: &Path, pairs: &[(PathBuf, PathBuf)]) -> Result<Vec<PathBuf>> {
     if let [(truth, _)] = pairs {
         check_output_path(Some(truth), out)?;
         return Ok(vec![out.to_path_buf()]);

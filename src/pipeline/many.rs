@@ -37,11 +37,6 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     }
     std::fs::create_dir_all(dir)
         .with_context(|| format!("cannot create the output directory {}", dir.display()))?;
-    // An output that is (a link to) another input would replace that input.
-    let canonical_inputs: std::collections::HashMap<PathBuf, &PathBuf> = inputs
-        .iter()
-        .filter_map(|i| Some((i.canonicalize().ok()?, i)))
-        .collect();
     let mut outputs = Vec::new();
     let mut files = std::collections::HashSet::new();
     for i in inputs {
@@ -52,17 +47,30 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
             bail!("two inputs would both be written to {}", o.display());
         }
         check_output_path(Some(i), &o)?;
-        if let Some(other) = o.canonicalize().ok().and_then(|c| canonical_inputs.get(&c)) {
-            bail!(
-                "output {} is the input {}; probmot never modifies its inputs, choose another \
-                 --out-dir",
-                o.display(),
-                other.display()
-            );
-        }
         outputs.push(o);
     }
+    refuse_outputs_onto_inputs(&outputs, inputs)?;
     Ok(outputs)
+}
+
+/// Refuses an output that is (a link to) any of the inputs: writing it would replace that
+/// input. One canonical path per file, so a run over many logs stays linear.
+pub fn refuse_outputs_onto_inputs(outputs: &[PathBuf], inputs: &[PathBuf]) -> Result<()> {
+    let canonical_inputs: std::collections::HashMap<PathBuf, &PathBuf> = inputs
+        .iter()
+        .filter_map(|i| Some((i.canonicalize().ok()?, i)))
+        .collect();
+    for o in outputs {
+        if let Some(input) = o.canonicalize().ok().and_then(|c| canonical_inputs.get(&c)) {
+            bail!(
+                "output {} is the input {}; probmot never modifies its inputs, choose another \
+                 output path",
+                o.display(),
+                input.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Runs `job(input, output)` for every pair on `jobs` threads: one result per input, in input

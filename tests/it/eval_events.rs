@@ -163,6 +163,44 @@ fn one_log_writes_one_file_and_the_report_lists_the_moments() {
     assert!(String::from_utf8_lossy(&same.stderr).contains("is the input file"));
 }
 
+/// With several logs, an events output that is a link to another log (here the second log's
+/// copy, linked to the first log) is refused before anything is written: writing through it
+/// would replace that log.
+#[cfg(unix)]
+#[test]
+fn an_events_output_linked_to_another_input_is_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut tracked = Vec::new();
+    for name in ["city", "pedestrians"] {
+        let t = tmp.path().join(format!("{name}.mcap"));
+        let input = common::repo(&format!("sample_logs/{name}.mcap"));
+        probmot_ok(&["track", s(&input), "-o", s(&t), "--quiet"]);
+        tracked.push(t);
+    }
+    let events = tmp.path().join("events");
+    std::fs::create_dir(&events).unwrap();
+    std::os::unix::fs::symlink(&tracked[0], events.join("pedestrians.mcap")).unwrap();
+    let before = std::fs::read(&tracked[0]).unwrap();
+    let out = common::probmot(&[
+        "eval",
+        "--events",
+        s(&events),
+        "--truth",
+        s(&tracked[0]),
+        s(&tracked[1]),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("is the input") && err.contains("city.mcap"),
+        "{err}"
+    );
+    assert!(
+        std::fs::read(&tracked[0]).unwrap() == before,
+        "the log is unchanged"
+    );
+}
+
 #[test]
 fn to_rerun_draws_the_events_layer() {
     if !common::python_has("rerun, mcap, mcap_protobuf, pyarrow") {
