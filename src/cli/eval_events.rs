@@ -10,10 +10,9 @@ use probmot::eval::events::{
     resolve, ClassEvents, Collector, Counts, EventBoxes, Located, Protocol,
 };
 use probmot::eval::events_log::{write_events_log, EventLabels, LogEvents};
-use probmot::mcapio::writer::check_output_path;
+use probmot::mcapio::writer::{check_output_path, refuse_outputs_onto_inputs};
 use probmot::msgs::eval_event::Kind;
 use probmot::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
-use probmot::pipeline::many::refuse_outputs_onto_inputs;
 
 /// Worst moments listed in the report.
 const WORST: usize = 10;

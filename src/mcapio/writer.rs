@@ -13,9 +13,9 @@ use std::sync::{Mutex, MutexGuard};
 
 use anyhow::{bail, Context, Result};
 use mcap::write::NoSeek;
+use mcap::{WriteOptions, Writer};
 
 use super::destination::{absolute, destination, parent_dir, take_stdout, Destination};
-use mcap::{WriteOptions, Writer};
 
 /// Compression of the output's chunks.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -319,6 +319,26 @@ pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {
             bail!(
                 "output {} is the input file; probmot never modifies its input, choose another path",
                 dest.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Refuses an output that is (a link to) any of the inputs: writing it would replace that
+/// input. One canonical path per file, so a run over many logs stays linear.
+pub fn refuse_outputs_onto_inputs(outputs: &[PathBuf], inputs: &[PathBuf]) -> Result<()> {
+    let canonical_inputs: std::collections::HashMap<PathBuf, &PathBuf> = inputs
+        .iter()
+        .filter_map(|i| Some((i.canonicalize().ok()?, i)))
+        .collect();
+    for o in outputs {
+        if let Some(input) = o.canonicalize().ok().and_then(|c| canonical_inputs.get(&c)) {
+            bail!(
+                "output {} is the input {}; probmot never modifies its inputs, choose another \
+                 output path",
+                o.display(),
+                input.display()
             );
         }
     }

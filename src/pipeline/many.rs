@@ -11,7 +11,7 @@ use rayon::prelude::*;
 use super::progress::no_progress;
 use super::track::{track_file, TrackOptions, TrackSummary};
 use crate::mcapio::destination::resolved_file;
-use crate::mcapio::writer::check_output_path;
+use crate::mcapio::writer::{check_output_path, refuse_outputs_onto_inputs};
 
 /// The output of `input` in `dir`: the same file name.
 pub fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
@@ -51,26 +51,6 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     }
     refuse_outputs_onto_inputs(&outputs, inputs)?;
     Ok(outputs)
-}
-
-/// Refuses an output that is (a link to) any of the inputs: writing it would replace that
-/// input. One canonical path per file, so a run over many logs stays linear.
-pub fn refuse_outputs_onto_inputs(outputs: &[PathBuf], inputs: &[PathBuf]) -> Result<()> {
-    let canonical_inputs: std::collections::HashMap<PathBuf, &PathBuf> = inputs
-        .iter()
-        .filter_map(|i| Some((i.canonicalize().ok()?, i)))
-        .collect();
-    for o in outputs {
-        if let Some(input) = o.canonicalize().ok().and_then(|c| canonical_inputs.get(&c)) {
-            bail!(
-                "output {} is the input {}; probmot never modifies its inputs, choose another \
-                 output path",
-                o.display(),
-                input.display()
-            );
-        }
-    }
-    Ok(())
 }
 
 /// Runs `job(input, output)` for every pair on `jobs` threads: one result per input, in input
