@@ -36,6 +36,9 @@ enum ImportFormat {
 
 /// One KITTI tracking sequence -> MCAP with /detections and /ground_truth at 10 Hz.
 ///
+/// Each channel is written when its input is given: --detections for /detections, --labels
+/// for /ground_truth, --tracks for a tracks channel; at least one of them is needed.
+///
 /// Boxes are converted from KITTI camera coordinates (bottom-centre location, y down,
 /// rotation_y) to probmot's right-handed z-up frame with box centres
 /// (x = z_cam, y = -x_cam, z = -(y_cam - h/2), yaw = -rotation_y - pi/2). Type, 2D box, alpha,
@@ -54,13 +57,20 @@ enum ImportFormat {
 ///   probmot eval --protocol kitti --truth 0000.tracked.mcap --baseline ab_0000.mcap
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
+#[command(group(
+    clap::ArgGroup::new("inputs")
+        .args(["labels", "detections", "tracks"])
+        .required(true)
+        .multiple(true)
+))]
 struct ImportKitti {
     /// Ground-truth label file `label_02/SSSS.txt` (optional).
     #[arg(long, value_name = "FILE")]
     labels: Option<PathBuf>,
     /// Detection files (`frame, type, x1, y1, x2, y2, score, h, w, l, x, y, z, rotation_y,
     /// alpha`), or directories holding `SSSS.txt` directly or one level down (e.g. pointrcnn/).
-    #[arg(long, num_args = 1.., required_unless_present = "tracks", value_name = "DIR_OR_FILE")]
+    /// Without them (--labels or --tracks only) the log has no /detections channel.
+    #[arg(long, num_args = 1.., value_name = "DIR_OR_FILE")]
     detections: Vec<PathBuf>,
     /// Another tracker's result file for this sequence (`frame id type 0 0 alpha x1 y1 x2 y2 h w
     /// l x y z rotation_y score`), written as a tracks channel.

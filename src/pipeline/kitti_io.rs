@@ -176,8 +176,9 @@ fn read_result_tracks(path: &Path) -> Result<BTreeMap<u32, Vec<KittiRow>>> {
     Ok(rows)
 }
 
-/// Writes one sequence as MCAP: `/detections` and `/ground_truth` at 10 Hz, one message per
-/// frame on each (empty where nothing was seen), plus a `probmot.kitti` metadata record. With
+/// Writes one sequence as MCAP: `/detections` (when detection files are given) and
+/// `/ground_truth` (when labels are) at 10 Hz, one message per frame on each (empty where
+/// nothing was seen), plus a `probmot.kitti` metadata record. With
 /// `tracks`, another tracker's results are written as a `probmot.Tracks3D` channel too (one
 /// message per frame), which `probmot eval --tracks/--baseline` reads like probmot's own tracks.
 pub fn import_kitti(
@@ -215,7 +216,13 @@ pub fn import_kitti(
     let s_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
     let s_trk = w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
     let none = BTreeMap::new();
-    let c_det = w.add_channel(s_det, "/detections", "protobuf", &none)?;
+    // No detection files (truth or another tracker's results only): no /detections channel,
+    // so that `track` on the log says so instead of tracking an empty channel.
+    let c_det = if detection_files.is_empty() {
+        None
+    } else {
+        Some(w.add_channel(s_det, "/detections", "protobuf", &none)?)
+    };
     let c_gt = if labels.is_some() {
         Some(w.add_channel(s_trk, "/ground_truth", "protobuf", &none)?)
     } else {
@@ -242,11 +249,13 @@ pub fn import_kitti(
             log_time: stamp,
             publish_time: stamp,
         };
-        let rows = dets.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
-        let msg = detections_msg(stamp, rows);
-        summary.detections += rows.len() as u64;
-        msgs::encode_into(&msg, &mut buf);
-        w.write_to_known_channel(&header(c_det), &buf)?;
+        if let Some(c_det) = c_det {
+            let rows = dets.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
+            let msg = detections_msg(stamp, rows);
+            summary.detections += rows.len() as u64;
+            msgs::encode_into(&msg, &mut buf);
+            w.write_to_known_channel(&header(c_det), &buf)?;
+        }
         if let Some(c_gt) = c_gt {
             let rows = truth.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
             let gt = tracks_msg(stamp, rows.iter().map(truth_track).collect());

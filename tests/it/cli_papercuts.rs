@@ -421,3 +421,62 @@ fn import_and_export_are_quiet_on_request() {
     assert!(String::from_utf8_lossy(&said).contains("2 rows in 2 frames"));
     assert_eq!(export(&["--quiet"]), (Vec::new(), rows));
 }
+
+/// `import kitti --labels` alone writes a log of ground truth only: no `/detections` channel,
+/// so `track` warns instead of writing empty tracks, and the export gives the labels back.
+/// With no input at all, the error names the three inputs.
+#[test]
+fn import_kitti_takes_labels_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let label = |f: u32, id: u32, z: f64| {
+        let fixed = "Car 0 0 -1.500000 100.000000 150.000000 200.000000 220.000000";
+        format!("{f} {id} {fixed} 1.500000 1.700000 4.000000 2.000000 1.600000 {z:.6} -1.570000\n")
+    };
+    let rows = label(0, 1, 15.0) + &label(1, 1, 15.5) + &label(1, 2, 30.0);
+    std::fs::write(d.join("0007.txt"), &rows).unwrap();
+    let (labels, log) = (d.join("0007.txt"), d.join("truth.mcap"));
+    let said = probmot_ok(&["import", "kitti", "--labels", s(&labels), "-o", s(&log)]);
+    let said = String::from_utf8_lossy(&said.stdout);
+    assert!(
+        said.contains("sequence 0007, 2 frames") && said.contains("3 ground-truth rows"),
+        "{said}"
+    );
+    let topics: std::collections::BTreeSet<String> = crate::common::messages(&log)
+        .into_iter()
+        .map(|m| m.topic)
+        .collect();
+    assert_eq!(topics.into_iter().collect::<Vec<_>>(), ["/ground_truth"]);
+
+    let tracked = d.join("tracked.mcap");
+    let run = probmot_ok(&["track", s(&log), "-o", s(&tracked)]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("no detection channel"), "{stderr}");
+
+    let back = d.join("back.txt");
+    probmot_ok(&[
+        "export",
+        "kitti",
+        s(&log),
+        "--topic",
+        "/ground_truth",
+        "-o",
+        s(&back),
+    ]);
+    let mut want: Vec<&str> = rows.lines().collect();
+    let got = std::fs::read_to_string(&back).unwrap();
+    let mut got: Vec<&str> = got.lines().collect();
+    want.sort();
+    got.sort();
+    assert_eq!(got, want);
+
+    let none = probmot(&["import", "kitti", "--sequence", "0007", "-o", s(&log)]);
+    let stderr = String::from_utf8_lossy(&none.stderr);
+    assert_eq!(none.status.code(), Some(2), "{stderr}");
+    assert!(
+        ["--labels", "--detections", "--tracks"]
+            .iter()
+            .all(|f| stderr.contains(f)),
+        "{stderr}"
+    );
+}
