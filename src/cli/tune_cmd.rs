@@ -9,8 +9,7 @@ use anyhow::{bail, ensure, Context, Result};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::eval::kitti::MeanScores;
-use probmot::fit::stats::median;
-use probmot::fit::timing::{interval_s, mixed_periods};
+use probmot::fit::timing::mixed_periods;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::detection_frame::describe_skips;
 use probmot::pipeline::overrides::Overrides;
@@ -41,9 +40,9 @@ use rayon::prelude::*;
 /// once, see --search-means) by more than --margin. Options: fitted or the base config's own
 /// noise, gate and distance, matcher, min_hits, max_age, which frames are reported (coast,
 /// backfill), yaw rate, Q and R factors, NMS, reported score and its refinement, score floor,
-/// two-stage birth score, life cycle by confidence. Only classes with at least --min-tracks
-/// ground-truth trajectories in the training logs are searched (from the base with fitted
-/// noise); the others keep the base config's own settings, as a handful of trajectories
+/// two-stage birth score, life cycle by confidence (and two-point initialization when
+/// --search names it). Only classes with at least --min-tracks ground-truth trajectories in the
+/// training logs are searched (from the base with fitted noise); the others keep the base config's own settings, as a handful of trajectories
 /// supports no data-driven choice. With --shared, a first stage chooses the class-agnostic
 /// options jointly for every class (on the mean score of the searched classes), and the other
 /// classes keep those instead.
@@ -108,10 +107,12 @@ pub struct TuneArgs {
     /// Classes to tune and score, comma-separated (default: the protocol's classes).
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     classes: Vec<String>,
-    /// Search only these options, comma-separated (default: all): noise, gate, matcher,
-    /// min_hits, max_age, coast, backfill, angular_velocity, motion, q_factor, r_factor,
-    /// nms_iou, score, blend, score_floor, birth_score, boost, decay, keep_score. One option
-    /// gives its ablation (scripts/kitti_levers.sh). Example: --search nms_iou
+    /// Search only these options, comma-separated (default: all but two_point_speed): noise,
+    /// gate, matcher, min_hits, max_age, coast, backfill, angular_velocity, motion, q_factor,
+    /// r_factor, nms_iou, score, blend, score_floor, birth_score, boost, decay, keep_score, and
+    /// two_point_speed (two-point initialization, for fast objects at low frame rates; searched
+    /// only when named). One option gives its ablation (scripts/kitti_levers.sh).
+    /// Example: --search nms_iou
     #[arg(long, value_delimiter = ',', value_name = "LIST")]
     search: Vec<String>,
     /// Largest number of configurations evaluated per class in one search.
@@ -486,18 +487,8 @@ fn protocol_name(p: Protocol) -> &'static str {
 /// A warning when the logs' frame periods differ (the noise fit of each fold pools them at one
 /// period), as `probmot fit` gives it.
 fn period_warning(logs: &[TuneLog]) -> Option<String> {
-    let mut all = Vec::new();
-    let periods: Vec<(&str, f64)> = (logs.iter())
-        .filter_map(|l| {
-            let stamps: Vec<u64> = (l.frames.iter().filter(|f| f.has_truth))
-                .map(|f| f.stamp)
-                .collect();
-            let dts: Vec<f64> = stamps.windows(2).map(|w| interval_s(w[0], w[1])).collect();
-            all.extend(&dts);
-            Some((l.name.as_str(), median(&dts)?))
-        })
-        .collect();
-    mixed_periods(&periods, median(&all)?)
+    let (periods, pooled) = tune::data::frame_periods(logs);
+    mixed_periods(&periods, pooled?)
 }
 
 /// One warning per log that had detections left out when read (none is dropped unsaid).

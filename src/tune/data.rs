@@ -10,6 +10,8 @@ use anyhow::{bail, Context, Result};
 
 use crate::eval::kitti_box::{KittiBox, KittiBoxes};
 use crate::eval::scene::read_kitti_topic;
+use crate::fit::stats::median;
+use crate::fit::timing::interval_s;
 use crate::fit::{FitAccumulator, FitFrame};
 use crate::mcapio::topic::for_each_message;
 use crate::mcapio::LabelledBox;
@@ -57,6 +59,29 @@ pub struct TuneLog {
     /// Detections left out when read, by reason, as `probmot track` skips them (no centre or
     /// size, a non-finite field or score, a non-positive size).
     pub skipped_detections: BTreeMap<SkipReason, u64>,
+}
+
+/// Frame periods of `logs` from their truth stamps, seconds: each log's median interval (logs
+/// with two truth frames or more) and the median of every interval of every log (`None` without
+/// any interval).
+pub fn frame_periods<'a>(
+    logs: impl IntoIterator<Item = &'a TuneLog>,
+) -> (Vec<(&'a str, f64)>, Option<f64>) {
+    let mut all = Vec::new();
+    let mut each = Vec::new();
+    for l in logs {
+        let stamps: Vec<u64> = (l.frames.iter().filter(|f| f.has_truth))
+            .map(|f| f.stamp)
+            .collect();
+        let dts: Vec<f64> = (stamps.windows(2))
+            .map(|w| interval_s(w[0], w[1]))
+            .collect();
+        all.extend(&dts);
+        if let Some(m) = median(&dts) {
+            each.push((l.name.as_str(), m));
+        }
+    }
+    (each, median(&all))
 }
 
 impl TuneLog {

@@ -39,8 +39,9 @@ pub struct TuneOptions {
     pub min_samples: u64,
     /// Classes to tune and score; empty: every class of the protocol.
     pub classes: Vec<String>,
-    /// Search dimensions to search ([`space::DIM_NAMES`]); empty: all. One option at a time
-    /// gives the ablation of that option.
+    /// Search dimensions to search ([`space::DIM_NAMES`]); empty: all but `two_point_speed`,
+    /// which is searched only when named. One option at a time gives the ablation of that
+    /// option.
     pub search: Vec<String>,
     /// Classes kept at the base config's own settings whatever their trajectories (as under
     /// `min_tracks`), e.g. those whose tuning lost held-out in a cross-validation.
@@ -160,6 +161,7 @@ pub fn tune(
         .cloned()
         .collect();
     let cache = ScoreCache::new(logs, &fitted, o.scoring);
+    let two_point = space::searches_two_point(&o.search);
     // The reporting options pooled over the searched classes (none chosen: every point keeps).
     let (reporting, point) = pooled_reporting(&cache, &starts, &signal, o, progress)?;
     let keep = |label: &str| {
@@ -180,7 +182,8 @@ pub fn tune(
         let refined = signal.contains(label);
         let (d, config) = if refined {
             let stats = ScoreStats::of(logs.iter().flat_map(|l| l.scores(label)).collect());
-            let space = restrict(dims(stats, &shared[label], base.class(label)), &o.search);
+            let own = base.class(label);
+            let space = restrict(dims(stats, &shared[label], own, two_point), &o.search);
             let (d, cc) =
                 search::tune_class(&cache, label, &shared[label], &space, o.limits, progress)?;
             (Some(d), cc)

@@ -47,6 +47,8 @@ pub enum Value {
     Boost(f64),
     /// Refinement decay while coasting.
     Decay(f64),
+    /// Two-point initialization speed, m/s.
+    TwoPoint(Option<f64>),
     /// Life cycle by confidence: keep score, and the decay it brings when the class has none
     /// (the life cycle needs one; without it the candidate could never be valid on its own).
     KeepScore(Option<f64>, f64),
@@ -89,7 +91,7 @@ impl ScoreStats {
 }
 
 /// Names of every search dimension, in search order (what `probmot tune --search` accepts).
-pub const DIM_NAMES: [&str; 19] = [
+pub const DIM_NAMES: [&str; 20] = [
     "noise",
     "gate",
     "matcher",
@@ -109,7 +111,37 @@ pub const DIM_NAMES: [&str; 19] = [
     "boost",
     "decay",
     "keep_score",
+    TWO_POINT_NAME,
 ];
+
+/// Name of the two-point initialization dimension: searched only when `--search` names it
+/// ([`searches_two_point`]).
+pub const TWO_POINT_NAME: &str = "two_point_speed";
+
+/// Whether the class search includes [`TWO_POINT_NAME`]: only when `only` names it. On simulated
+/// 2 Hz drives the default search reached the same held-out scores without it (the fitted or
+/// own noise and the gate already follow fast objects there, docs/tune.md), so it costs the
+/// default search evaluations for nothing; on its own it is the smallest change that keeps a
+/// fast object in one track.
+pub fn searches_two_point(only: &[String]) -> bool {
+    only.iter().any(|n| n == TWO_POINT_NAME)
+}
+
+/// Two-point initialization speeds, m/s: walking, cycling, town and road speeds.
+fn two_point_dim() -> Dim {
+    use Value::{Keep, TwoPoint};
+    Dim {
+        name: TWO_POINT_NAME,
+        values: vec![
+            Keep,
+            TwoPoint(None),
+            TwoPoint(Some(5.0)),
+            TwoPoint(Some(10.0)),
+            TwoPoint(Some(20.0)),
+            TwoPoint(Some(40.0)),
+        ],
+    }
+}
 
 /// Checks that every name of `only` is a dimension ([`DIM_NAMES`]).
 pub fn check_names(only: &[String]) -> Result<(), String> {
@@ -130,12 +162,14 @@ pub fn restrict(dims: Vec<Dim>, only: &[String]) -> Vec<Dim> {
 }
 
 /// The search space of one class: the choice between the fitted noise and the base config's own
-/// (`own`, when it differs), the class-agnostic dimensions, then the score thresholds and
-/// refinement steps placed by the class's detection scores (none without scores).
+/// (`own`, when it differs), the class-agnostic dimensions, the score thresholds and
+/// refinement steps placed by the class's detection scores (none without scores), then with
+/// `two_point` the two-point initialization speeds ([`searches_two_point`]).
 pub fn dims(
     stats: Option<ScoreStats>,
     fitted: &ClassConfig,
     own: Option<&ClassConfig>,
+    two_point: bool,
 ) -> Vec<Dim> {
     let mut d = Vec::new();
     if let Some(o) = own.filter(|o| (o.q, o.r, o.p0) != (fitted.q, fitted.r, fitted.p0)) {
@@ -147,6 +181,9 @@ pub fn dims(
     d.extend(shared_dims());
     if let Some(s) = stats {
         d.extend(score_dims(s));
+    }
+    if two_point {
+        d.push(two_point_dim());
     }
     d
 }
@@ -369,6 +406,7 @@ pub fn apply(cc: &mut ClassConfig, v: Value) {
         ScoreFloor(f) => cc.score_floor = f,
         BirthScore(b) => l.birth_score = b,
         Nms(n) => l.nms_iou = n,
+        TwoPoint(v) => l.two_point_speed = v,
         Score(m) => l.score = m,
         Blend(b) => l.blend = b,
         Boost(b) => l.boost = b,
@@ -444,7 +482,7 @@ mod tests {
     #[test]
     fn ctrv_candidate_turns_the_yaw_rate_on() {
         let cc = TrackerConfig::preset("ab3dmot-kitti").unwrap().classes["car"].clone();
-        let d = dims(None, &cc, None);
+        let d = dims(None, &cc, None, false);
         let mi = d.iter().position(|d| d.name == "motion").unwrap();
         let ai = d.iter().position(|d| d.name == "angular_velocity").unwrap();
         assert!(ai < mi);
@@ -473,7 +511,7 @@ mod tests {
     fn keep_score_candidates_bring_their_decay() {
         let cc = TrackerConfig::preset("ab3dmot-kitti").unwrap().classes["car"].clone();
         let stats = ScoreStats::of((0..100).map(|i| i as f64 / 100.0).collect());
-        let d = dims(stats, &cc, None);
+        let d = dims(stats, &cc, None, false);
         let ki = d.iter().position(|d| d.name == "keep_score").unwrap();
         let di = d.iter().position(|d| d.name == "decay").unwrap();
         let mut p = vec![0; d.len()];
@@ -496,7 +534,7 @@ mod tests {
         let mut fitted = own.clone();
         fitted.q = own.q.map(|x| 2.0 * x);
         let stats = ScoreStats::of(vec![0.1, 0.5, 0.9]);
-        let d = dims(stats, &fitted, Some(&own));
+        let d = dims(stats, &fitted, Some(&own), true);
         let names: Vec<&str> = d.iter().map(|d| d.name).collect();
         assert_eq!(names, DIM_NAMES);
         let only = vec!["nms_iou".to_string(), "gate".to_string()];
@@ -507,14 +545,36 @@ mod tests {
         assert!(err.contains("'nsm'") && err.contains("keep_score"), "{err}");
     }
 
+    /// Two-point initialization is searched only when named, and its candidates set the lever.
+    #[test]
+    fn two_point_is_searched_on_request() {
+        let named = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        assert!(!searches_two_point(&[]));
+        assert!(!searches_two_point(&named(&["gate", "nms_iou"])));
+        assert!(searches_two_point(&named(&["gate", "two_point_speed"])));
+        let cc = TrackerConfig::preset("nuscenes-chiu2019").unwrap().classes["car"].clone();
+        assert!(dims(None, &cc, None, false)
+            .iter()
+            .all(|d| d.name != TWO_POINT_NAME));
+        let d = dims(None, &cc, None, true);
+        let last = d.last().unwrap();
+        assert_eq!(last.name, TWO_POINT_NAME);
+        let mut p = vec![0; d.len()];
+        assert_eq!(at(&cc, &d, &p).levers.two_point_speed, None);
+        p[d.len() - 1] = last.values.len() - 1;
+        let fast = at(&cc, &d, &p);
+        assert_eq!(fast.levers.two_point_speed, Some(40.0));
+        fast.validate().unwrap();
+    }
+
     #[test]
     fn noise_dimension_comes_first_and_factors_scale_the_chosen_noise() {
         let own = TrackerConfig::preset("nuscenes-chiu2019").unwrap().classes["car"].clone();
         let mut fitted = own.clone();
         fitted.q = own.q.map(|x| 2.0 * x);
-        let d = dims(None, &fitted, Some(&own));
+        let d = dims(None, &fitted, Some(&own), false);
         assert_eq!(d[0].name, "noise");
-        assert!(dims(None, &own, Some(&own))
+        assert!(dims(None, &own, Some(&own), false)
             .iter()
             .all(|d| d.name != "noise"));
         let qi = d.iter().position(|d| d.name == "q_factor").unwrap();

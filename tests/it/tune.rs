@@ -267,6 +267,56 @@ fn a_restricted_search_moves_only_the_named_options() {
     assert_eq!(&tuned, fitted);
 }
 
+/// Three cars at 20 m/s, 10 m per frame at 2 Hz: past the gate of a new track, so with the
+/// paper's method each detection starts a track of its own.
+fn fast_log(seed: u64) -> TuneLog {
+    let mut rng = Lcg(seed);
+    let frames = (0..20u64)
+        .map(|i| {
+            let mut f = frame(i);
+            for car in 0..3u64 {
+                let (x, y) = (10.0 * i as f64 - 30.0 * car as f64, 8.0 * car as f64);
+                f.truth.push(KittiBox::from(&truth(car + 1, x, y)));
+                let n = |r: &mut Lcg| 0.2 * (r.next() - 0.5);
+                f.detections
+                    .push(det(x + n(&mut rng), y + n(&mut rng), 0.8));
+            }
+            f
+        })
+        .collect();
+    TuneLog {
+        name: format!("fast_{seed}"),
+        frames,
+        skipped_detections: Default::default(),
+    }
+}
+
+/// `two_point_speed` is searched when `--search` names it, and then keeps fast cars in one
+/// track; the default search leaves it off.
+#[test]
+fn two_point_speed_is_searched_when_named() {
+    let logs: Vec<TuneLog> = (1..=2).map(fast_log).collect();
+    let refs: Vec<&TuneLog> = logs.iter().collect();
+    let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let mut o = options(40);
+    o.search = vec!["two_point_speed".into()];
+    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let car = &t.classes[0];
+    let dims: Vec<&str> = car.steps.iter().map(|s| s.dim.as_str()).collect();
+    assert_eq!(dims, ["two_point_speed"], "{car:?}");
+    let speed = t.tuned.classes["car"].levers.two_point_speed;
+    assert!(speed.is_some_and(|v| v >= 20.0), "{speed:?}");
+    assert!(car.score > car.base_score + 0.5, "{car:?}");
+
+    o.search.clear();
+    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    assert!(t.classes[0]
+        .steps
+        .iter()
+        .all(|s| s.dim != "two_point_speed"));
+    assert_eq!(t.tuned.classes["car"].levers.two_point_speed, None);
+}
+
 #[test]
 fn a_move_needs_more_than_the_margin() {
     let logs: Vec<TuneLog> = (1..=2).map(synthetic_log).collect();
