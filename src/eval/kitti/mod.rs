@@ -473,6 +473,19 @@ fn evaluate_class<B: KittiFields>(
 ) -> Option<KittiMetrics> {
     let truth = ClassTruth::of_scenes(scenes, cls, p);
     let tracks: Vec<Vec<TrackRow>> = scenes.iter().map(|s| scene_rows(s, cls)).collect();
+    let rows = tracks.iter().map(Vec::len).sum::<usize>();
+    let flat = (tracks.iter().flatten())
+        .filter(|r| r.image_box.is_none())
+        .count();
+    if flat > 0 {
+        notes.push(format!(
+            "{cls}: {flat} of {rows} track boxes have no 2D image box (the log was not imported \
+             from KITTI): the reference's 2D rules (boxes {} px high or lower, DontCare regions) \
+             cannot ignore them, so unmatched ones count as false positives; the scores are not \
+             the official evaluation's",
+            p.min_height
+        ));
+    }
     match truth.evaluate_recording(&tracks, log) {
         Ok(m) => {
             if m.drift_points > 0 {

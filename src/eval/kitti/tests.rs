@@ -82,6 +82,37 @@ fn close(a: f64, b: f64) -> bool {
     (a - b).abs() < 1e-12
 }
 
+/// Track boxes without a 2D box (a log not imported from KITTI) cannot be ignored by the 2D
+/// rules: an unmatched one is a false positive, and a note says how many rows had none.
+#[test]
+fn tracks_without_image_boxes_are_not_ignored_by_the_2d_rules() {
+    let truth = vec![gt(0, "Car", 10.0, 0, 0), dontcare(IMG)];
+    let flat = |b: LabelledBox| LabelledBox {
+        image_box: None,
+        ..b
+    };
+    let tracks = vec![
+        flat(trk(1, "Car", 10.0, 1.0, IMG)),
+        flat(trk(2, "Car", 50.0, 1.0, IMG)),
+        flat(trk(3, "Van", 70.0, 1.0, IMG)),
+    ];
+    let r = evaluate(&[scene(vec![(truth, tracks)])], &params(&["car"]));
+    let m = &r.classes["car"];
+    assert_eq!((m.tp, m.fp, m.ignored_tracker), (1, 1, 1), "{m:?}");
+    let note = r.notes.iter().find(|n| n.contains("no 2D image box"));
+    assert!(
+        note.is_some_and(|n| n.starts_with("car: 3 of 3 track boxes")),
+        "{:?}",
+        r.notes
+    );
+    // With 2D boxes inside the DontCare region the same unmatched tracks are ignored.
+    let truth = vec![gt(0, "Car", 10.0, 0, 0), dontcare(IMG)];
+    let tracks = vec![trk(1, "Car", 10.0, 1.0, IMG), trk(2, "Car", 50.0, 1.0, IMG)];
+    let r = evaluate(&[scene(vec![(truth, tracks)])], &params(&["car"]));
+    assert_eq!(r.classes["car"].fp, 0);
+    assert!(r.notes.iter().all(|n| !n.contains("no 2D image box")));
+}
+
 #[test]
 fn ignore_rules_for_ground_truth_and_tracks() {
     // One frame, Car evaluation.

@@ -108,7 +108,8 @@ pub(super) struct TrObj {
     /// Index of the track among the scene's tracks (for its mean score).
     pub slot: u32,
     /// Ignored when unmatched and not matched before: of the neighbouring class, a 2D box at
-    /// most `min_height` high, or more than half inside a DontCare region.
+    /// most `min_height` high, or more than half inside a DontCare region (rows without a 2D
+    /// box: only the first rule).
     pub ignorable: bool,
     /// Score: the track's mean after the first pass.
     pub score: f64,
@@ -272,14 +273,17 @@ fn prepare_seq(
                 e.2 = true;
                 n_traj += 1;
             }
-            let bbox = r.image_box.unwrap_or([0.0; 4]);
-            let height = (bbox[1] - bbox[3]).abs();
+            // The 2D rules need the box in the image: a row without one (a log not imported
+            // from KITTI) is never too low or inside a DontCare region, so an unmatched one
+            // counts as a false positive (evaluate_class notes how many rows had none).
+            let in_2d = r.image_box.is_some_and(|bbox| {
+                (bbox[1] - bbox[3]).abs() <= p.min_height
+                    || frame.dc.iter().any(|d| overlap_share(&bbox, d) > 0.5)
+            });
             seq.rows.push(TrObj {
                 id: r.id,
                 slot: e.0,
-                ignorable: r.kind == RowKind::Neighbour
-                    || height <= p.min_height
-                    || frame.dc.iter().any(|d| overlap_share(&bbox, d) > 0.5),
+                ignorable: r.kind == RowKind::Neighbour || in_2d,
                 score: r.score,
                 valid: false,
                 kept: false,
