@@ -1,5 +1,5 @@
 //! rosbag2 bag directories (as `ros2 bag record -s mcap` writes them: a folder with
-//! `metadata.yaml` and the `.mcap` file): `track BAG_DIR -o OUT_DIR` tracks the bag's MCAP file
+//! `metadata.yaml` and the `.mcap` file; a folder without `metadata.yaml` is refused): `track BAG_DIR -o OUT_DIR` tracks the bag's MCAP file
 //! and writes OUT_DIR as a bag directory of its own, with a `metadata.yaml` that lists every
 //! topic of the output, the tracks topic included.
 //!
@@ -19,13 +19,15 @@ use mcap::records::Record;
 
 use crate::mcapio::reader::read_summary_records;
 
-/// The MCAP file of a bag directory, or `None` when `path` is not a directory.
+/// The MCAP file of a bag directory, or `None` when `path` is not a directory. A directory is a
+/// bag only with rosbag2's `metadata.yaml`: a folder of logs is not one log, and taking it for a
+/// bag would make `-o` a directory without a word.
 pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
     if !path.is_dir() {
         return Ok(None);
     }
     let mut mcaps = Vec::new();
-    let mut db3 = false;
+    let (mut db3, mut metadata) = (false, false);
     for entry in
         std::fs::read_dir(path).with_context(|| format!("cannot read {}", path.display()))?
     {
@@ -33,22 +35,32 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
         match p.extension().and_then(|e| e.to_str()) {
             Some("mcap") => mcaps.push(p),
             Some("db3") => db3 = true,
-            _ => {}
+            _ => metadata |= p.file_name().is_some_and(|n| n == "metadata.yaml"),
         }
     }
     mcaps.sort();
+    let dir = path.display();
     match mcaps.len() {
-        1 => Ok(mcaps.pop()),
         0 if db3 => bail!(
-            "{}: a rosbag2 bag with sqlite3 storage (.db3); probmot reads MCAP storage: convert \
-             it with `ros2 bag convert` to storage_id mcap, or record with `ros2 bag record -s mcap`",
-            path.display()
+            "{dir}: a rosbag2 bag with sqlite3 storage (.db3); probmot reads MCAP storage: convert \
+             it with `ros2 bag convert` to storage_id mcap, or record with `ros2 bag record -s mcap`"
         ),
-        0 => bail!("{}: a directory without an .mcap file", path.display()),
+        0 => bail!("{dir}: a directory without an .mcap file"),
+        1 if !metadata => bail!(
+            "{dir}: a directory with one .mcap file but no metadata.yaml, so not a rosbag2 bag: \
+             name the file instead ({}); a bag whose recording was cut gets its metadata.yaml \
+             back with `ros2 bag reindex`",
+            mcaps[0].display()
+        ),
+        n if !metadata => bail!(
+            "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 bag: \
+             name the files instead (`{dir}/*.mcap`; `probmot track` writes many logs with \
+             --out-dir)"
+        ),
+        1 => Ok(mcaps.pop()),
         n => bail!(
-            "{}: a bag split into {n} .mcap files; probmot tracks one file at a time: run \
-             `probmot track` on each .mcap file (tracks then restart at each split)",
-            path.display()
+            "{dir}: a bag split into {n} .mcap files; probmot tracks one file at a time: run \
+             `probmot track` on each .mcap file (tracks then restart at each split)"
         ),
     }
 }

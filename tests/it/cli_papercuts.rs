@@ -290,6 +290,28 @@ fn export_kitti_of_another_log_numbers_frames_in_order() {
     assert_eq!(frames, (0..40).collect());
 }
 
+/// A folder of logs is not a bag: `track` and `info` on it say to name the files.
+#[test]
+fn a_folder_of_logs_is_not_a_bag() {
+    let dir = tempfile::tempdir().unwrap();
+    let (logs, out) = (repo("sample_logs"), dir.path().join("never-written.mcap"));
+    for args in [
+        vec!["track", s(&logs), "-o", s(&out)],
+        vec!["info", s(&logs)],
+    ] {
+        let run = probmot(&args);
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains("3 .mcap files without metadata.yaml")
+                && stderr.contains("sample_logs/*.mcap")
+                && !stderr.contains("split"),
+            "{stderr}"
+        );
+    }
+    assert!(!out.exists());
+}
+
 /// A bag directory (`ros2 bag record`'s folder holding one .mcap) is read by every command, as
 /// `track` and `eval` already did: `info`, `plot`, `fit` and `export kitti` open its MCAP file
 /// (they failed with "Is a directory").
@@ -300,6 +322,17 @@ fn every_command_reads_a_bag_directory() {
     std::fs::create_dir(&bag).unwrap();
     std::fs::copy(repo("sample_logs/city.mcap"), bag.join("drive_bag_0.mcap")).unwrap();
     let tracked = dir.path().join("tracked_bag");
+    // Without rosbag2's metadata.yaml a folder is not a bag: refused, naming the file, and no
+    // output directory appears.
+    let run = probmot(&["track", s(&bag), "-o", s(&tracked), "--quiet"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no metadata.yaml") && stderr.contains("drive_bag_0.mcap"),
+        "{stderr}"
+    );
+    assert!(!tracked.exists());
+    std::fs::write(bag.join("metadata.yaml"), "rosbag2_bagfile_information:\n").unwrap();
     probmot_ok(&["track", s(&bag), "-o", s(&tracked), "--quiet"]);
     let (png, noise, txt) = (
         dir.path().join("p.png"),
