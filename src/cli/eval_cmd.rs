@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::{bail, Context, Result};
 use std::collections::BTreeMap;
 
-use probmot::eval::columns::{load_columns, ColumnScene};
+use probmot::eval::columns::{boxes_outside, load_columns, ColumnScene};
 use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts, Rack};
 use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
@@ -245,6 +245,30 @@ fn truth_classes(scenes: &[ColumnScene]) -> String {
     }
 }
 
+/// A note naming the labels no evaluated class reads, with their boxes, so that none is left
+/// out unsaid (`chosen`: the `--classes` given, empty for the protocol's own).
+fn unevaluated_labels(
+    scenes: &[ColumnScene],
+    classes: &[String],
+    chosen: &[String],
+) -> Option<String> {
+    let outside = boxes_outside(scenes, classes);
+    if outside.is_empty() {
+        return None;
+    }
+    let each: Vec<String> = (outside.iter())
+        .map(|(l, [truth, tracks])| format!("{l} ({truth} truth, {tracks} track boxes)"))
+        .collect();
+    let why = match chosen.is_empty() {
+        true => {
+            "not classes of the nuScenes protocol; choose classes with --classes, or \
+                 use --protocol kitti on KITTI logs"
+        }
+        false => "not in --classes",
+    };
+    Some(format!("labels not evaluated ({why}): {}", each.join(", ")))
+}
+
 /// The `--baseline` logs scored with the nuScenes protocol (none without `--baseline`).
 fn nuscenes_baseline(
     a: &EvalArgs,
@@ -281,6 +305,10 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             truth_classes(&scenes)
         );
     }
+    let mut result = result;
+    result
+        .notes
+        .extend(unevaluated_labels(&scenes, &params.classes, &a.classes));
     let events = (a.events.as_deref())
         .map(|out| {
             let logs = (EventsProtocol::Nuscenes, decisions);

@@ -4,6 +4,7 @@
 //! strings or maps. It is built while the log streams ([`load_columns`]): each message's boxes
 //! are filtered (the nuScenes filters) and appended, and nothing else of them is kept.
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::Result;
@@ -109,6 +110,24 @@ pub struct ColumnScene {
     pub truth: Side,
     /// Tracks.
     pub tracks: Side,
+}
+
+/// Boxes of `scenes` whose label is none of `classes`, per label: `[truth boxes, track boxes]`
+/// (what an evaluation of those classes leaves out, e.g. KITTI's `cyclist` under the nuScenes
+/// classes, which call it `bicycle`).
+pub fn boxes_outside(scenes: &[ColumnScene], classes: &[String]) -> BTreeMap<String, [u64; 2]> {
+    let mut out: BTreeMap<String, [u64; 2]> = BTreeMap::new();
+    for s in scenes {
+        for (k, side) in [&s.truth, &s.tracks].into_iter().enumerate() {
+            for &l in &side.label {
+                let name = &s.labels[l as usize];
+                if !classes.contains(name) {
+                    out.entry(name.clone()).or_default()[k] += 1;
+                }
+            }
+        }
+    }
+    out
 }
 
 impl ColumnScene {

@@ -513,3 +513,49 @@ fn import_kitti_takes_labels_alone() {
         "{stderr}"
     );
 }
+
+/// The nuScenes protocol (eval's default) on a KITTI import names the labels it does not
+/// evaluate (KITTI's `cyclist` is nuScenes' `bicycle`) instead of leaving them out unsaid.
+#[test]
+fn eval_names_the_labels_it_does_not_evaluate() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let row = |f: u32, id: u32, kind: &str, z: f64| {
+        let fixed = "0 0 -1.500000 100.000000 150.000000 200.000000 220.000000";
+        format!("{f} {id} {kind} {fixed} 1.500000 1.700000 4.000000 2.000000 1.600000 {z:.6} -1.570000\n")
+    };
+    let rows: String = (0..3)
+        .flat_map(|f| [row(f, 1, "Car", 15.0), row(f, 2, "Cyclist", 30.0)])
+        .collect();
+    std::fs::write(d.join("0001.txt"), rows).unwrap();
+    let log = d.join("truth.mcap");
+    probmot_ok(&[
+        "import",
+        "kitti",
+        "--labels",
+        s(&d.join("0001.txt")),
+        "-o",
+        s(&log),
+        "-q",
+    ]);
+    let args = [
+        "eval",
+        "--truth",
+        s(&log),
+        "--tracks",
+        s(&log),
+        "--tracks-topic",
+        "/ground_truth",
+    ];
+    let out = probmot_ok(&args);
+    let all = String::from_utf8_lossy(&out.stdout) + String::from_utf8_lossy(&out.stderr);
+    assert!(
+        all.contains("labels not evaluated (not classes of the nuScenes protocol")
+            && all.contains("cyclist (3 truth, 3 track boxes)")
+            && !all.contains("car ("),
+        "{all}"
+    );
+    let with = probmot_ok(&[&args[..], &["--classes", "car,cyclist"]].concat());
+    let all = String::from_utf8_lossy(&with.stdout) + String::from_utf8_lossy(&with.stderr);
+    assert!(!all.contains("labels not evaluated"), "{all}");
+}
