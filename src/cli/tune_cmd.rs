@@ -12,6 +12,7 @@ use probmot::eval::kitti::MeanScores;
 use probmot::fit::timing::mixed_periods;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::detection_frame::describe_skips;
+use probmot::pipeline::kitti_io::is_kitti_import;
 use probmot::pipeline::overrides::Overrides;
 use probmot::pipeline::rosbag_dir::resolve_input;
 use probmot::tracker::TrackerConfig;
@@ -68,8 +69,10 @@ pub struct TuneArgs {
     #[arg(short, long, value_name = "tuned.json")]
     output: PathBuf,
     /// Protocol whose headline metric is maximised: kitti (sAMOTA) or nuscenes (AMOTA).
-    #[arg(long, value_enum, default_value = "kitti")]
-    protocol: ProtocolArg,
+    /// Default: kitti when every log was written by `probmot import kitti`, nuscenes when none
+    /// was (logs of both kinds need it given).
+    #[arg(long, value_enum)]
+    protocol: Option<ProtocolArg>,
     /// KITTI: minimum 3D IoU of a match (as `probmot eval --iou`).
     #[arg(long, default_value_t = 0.25, value_name = "IOU")]
     iou: f64,
@@ -224,11 +227,11 @@ fn pct(v: f64) -> String {
 /// `kept_on_loss`: the final tune kept it for its held-out loss (the folds never do).
 fn not_searched(o: &TuneOptions, kept_on_loss: bool) -> &'static str {
     if kept_on_loss {
-        "lost held-out (--keep-base-on-loss): the base's own settings"
+        "lost held-out (--keep-base-on-loss): the base's own settings and noise"
     } else if o.limits.shared {
         "too few trajectories: shared settings"
     } else {
-        "too few trajectories: the base's own settings"
+        "too few trajectories: the base's own settings and noise"
     }
 }
 
@@ -303,10 +306,9 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
         "--iou must lie in (0, 1], got {}",
         a.iou
     );
-    ensure!(
-        a.search_means.is_none() || matches!(a.protocol, ProtocolArg::Kitti),
-        "--search-means is a KITTI option (the nuScenes devkit averages each track's score once)"
-    );
+    if a.protocol.is_some() {
+        check_search_means(&a)?;
+    }
     tune::space::check_names(&a.search).map_err(anyhow::Error::msg)?;
     // Checked before the logs are read (a long log takes a while).
     ensure!(
@@ -319,6 +321,8 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
     }
+    a.protocol = Some(protocol_of(&a)?);
+    check_search_means(&a)?;
     let base = base_config(&a)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.jobs.unwrap_or(0))
@@ -326,13 +330,42 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
     pool.install(|| run_in_pool(&a, &base))
 }
 
+/// --search-means only with the KITTI protocol (given, or found from the logs).
+fn check_search_means(a: &TuneArgs) -> Result<()> {
+    ensure!(
+        a.search_means.is_none() || matches!(a.protocol, Some(ProtocolArg::Kitti)),
+        "--search-means is a KITTI option (the nuScenes devkit averages each track's score once)"
+    );
+    Ok(())
+}
+
+/// The protocol: --protocol, else kitti when every input is a KITTI import and nuscenes when
+/// none is.
+fn protocol_of(a: &TuneArgs) -> Result<ProtocolArg> {
+    if let Some(p) = a.protocol {
+        return Ok(p);
+    }
+    let mut kitti = Vec::new();
+    for p in &a.inputs {
+        kitti.push(is_kitti_import(p)?);
+    }
+    match (kitti.iter().all(|k| *k), kitti.iter().any(|k| *k)) {
+        (true, _) => Ok(ProtocolArg::Kitti),
+        (false, false) => Ok(ProtocolArg::Nuscenes),
+        (false, true) => bail!(
+            "some logs were written by `probmot import kitti` and some not: give --protocol \
+             kitti or nuscenes"
+        ),
+    }
+}
+
 /// The tune's options from the flags (`keep_base` empty: the final tune sets it).
 fn options(a: &TuneArgs) -> TuneOptions {
     TuneOptions {
         scoring: Scoring {
             protocol: match a.protocol {
-                ProtocolArg::Kitti => Protocol::Kitti,
-                ProtocolArg::Nuscenes => Protocol::Nuscenes,
+                Some(ProtocolArg::Kitti) => Protocol::Kitti,
+                Some(ProtocolArg::Nuscenes) | None => Protocol::Nuscenes,
             },
             iou: a.iou,
             search_means: a.search_means.map_or(MeanScores::Once, MeansArg::means),

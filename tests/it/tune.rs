@@ -490,7 +490,7 @@ fn cli_tune_writes_a_config_that_track_accepts() {
                 || l.ends_with(
                     "(no detections in the training folds: folds are the logs in the order given)"
                 )
-                || l.ends_with("(too few trajectories: the base's own settings)")),
+                || l.ends_with("(too few trajectories: the base's own settings and noise)")),
         "{text}"
     );
     // It says which classes the protocol scored, and what the others get.
@@ -754,4 +754,74 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
     let tuned = TrackerConfig::from_json(&std::fs::read_to_string(&out).unwrap()).unwrap();
     let ab3dmot = TrackerConfig::preset("ab3dmot-kitti").unwrap();
     assert_eq!(tuned.classes["pedestrian"], ab3dmot.classes["pedestrian"]);
+}
+
+/// Without --protocol, tune scores KITTI imports with the KITTI protocol and other logs with
+/// the nuScenes one, and refuses a mix.
+#[test]
+fn the_protocol_follows_the_logs() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let row = |f: u32, z: f64| {
+        let fixed = "Car 0 0 -1.5 100 150 200 220 1.5 1.7 4.0";
+        format!("{f} 1 {fixed} 2.0 1.6 {z} -1.57\n")
+    };
+    let det =
+        |f: u32, z: f64| format!("{f},2,100,150,200,220,0.9,1.5,1.7,4.0,2.0,1.6,{z},-1.57,-1.5\n");
+    let (labels, dets) = (d.join("0000.txt"), d.join("dets.txt"));
+    std::fs::write(
+        &labels,
+        (0..4).map(|f| row(f, 15.0 + f as f64)).collect::<String>(),
+    )
+    .unwrap();
+    std::fs::write(
+        &dets,
+        (0..4).map(|f| det(f, 15.0 + f as f64)).collect::<String>(),
+    )
+    .unwrap();
+    let kitti = d.join("k.mcap");
+    common::probmot_ok(&[
+        "import",
+        "kitti",
+        "--labels",
+        labels.to_str().unwrap(),
+        "--detections",
+        dets.to_str().unwrap(),
+        "-o",
+        kitti.to_str().unwrap(),
+        "-q",
+    ]);
+    let city = common::repo("sample_logs/city.mcap");
+    let out = d.join("t.json");
+    let tune = |logs: &[&Path]| {
+        let mut args = vec![
+            "tune",
+            "--folds",
+            "0",
+            "--budget",
+            "1",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        args.extend(logs.iter().map(|p| p.to_str().unwrap()));
+        common::probmot(&args)
+    };
+    let said = |o: &std::process::Output| {
+        String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr)
+    };
+    let k = tune(&[&kitti]);
+    assert!(
+        said(&k).contains("scored with the KITTI protocol"),
+        "{}",
+        said(&k)
+    );
+    let n = tune(&[&city]);
+    assert!(
+        said(&n).contains("scored with the nuScenes protocol"),
+        "{}",
+        said(&n)
+    );
+    let mixed = tune(&[&kitti, &city]);
+    assert_eq!(mixed.status.code(), Some(2), "{}", said(&mixed));
+    assert!(said(&mixed).contains("give --protocol"), "{}", said(&mixed));
 }
