@@ -23,7 +23,7 @@ fn load(data: &Path, dir: &Path) -> Vec<TuneLog> {
     SEQS.iter()
         .map(|s| {
             let out: PathBuf = dir.join(format!("{s}.mcap"));
-            let dets = resolve_detection_files(&[data.join("pointrcnn")], s).unwrap();
+            let dets = resolve_detection_files(&[data.join("pointrcnn")], s, None).unwrap();
             let labels = data.join("label_02").join(format!("{s}.txt"));
             import_kitti(Some(&labels), &dets, None, s, &out).unwrap();
             TuneLog::load(&out, "/ground_truth", "/detections").unwrap()

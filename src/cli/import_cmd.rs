@@ -264,7 +264,17 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
             let files = if k.detections.is_empty() {
                 Vec::new()
             } else {
-                resolve_detection_files(&k.detections, &sequence)?
+                let files = resolve_detection_files(&k.detections, &sequence, k.labels.as_deref());
+                match (&k.sequence, &k.labels) {
+                    (None, Some(l)) => files.with_context(|| {
+                        format!(
+                            "sequence {sequence}, named after the label file {} (--sequence \
+                             sets it)",
+                            l.display()
+                        )
+                    })?,
+                    _ => files?,
+                }
             };
             let tracks = k.tracks.clone().map(|file| TracksInput {
                 file,

@@ -109,7 +109,18 @@ pub fn pointrcnn_type(code: &str) -> Result<&'static str> {
 pub fn parse_detection_line(line: &str) -> Result<KittiRow> {
     let f: Vec<&str> = line.split(',').collect();
     if f.len() != 15 {
-        bail!("expected 15 comma-separated fields, found {}", f.len());
+        let words = line.split_whitespace().count();
+        let hint = match words {
+            17 | 18 => {
+                " (a line of the label or tracking result format: --labels or --tracks \
+                        take those; --detections takes PointRCNN detection files)"
+            }
+            _ => "",
+        };
+        bail!(
+            "expected 15 comma-separated fields, found {}{hint}",
+            f.len()
+        );
     }
     let n = |i: usize, name: &str| num(f[i], name);
     Ok(KittiRow {

@@ -84,14 +84,21 @@ fn read_lines(path: &Path) -> Result<Vec<(usize, String)>> {
 }
 
 /// Resolves `--detections` arguments: files as given; for a directory, `SEQ.txt` in it or in its
-/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`).
-pub fn resolve_detection_files(args: &[PathBuf], sequence: &str) -> Result<Vec<PathBuf>> {
+/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`), other than
+/// the `labels` file (a dataset folder given one level too high holds `label_02/SEQ.txt`).
+pub fn resolve_detection_files(
+    args: &[PathBuf],
+    sequence: &str,
+    labels: Option<&Path>,
+) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     let name = format!("{sequence}.txt");
+    let labels = labels.and_then(|l| std::fs::canonicalize(l).ok());
+    let not_labels = |p: &Path| labels.is_none() || std::fs::canonicalize(p).ok() != labels;
     for a in args {
         if a.is_dir() {
             let direct = a.join(&name);
-            if direct.is_file() {
+            if direct.is_file() && not_labels(&direct) {
                 out.push(direct);
             }
             let mut subs: Vec<PathBuf> = std::fs::read_dir(a)
@@ -102,7 +109,7 @@ pub fn resolve_detection_files(args: &[PathBuf], sequence: &str) -> Result<Vec<P
             subs.sort();
             for s in subs {
                 let f = s.join(&name);
-                if f.is_file() {
+                if f.is_file() && not_labels(&f) {
                     out.push(f);
                 }
             }
@@ -113,7 +120,13 @@ pub fn resolve_detection_files(args: &[PathBuf], sequence: &str) -> Result<Vec<P
         }
     }
     if out.is_empty() {
-        bail!("no detection file {name} found in {:?}", args);
+        let dirs: Vec<String> = args.iter().map(|a| a.display().to_string()).collect();
+        bail!(
+            "no detection file {name} in {} or the folders directly inside (the label file \
+             does not count); --detections takes e.g. pointrcnn/ (which holds \
+             Car/{name}, ...)",
+            dirs.join(", ")
+        );
     }
     Ok(out)
 }

@@ -559,3 +559,50 @@ fn eval_names_the_labels_it_does_not_evaluate() {
     let all = String::from_utf8_lossy(&with.stdout) + String::from_utf8_lossy(&with.stderr);
     assert!(!all.contains("labels not evaluated"), "{all}");
 }
+
+/// `import kitti --detections` given the dataset folder (one level too high) does not read the
+/// label file as detections, and a label file given as detections is named as one.
+#[test]
+fn import_kitti_detections_one_folder_too_high() {
+    let dir = tempfile::tempdir().unwrap();
+    let root = dir.path().join("kitti");
+    std::fs::create_dir_all(root.join("label_02")).unwrap();
+    std::fs::create_dir_all(root.join("pointrcnn/Car")).unwrap();
+    let labels = root.join("label_02/0000.txt");
+    let row = "0 1 Car 0 0 -1.5 100 150 200 220 1.5 1.7 4.0 2.0 1.6 15.0 -1.57\n";
+    std::fs::write(&labels, row).unwrap();
+    let det = "0,2,100,150,200,220,0.9,1.5,1.7,4.0,2.0,1.6,15.0,-1.57,-1.5\n";
+    std::fs::write(root.join("pointrcnn/Car/0000.txt"), det).unwrap();
+    let out = dir.path().join("0000.mcap");
+    let import = |dets: &std::path::Path| {
+        let args = [
+            "import",
+            "kitti",
+            "--labels",
+            s(&labels),
+            "--detections",
+            s(dets),
+        ];
+        probmot(&[&args[..], &["-o", s(&out), "-q"]].concat())
+    };
+    let run = import(&root);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("no detection file 0000.txt") && !stderr.contains("comma-separated"),
+        "{stderr}"
+    );
+    let run = import(&labels);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("a line of the label or tracking result format"),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let run = import(&root.join("pointrcnn"));
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+}

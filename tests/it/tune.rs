@@ -655,9 +655,12 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
         .iter()
         .map(|s| {
             let out = dir.path().join(format!("{s}.mcap"));
-            let dets =
-                probmot::pipeline::kitti_io::resolve_detection_files(&[data.join("pointrcnn")], s)
-                    .unwrap();
+            let dets = probmot::pipeline::kitti_io::resolve_detection_files(
+                &[data.join("pointrcnn")],
+                s,
+                None,
+            )
+            .unwrap();
             let labels = data.join("label_02").join(format!("{s}.txt"));
             probmot::pipeline::kitti_io::import_kitti(Some(&labels), &dets, None, s, &out).unwrap();
             TuneLog::load(&out, "/ground_truth", "/detections").unwrap()
