@@ -13,11 +13,18 @@ Usage: python3 scripts/check_scene_update.py FILE.mcap [--topic /tracks/scene]
 
 import argparse
 import json
+import os
 import sys
 
-from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
-from google.protobuf import descriptor_pb2, descriptor_pool
-from mcap.reader import make_reader
+try:
+    from foxglove_schemas_protobuf.SceneUpdate_pb2 import SceneUpdate
+    from google.protobuf import descriptor_pb2, descriptor_pool
+    from mcap.reader import make_reader
+except ImportError as e:  # depends on the environment
+    sys.exit(
+        f"{os.path.basename(sys.argv[0])}: error: {e}; install the packages with "
+        "`python3 -m pip install -r scripts/requirements.txt`"
+    )
 
 
 def ns(ts):

@@ -9,10 +9,18 @@ Usage: python3 scripts/read_eval_events.py EVENTS.mcap [--topic /eval/events]
 
 import argparse
 import json
+import os
+import sys
 from collections import defaultdict
 
-from mcap.reader import make_reader
-from mcap_protobuf.decoder import DecoderFactory
+try:
+    from mcap.reader import make_reader
+    from mcap_protobuf.decoder import DecoderFactory
+except ImportError as e:  # depends on the environment
+    sys.exit(
+        f"{os.path.basename(sys.argv[0])}: error: {e}; install the packages with "
+        "`python3 -m pip install -r scripts/requirements.txt`"
+    )
 
 KINDS = {0: "tp", 1: "ids", 2: "frag", 3: "fp", 4: "fn"}
 

@@ -64,7 +64,7 @@ enum ImportFormat {
         .multiple(true)
 ))]
 struct ImportKitti {
-    /// Ground-truth label file `label_02/SSSS.txt` (optional).
+    /// Ground-truth label file `label_02/SSSS.txt`; its name is the sequence's.
     #[arg(long, value_name = "FILE")]
     labels: Option<PathBuf>,
     /// Detection files (`frame, type, x1, y1, x2, y2, score, h, w, l, x, y, z, rotation_y,
