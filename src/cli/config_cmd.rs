@@ -8,6 +8,7 @@ use anyhow::Result;
 use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
 use probmot::pipeline::overrides::{base_config, Overrides};
+use probmot::pipeline::per_class::PerClass;
 use probmot::tracker::ctrv::Motion;
 use probmot::tracker::levers::Coast;
 use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
@@ -163,13 +164,15 @@ pub struct TrackerArgs {
     #[arg(long, help_heading = "Levers", value_name = "BOOL", num_args = 0..=1,
           default_missing_value = "true")]
     pub backfill: Option<bool>,
-    /// Two-point initialization for every class: a detection left unmatched (one that could
-    /// start a track) may continue a track born in the previous frame within this speed
-    /// (m/s), which then takes the velocity of the two detections; for objects that move
-    /// further per frame than the gate allows (fast cars at nuScenes' 2 Hz). Per class (cars,
-    /// not pedestrians) in a config file. Example: --two-point-speed 40
-    #[arg(long, value_name = "M/S", help_heading = "Levers")]
-    pub two_point_speed: Option<f64>,
+    /// Two-point initialization: a detection left unmatched (one that could start a track)
+    /// may continue a track born in the previous frame within this speed (m/s), which then
+    /// takes the velocity of the two detections; for objects that move further per frame than
+    /// the gate allows (fast cars at nuScenes' 2 Hz). One speed for every class, or per class
+    /// (`*=`: the others), since a pedestrian's is far lower than a car's.
+    /// Example: --two-point-speed car=40,motorcycle=40,bus=30,truck=30
+    #[arg(long, value_name = "M/S|CLASS=M/S,...", help_heading = "Levers",
+          value_parser = |s: &str| PerClass::parse(s, "m/s"))]
+    pub two_point_speed: Option<PerClass>,
 }
 
 /// Coasted-frame reporting on the command line.
@@ -240,7 +243,7 @@ impl TrackerArgs {
             birth_score: self.birth_score,
             coast: self.coast.map(CoastArg::mode),
             backfill: self.backfill,
-            two_point_speed: self.two_point_speed,
+            two_point_speed: self.two_point_speed.clone(),
         }
     }
 }

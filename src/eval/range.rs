@@ -17,6 +17,7 @@ use super::scene::Scene;
 use crate::mcapio::topic::for_each_payload;
 use crate::mcapio::LabelledBox;
 use crate::msgs::EGO_POSE_SCHEMA;
+use crate::pipeline::per_class::PerClass;
 
 /// Maximum ego distance per class, metres.
 #[derive(Debug, Clone, PartialEq)]
@@ -56,36 +57,11 @@ impl RangeFilter {
         if spec == "nuscenes" {
             return Ok(RangeFilter::nuscenes());
         }
-        let metres = |s: &str| -> Result<f64, String> {
-            match s.trim().parse::<f64>() {
-                Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
-                _ => Err(format!("'{s}' is not a positive number of metres")),
-            }
-        };
-        if !spec.contains('=') {
-            return Ok(RangeFilter {
-                per_class: BTreeMap::new(),
-                other: Some(metres(spec)?),
-            });
-        }
-        let mut f = RangeFilter {
-            per_class: BTreeMap::new(),
-            other: None,
-        };
-        for part in spec.split(',').filter(|p| !p.trim().is_empty()) {
-            let Some((class, value)) = part.split_once('=') else {
-                return Err(format!("'{part}': expected class=metres"));
-            };
-            let (class, value) = (class.trim(), metres(value)?);
-            if class == "*" {
-                f.other = Some(value);
-            } else if class.is_empty() {
-                return Err(format!("'{part}': empty class name"));
-            } else if f.per_class.insert(class.to_string(), value).is_some() {
-                return Err(format!("class {class} given twice"));
-            }
-        }
-        Ok(f)
+        let spec = PerClass::parse(spec, "metres")?;
+        Ok(RangeFilter {
+            per_class: spec.named,
+            other: spec.other,
+        })
     }
 
     /// The range of a class, if it is filtered.

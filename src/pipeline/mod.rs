@@ -8,6 +8,7 @@ pub mod kitti_io;
 pub mod log_pairs;
 pub mod many;
 pub mod overrides;
+pub mod per_class;
 pub mod progress;
 pub mod rosbag_dir;
 pub mod track;

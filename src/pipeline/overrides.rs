@@ -6,14 +6,15 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 
+use super::per_class::PerClass;
 use crate::tracker::config::ab3dmot_covariances;
 use crate::tracker::ctrv::Motion;
 use crate::tracker::levers::Coast;
-use crate::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
+use crate::tracker::{ClassConfig, DistanceKind, MatcherKind, Preset, TrackerConfig};
 
 /// Overrides applied to every class of a configuration; `None`/`false` leaves a setting as it
 /// is.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct Overrides {
     /// Distance of every class. A class whose distance changes gets that distance's usual gate
     /// ([`default_threshold`]) unless `threshold` is given too.
@@ -46,8 +47,9 @@ pub struct Overrides {
     pub coast: Option<Coast>,
     /// Backfill of every class (`levers.backfill`: report a confirmed track from its birth).
     pub backfill: Option<bool>,
-    /// Two-point initialization speed of every class (`levers.two_point_speed`, m/s).
-    pub two_point_speed: Option<f64>,
+    /// Two-point initialization speed (`levers.two_point_speed`, m/s): one for every class, or
+    /// per class (fast cars, not pedestrians).
+    pub two_point_speed: Option<PerClass>,
 }
 
 impl Overrides {
@@ -109,13 +111,42 @@ impl Overrides {
             if let Some(b) = self.backfill {
                 c.levers.backfill = b;
             }
-            if let Some(v) = self.two_point_speed {
-                c.levers.two_point_speed = Some(v);
-            }
         });
+        if let Some(speeds) = &self.two_point_speed {
+            set_per_class(cfg, speeds, "--two-point-speed", |c, v| {
+                c.levers.two_point_speed = Some(v)
+            })?;
+        }
         cfg.validate()?;
         Ok(())
     }
+}
+
+/// Sets a per-class value: each named class's entry (which must exist) and, with a value for
+/// the classes not named, every other entry and the default one.
+fn set_per_class(
+    cfg: &mut TrackerConfig,
+    values: &PerClass,
+    flag: &str,
+    set: impl Fn(&mut ClassConfig, f64),
+) -> Result<()> {
+    if let Some(missing) = values.named.keys().find(|c| !cfg.classes.contains_key(*c)) {
+        let have: Vec<&str> = cfg.classes.keys().map(String::as_str).collect();
+        anyhow::bail!(
+            "{flag}: the config has no entry for class {missing} (its classes: {}; `*=` sets \
+             the others and the default entry)",
+            have.join(", ")
+        );
+    }
+    for (label, c) in cfg.classes.iter_mut() {
+        if let Some(v) = values.of(label) {
+            set(c, v);
+        }
+    }
+    if let (Some(d), Some(v)) = (cfg.default.as_mut(), values.other) {
+        set(d, v);
+    }
+    Ok(())
 }
 
 /// The base configuration: the config file (JSON, as `probmot config` prints it) when given,
@@ -233,7 +264,7 @@ mod tests {
             birth_score: Some(0.5),
             coast: Some(Coast::Gaps),
             backfill: Some(true),
-            two_point_speed: Some(40.0),
+            two_point_speed: PerClass::parse("40", "m/s").ok(),
             ..Default::default()
         };
         o.apply(&mut cfg).unwrap();
@@ -258,6 +289,33 @@ mod tests {
             ..Default::default()
         };
         assert!(bad.apply(&mut preset()).is_err());
+    }
+
+    /// `car=40,*=20` sets cars to 40 and every other entry (the default too) to 20; named
+    /// classes alone leave the others as they are; a class the config has no entry for is
+    /// refused with the classes it has.
+    #[test]
+    fn two_point_speed_per_class() {
+        let speeds = |spec: &str| Overrides {
+            two_point_speed: Some(PerClass::parse(spec, "m/s").unwrap()),
+            ..Default::default()
+        };
+        let mut cfg = preset();
+        speeds("car=40,*=20").apply(&mut cfg).unwrap();
+        assert_eq!(cfg.classes["car"].levers.two_point_speed, Some(40.0));
+        assert_eq!(cfg.classes["pedestrian"].levers.two_point_speed, Some(20.0));
+        if let Some(d) = &cfg.default {
+            assert_eq!(d.levers.two_point_speed, Some(20.0));
+        }
+        let mut cfg = preset();
+        speeds("car=40,motorcycle=35").apply(&mut cfg).unwrap();
+        assert_eq!(cfg.classes["motorcycle"].levers.two_point_speed, Some(35.0));
+        assert_eq!(cfg.classes["pedestrian"].levers.two_point_speed, None);
+        let err = speeds("cars=40").apply(&mut preset()).unwrap_err();
+        assert!(
+            err.to_string().contains("no entry for class cars") && err.to_string().contains("car,"),
+            "{err}"
+        );
     }
 
     #[test]

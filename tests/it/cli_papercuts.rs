@@ -172,7 +172,34 @@ fn config_help_examples_run() {
     }
     let bad = probmot(&["config", "--two-point-speed", "-5"]);
     assert_eq!(bad.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&bad.stderr).contains("two_point_speed"));
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert!(
+        err.contains("'-5' is not a positive number of m/s"),
+        "{err}"
+    );
+    // The help's example: cars, motorcycles, buses and trucks only.
+    let per_class = [
+        "config",
+        "--preset",
+        "nuscenes-chiu2019",
+        "--two-point-speed",
+        "car=40,motorcycle=40,bus=30,truck=30",
+    ];
+    for (label, c) in &config_classes(&per_class) {
+        let want = match label.as_str() {
+            "car" | "motorcycle" => serde_json::json!(40.0),
+            "bus" | "truck" => serde_json::json!(30.0),
+            _ => serde_json::Value::Null,
+        };
+        assert_eq!(
+            c["levers"]
+                .get("two_point_speed")
+                .cloned()
+                .unwrap_or_default(),
+            want,
+            "{label}"
+        );
+    }
     let clash = ["config", "--motion", "ctrv", "--no-angular-velocity"];
     assert_eq!(probmot(&clash).status.code(), Some(2));
 }
