@@ -21,6 +21,7 @@ use probmot::eval::range::{
 use probmot::eval::report::{fmt_value, table};
 use probmot::eval::scene::Scene;
 use probmot::mcapio::LabelledBox;
+use probmot::pipeline::kitti_io::is_kitti_import;
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
@@ -246,27 +247,46 @@ fn truth_classes(scenes: &[ColumnScene]) -> String {
 }
 
 /// A note naming the labels no evaluated class reads, with their boxes, so that none is left
-/// out unsaid (`chosen`: the `--classes` given, empty for the protocol's own).
+/// out unsaid: labels with ground truth first (with what to do), then those only the tracks
+/// have (a detector's classes outside the benchmark, e.g. nuScenes' traffic cones).
 fn unevaluated_labels(
     scenes: &[ColumnScene],
     classes: &[String],
-    chosen: &[String],
+    a: &EvalArgs,
+    pairs: &LogPairs,
 ) -> Option<String> {
     let outside = boxes_outside(scenes, classes);
-    if outside.is_empty() {
-        return None;
+    let (with_truth, tracks_only): (Vec<_>, Vec<_>) =
+        outside.iter().partition(|(_, [truth, _])| *truth > 0);
+    let mut parts = Vec::new();
+    if !with_truth.is_empty() {
+        let each: Vec<String> = (with_truth.iter())
+            .map(|(l, [truth, tracks])| format!("{l} ({truth} truth, {tracks} track boxes)"))
+            .collect();
+        let kitti = (pairs.iter()).any(|(t, _)| is_kitti_import(t).unwrap_or(false));
+        let why = match (a.classes.is_empty(), kitti) {
+            (false, _) => "not in --classes",
+            (true, true) => {
+                "not classes of the nuScenes protocol; --protocol kitti evaluates these KITTI \
+                 logs by KITTI's classes, --classes chooses others"
+            }
+            (true, false) => "not classes of the nuScenes protocol; --classes chooses others",
+        };
+        parts.push(format!(
+            "labels with ground truth not evaluated ({why}): {}",
+            each.join(", ")
+        ));
     }
-    let each: Vec<String> = (outside.iter())
-        .map(|(l, [truth, tracks])| format!("{l} ({truth} truth, {tracks} track boxes)"))
-        .collect();
-    let why = match chosen.is_empty() {
-        true => {
-            "not classes of the nuScenes protocol; choose classes with --classes, or \
-                 use --protocol kitti on KITTI logs"
-        }
-        false => "not in --classes",
-    };
-    Some(format!("labels not evaluated ({why}): {}", each.join(", ")))
+    if !tracks_only.is_empty() {
+        let each: Vec<String> = (tracks_only.iter())
+            .map(|(l, [_, tracks])| format!("{l} ({tracks})"))
+            .collect();
+        parts.push(format!(
+            "track boxes of labels without ground truth, not evaluated: {}",
+            each.join(", ")
+        ));
+    }
+    (!parts.is_empty()).then(|| parts.join("; "))
 }
 
 /// The `--baseline` logs scored with the nuScenes protocol (none without `--baseline`).
@@ -280,6 +300,30 @@ fn nuscenes_baseline(
     let pairs = log_pairs(&a.truth, &a.baseline)?;
     let (scenes, _) = load_columns_logs(a, &pairs, false)?;
     Ok((pairs, Some(evaluate_columns(&scenes, params))))
+}
+
+/// The result, refused when no evaluated class had ground truth, with the note on the labels
+/// left out.
+fn with_truth_checked(
+    mut result: NuscenesResult,
+    scenes: &[ColumnScene],
+    params: &NuscenesParams,
+    a: &EvalArgs,
+    pairs: &LogPairs,
+) -> Result<NuscenesResult> {
+    if result.classes.values().all(|m| m.gt.is_nan()) {
+        bail!(
+            "{}: topic {} has no ground-truth box of the evaluated classes ({}); {}",
+            describe(pairs, false),
+            a.truth_topic,
+            params.classes.join(", "),
+            truth_classes(scenes)
+        );
+    }
+    result
+        .notes
+        .extend(unevaluated_labels(scenes, &params.classes, a, pairs));
+    Ok(result)
 }
 
 fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
@@ -296,19 +340,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         || centre_hota(&scenes, &params.classes),
     );
     spinner.finish_and_clear();
-    if result.classes.values().all(|m| m.gt.is_nan()) {
-        bail!(
-            "{}: topic {} has no ground-truth box of the evaluated classes ({}); {}",
-            describe(&pairs, false),
-            a.truth_topic,
-            params.classes.join(", "),
-            truth_classes(&scenes)
-        );
-    }
-    let mut result = result;
-    result
-        .notes
-        .extend(unevaluated_labels(&scenes, &params.classes, &a.classes));
+    let result = with_truth_checked(result, &scenes, &params, &a, &pairs)?;
     let events = (a.events.as_deref())
         .map(|out| {
             let logs = (EventsProtocol::Nuscenes, decisions);

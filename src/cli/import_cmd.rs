@@ -246,36 +246,37 @@ macro_rules! say {
     };
 }
 
+/// The sequence name (--sequence, else the label file's name) and the detection files of
+/// `import kitti`.
+fn kitti_inputs(k: &ImportKitti) -> Result<(String, Vec<PathBuf>)> {
+    let sequence = match (&k.sequence, &k.labels) {
+        (Some(s), _) => s.clone(),
+        (None, Some(l)) => l
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .context("cannot tell the sequence from the label file name; give --sequence")?,
+        (None, None) => anyhow::bail!("give --sequence when no --labels file is given"),
+    };
+    if k.detections.is_empty() {
+        return Ok((sequence, Vec::new()));
+    }
+    let files = resolve_detection_files(&k.detections, &sequence, k.labels.as_deref());
+    let files = match (&k.sequence, &k.labels) {
+        (None, Some(l)) => files.with_context(|| {
+            format!(
+                "sequence {sequence}, named after the label file {} (--sequence sets it)",
+                l.display()
+            )
+        })?,
+        _ => files?,
+    };
+    Ok((sequence, files))
+}
+
 pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
     match a.format {
         ImportFormat::Kitti(k) => {
-            let sequence = match (&k.sequence, &k.labels) {
-                (Some(s), _) => s.clone(),
-                (None, Some(l)) => l
-                    .file_stem()
-                    .map(|s| s.to_string_lossy().into_owned())
-                    .context(
-                        "cannot tell the sequence from the label file name; give --sequence",
-                    )?,
-                (None, None) => {
-                    anyhow::bail!("give --sequence when no --labels file is given")
-                }
-            };
-            let files = if k.detections.is_empty() {
-                Vec::new()
-            } else {
-                let files = resolve_detection_files(&k.detections, &sequence, k.labels.as_deref());
-                match (&k.sequence, &k.labels) {
-                    (None, Some(l)) => files.with_context(|| {
-                        format!(
-                            "sequence {sequence}, named after the label file {} (--sequence \
-                             sets it)",
-                            l.display()
-                        )
-                    })?,
-                    _ => files?,
-                }
-            };
+            let (sequence, files) = kitti_inputs(&k)?;
             let tracks = k.tracks.clone().map(|file| TracksInput {
                 file,
                 topic: k.tracks_topic.clone(),

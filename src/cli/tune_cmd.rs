@@ -43,10 +43,10 @@ use rayon::prelude::*;
 /// backfill), yaw rate, Q and R factors, NMS, reported score and its refinement, score floor,
 /// two-stage birth score, life cycle by confidence (and two-point initialization when
 /// --search names it). Only classes with at least --min-tracks ground-truth trajectories in the
-/// training logs are searched (from the base with fitted noise); the others keep the base config's own settings, as a handful of trajectories
-/// supports no data-driven choice. With --shared, a first stage chooses the class-agnostic
-/// options jointly for every class (on the mean score of the searched classes), and the other
-/// classes keep those instead.
+/// training logs are searched (from the base with fitted noise); the others keep the base
+/// config's own settings and noise, as a handful of trajectories supports no data-driven
+/// choice. With --shared, a first stage chooses the class-agnostic options jointly for every
+/// class (on the mean score of the searched classes), and the other classes keep those instead.
 /// Bound the work with --budget (configurations per search; about 80 make one round) and
 /// --rounds; the total is at most (folds + 1) x (classes + 1) x budget configurations, and a
 /// configuration seen before is not scored again. Deterministic for the same inputs and
@@ -307,7 +307,7 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
         a.iou
     );
     if a.protocol.is_some() {
-        check_search_means(&a)?;
+        check_search_means(&a, false)?;
     }
     tune::space::check_names(&a.search).map_err(anyhow::Error::msg)?;
     // Checked before the logs are read (a long log takes a while).
@@ -321,8 +321,9 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
     for input in &a.inputs {
         check_output_path(Some(input), &a.output)?;
     }
+    let inferred = a.protocol.is_none();
     a.protocol = Some(protocol_of(&a)?);
-    check_search_means(&a)?;
+    check_search_means(&a, inferred)?;
     let base = base_config(&a)?;
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(a.jobs.unwrap_or(0))
@@ -330,13 +331,42 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
     pool.install(|| run_in_pool(&a, &base))
 }
 
-/// --search-means only with the KITTI protocol (given, or found from the logs).
-fn check_search_means(a: &TuneArgs) -> Result<()> {
+/// --search-means only with the KITTI protocol (given, or found from the logs: `inferred`).
+fn check_search_means(a: &TuneArgs, inferred: bool) -> Result<()> {
     ensure!(
         a.search_means.is_none() || matches!(a.protocol, Some(ProtocolArg::Kitti)),
-        "--search-means is a KITTI option (the nuScenes devkit averages each track's score once)"
+        "--search-means is a KITTI option (the nuScenes devkit averages each track's score \
+         once){}",
+        match inferred {
+            true =>
+                "; these logs were not written by `probmot import kitti`, so they are \
+                     scored with the nuScenes protocol (--protocol kitti chooses KITTI's)",
+            false => "",
+        }
     );
     Ok(())
+}
+
+/// A warning when the KITTI protocol scores logs `probmot import kitti` did not write: their
+/// boxes have no 2D image box, so the rules that ignore boxes by it cannot apply.
+fn kitti_protocol_warning(a: &TuneArgs) -> Result<Option<String>> {
+    if !matches!(a.protocol, Some(ProtocolArg::Kitti)) {
+        return Ok(None);
+    }
+    let mut other = Vec::new();
+    for p in &a.inputs {
+        if !is_kitti_import(p)? {
+            other.push(p.display().to_string());
+        }
+    }
+    Ok((!other.is_empty()).then(|| {
+        format!(
+            "--protocol kitti on logs `probmot import kitti` did not write ({}): their boxes \
+             have no 2D image box, so KITTI's rules that ignore low boxes and boxes in DontCare \
+             regions do not apply and every unmatched track box counts as a false positive",
+            other.join(", ")
+        )
+    }))
 }
 
 /// The protocol: --protocol, else kitti when every input is a KITTI import and nuscenes when
@@ -407,6 +437,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
         .collect::<Result<Vec<_>>>()?;
     let mut warnings = skip_warnings(a, &logs);
     warnings.extend(period_warning(&logs));
+    warnings.extend(kitti_protocol_warning(a)?);
     for w in &warnings {
         eprintln!("warning: {w}");
     }

@@ -281,6 +281,10 @@ pub fn no_channel(
         }
     };
     let hint = match topic {
+        "/tracks" if !topics.contains("/detections") && topics.contains("/ground_truth") => {
+            "; the file holds ground truth but no detections to track (`--topic /ground_truth` \
+             reads the truth)"
+        }
         "/tracks" => "; `probmot track` writes /tracks: track the log first",
         _ => "",
     };

@@ -84,51 +84,70 @@ fn read_lines(path: &Path) -> Result<Vec<(usize, String)>> {
 }
 
 /// Resolves `--detections` arguments: files as given; for a directory, `SEQ.txt` in it or in its
-/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`), other than
-/// the `labels` file (a dataset folder given one level too high holds `label_02/SEQ.txt`).
+/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`) that holds
+/// detection lines, other than the `labels` file (a dataset folder given one level too high
+/// holds `label_02/SEQ.txt` and `calib/SEQ.txt`, which are skipped and named if nothing is found).
 pub fn resolve_detection_files(
     args: &[PathBuf],
     sequence: &str,
     labels: Option<&Path>,
 ) -> Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
+    let (mut out, mut candidates) = (Vec::new(), Vec::new());
     let name = format!("{sequence}.txt");
-    let labels = labels.and_then(|l| std::fs::canonicalize(l).ok());
-    let not_labels = |p: &Path| labels.is_none() || std::fs::canonicalize(p).ok() != labels;
     for a in args {
         if a.is_dir() {
-            let direct = a.join(&name);
-            if direct.is_file() && not_labels(&direct) {
-                out.push(direct);
-            }
+            candidates.push(a.join(&name));
             let mut subs: Vec<PathBuf> = std::fs::read_dir(a)
                 .with_context(|| format!("cannot list {}", a.display()))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
                 .filter(|p| p.is_dir())
                 .collect();
             subs.sort();
-            for s in subs {
-                let f = s.join(&name);
-                if f.is_file() && not_labels(&f) {
-                    out.push(f);
-                }
-            }
+            candidates.extend(subs.into_iter().map(|s| s.join(&name)));
         } else if a.is_file() {
             out.push(a.clone());
         } else {
             bail!("{}: no such file or directory", a.display());
         }
     }
+    let labels = labels.and_then(|l| std::fs::canonicalize(l).ok());
+    let mut skipped = Vec::new();
+    for f in candidates.into_iter().filter(|f| f.is_file()) {
+        let is_labels = labels.is_some() && std::fs::canonicalize(&f).ok() == labels;
+        if is_labels || !holds_detections(&f) {
+            skipped.push(f.display().to_string());
+        } else {
+            out.push(f);
+        }
+    }
     if out.is_empty() {
         let dirs: Vec<String> = args.iter().map(|a| a.display().to_string()).collect();
+        let skipped = match skipped.is_empty() {
+            true => String::new(),
+            false => format!(" (skipped, not detection files: {})", skipped.join(", ")),
+        };
         bail!(
-            "no detection file {name} in {} or the folders directly inside (the label file \
-             does not count); --detections takes e.g. pointrcnn/ (which holds \
-             Car/{name}, ...)",
+            "no detection file {name} in {} or the folders directly inside{skipped}; \
+             --detections takes e.g. pointrcnn/ (which holds Car/{name}, ...)",
             dirs.join(", ")
         );
     }
     Ok(out)
+}
+
+/// Whether the first line of `path` that is not blank is a detection line (an empty file
+/// counts: a sequence without detections).
+fn holds_detections(path: &Path) -> bool {
+    use std::io::BufRead;
+    let Ok(file) = std::fs::File::open(path) else {
+        return false;
+    };
+    let mut lines = std::io::BufReader::new(file).lines();
+    match lines.find(|l| l.as_ref().map_or(true, |l| !l.trim().is_empty())) {
+        Some(Ok(line)) => parse_detection_line(&line).is_ok(),
+        Some(Err(_)) => false,
+        None => true,
+    }
 }
 
 fn attrs(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
@@ -536,6 +555,7 @@ pub fn export_kitti(
     let truth = topic != "/tracks" && !scores;
     let numbers = frame_numbers(input, topic, base, &frames, &mut summary.warnings)?;
     let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
+    let mut flat = 0u64;
     for ((stamp, boxes), frame) in frames.iter().zip(numbers) {
         if !boxes.is_empty() {
             summary.frames += 1;
@@ -557,10 +577,21 @@ pub fn export_kitti(
                     b.id
                 );
             }
+            flat += u64::from(b.image_box.is_none());
             text.push_str(&format_row(&row));
             text.push('\n');
             summary.rows += 1;
         }
+    }
+    if flat > 0 {
+        summary.warnings.push(format!(
+            "{}: {flat} of {} rows have no 2D image box (the log was not imported from KITTI) \
+             and are written with 0 0 0 0: KITTI's evaluation reads their height as 0 px and \
+             ignores every such track it does not match (`probmot eval --protocol kitti` on the \
+             MCAP counts them)",
+            input.display(),
+            summary.rows
+        ));
     }
     if !unknown_types.is_empty() {
         let each: Vec<String> = unknown_types

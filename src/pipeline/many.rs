@@ -26,9 +26,11 @@ pub fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
 /// inputs of the same file name.
 pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     if let Some(i) = inputs.iter().find(|i| i.is_dir()) {
+        // A folder that is no bag gets the bag reader's words (name its files instead).
+        super::rosbag_dir::bag_mcap(i)?;
         bail!(
-            "{}: a directory (a rosbag2 bag?); track a bag directory with -o \
-             OUT_BAG_DIR, one at a time",
+            "{}: a rosbag2 bag directory; track a bag directory with -o OUT_BAG_DIR, one at \
+             a time",
             i.display()
         );
     }
@@ -150,9 +152,22 @@ mod tests {
         let e = out_dir_outputs(&out, &clash).unwrap_err().to_string();
         assert!(e.starts_with("two inputs would both be written to"), "{e}");
         assert!(e.ends_with("x.mcap"), "{e}");
-        let bag = vec![dir.path().to_path_buf()];
-        let e = out_dir_outputs(&out, &bag).unwrap_err().to_string();
-        assert!(e.contains("a directory (a rosbag2 bag?)"), "{e}");
+        let folder = dir.path().join("logs");
+        std::fs::create_dir(&folder).unwrap();
+        std::fs::write(folder.join("a.mcap"), b"").unwrap();
+        let e = out_dir_outputs(&out, std::slice::from_ref(&folder))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("but no metadata.yaml, so not a rosbag2 bag"),
+            "{e}"
+        );
+        std::fs::write(folder.join("metadata.yaml"), b"").unwrap();
+        let e = out_dir_outputs(&out, &[folder]).unwrap_err().to_string();
+        assert!(
+            e.contains("a rosbag2 bag directory; track a bag directory with -o"),
+            "{e}"
+        );
         let file = dir.path().join("file");
         std::fs::write(&file, b"").unwrap();
         let e = out_dir_outputs(&file, &inputs).unwrap_err().to_string();

@@ -132,6 +132,12 @@ fn set_per_class(
 ) -> Result<()> {
     if let Some(missing) = values.named.keys().find(|c| !cfg.classes.contains_key(*c)) {
         let have: Vec<&str> = cfg.classes.keys().map(String::as_str).collect();
+        if have.is_empty() {
+            anyhow::bail!(
+                "{flag}: the config has one entry for every class and none for {missing}: give \
+                 one value, or write per-class entries in a config file (`probmot config`)"
+            );
+        }
         anyhow::bail!(
             "{flag}: the config has no entry for class {missing} (its classes: {}; `*=` sets \
              the others and the default entry)",
@@ -311,6 +317,12 @@ mod tests {
         speeds("car=40,motorcycle=35").apply(&mut cfg).unwrap();
         assert_eq!(cfg.classes["motorcycle"].levers.two_point_speed, Some(35.0));
         assert_eq!(cfg.classes["pedestrian"].levers.two_point_speed, None);
+        let mut one = base_config(None, Some(Preset::Ab3dmot2019)).unwrap();
+        let err = speeds("car=40").apply(&mut one).unwrap_err().to_string();
+        assert!(
+            err.contains("one entry for every class and none for car"),
+            "{err}"
+        );
         let err = speeds("cars=40").apply(&mut preset()).unwrap_err();
         assert!(
             err.to_string().contains("no entry for class cars") && err.to_string().contains("car,"),

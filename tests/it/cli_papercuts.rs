@@ -306,7 +306,9 @@ fn export_kitti_of_another_log_numbers_frames_in_order() {
         "{stderr}"
     );
     assert!(
-        stderr.contains("types KITTI's labels do not have") && stderr.contains("Bicycle 118"),
+        stderr.contains("types KITTI's labels do not have")
+            && stderr.contains("Bicycle 118")
+            && stderr.contains("rows have no 2D image box"),
         "{stderr}"
     );
     let text = std::fs::read_to_string(&out).unwrap();
@@ -514,6 +516,12 @@ fn import_kitti_takes_labels_alone() {
     assert!(stderr.contains("no detection channel"), "{stderr}");
 
     let back = d.join("back.txt");
+    let untracked = probmot(&["export", "kitti", s(&log), "-o", s(&back)]);
+    let stderr = String::from_utf8_lossy(&untracked.stderr);
+    assert!(
+        stderr.contains("`--topic /ground_truth` reads the truth"),
+        "{stderr}"
+    );
     probmot_ok(&[
         "export",
         "kitti",
@@ -577,14 +585,15 @@ fn eval_names_the_labels_it_does_not_evaluate() {
     let out = probmot_ok(&args);
     let all = String::from_utf8_lossy(&out.stdout) + String::from_utf8_lossy(&out.stderr);
     assert!(
-        all.contains("labels not evaluated (not classes of the nuScenes protocol")
+        all.contains("labels with ground truth not evaluated (not classes of the nuScenes")
+            && all.contains("--protocol kitti evaluates these KITTI logs")
             && all.contains("cyclist (3 truth, 3 track boxes)")
             && !all.contains("car ("),
         "{all}"
     );
     let with = probmot_ok(&[&args[..], &["--classes", "car,cyclist"]].concat());
     let all = String::from_utf8_lossy(&with.stdout) + String::from_utf8_lossy(&with.stderr);
-    assert!(!all.contains("labels not evaluated"), "{all}");
+    assert!(!all.contains("not evaluated"), "{all}");
 }
 
 /// `import kitti --detections` given the dataset folder (one level too high) does not read the
@@ -600,6 +609,8 @@ fn import_kitti_detections_one_folder_too_high() {
     std::fs::write(&labels, row).unwrap();
     let det = "0,2,100,150,200,220,0.9,1.5,1.7,4.0,2.0,1.6,15.0,-1.57,-1.5\n";
     std::fs::write(root.join("pointrcnn/Car/0000.txt"), det).unwrap();
+    std::fs::create_dir_all(root.join("calib")).unwrap();
+    std::fs::write(root.join("calib/0000.txt"), "P0: 7.2e+02 0.0 6.0e+02\n").unwrap();
     let out = dir.path().join("0000.mcap");
     let import = |dets: &std::path::Path| {
         let args = [
@@ -616,7 +627,11 @@ fn import_kitti_detections_one_folder_too_high() {
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("no detection file 0000.txt") && !stderr.contains("comma-separated"),
+        stderr.contains("no detection file 0000.txt")
+            && stderr.contains("skipped, not detection files")
+            && stderr.contains("calib/0000.txt")
+            && stderr.contains("label_02/0000.txt")
+            && !stderr.contains("comma-separated"),
         "{stderr}"
     );
     let run = import(&labels);

@@ -824,6 +824,39 @@ fn the_protocol_follows_the_logs() {
         "{}",
         said(&n)
     );
+    let warned = common::probmot(&[
+        "tune",
+        "--folds",
+        "0",
+        "--budget",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+        city.to_str().unwrap(),
+        "--protocol",
+        "kitti",
+    ]);
+    assert!(
+        said(&warned).contains("warning: --protocol kitti on logs"),
+        "{}",
+        said(&warned)
+    );
+    let means = common::probmot(&[
+        "tune",
+        "-o",
+        out.to_str().unwrap(),
+        city.to_str().unwrap(),
+        "--folds",
+        "0",
+        "--search-means",
+        "once",
+    ]);
+    assert_eq!(means.status.code(), Some(2));
+    assert!(
+        said(&means).contains("so they are scored with the nuScenes protocol"),
+        "{}",
+        said(&means)
+    );
     let mixed = tune(&[&kitti, &city]);
     assert_eq!(mixed.status.code(), Some(2), "{}", said(&mixed));
     assert!(said(&mixed).contains("give --protocol"), "{}", said(&mixed));
