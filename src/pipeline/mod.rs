@@ -16,4 +16,5 @@ pub mod track_options;
 mod track_order;
 pub mod track_outputs;
 pub mod track_session;
+mod track_warnings;
 pub mod tracks_format;

@@ -522,6 +522,7 @@ fn run_pass(
         last_stamp: HashMap::new(),
         pending: BTreeMap::new(),
         next_frame: 0,
+        stamp_span: None,
         frame_state: FrameState::new(&opts.config),
         order: Default::default(),
         summary,

@@ -16,13 +16,14 @@ use super::progress::Progress;
 use super::track_options::{TrackOptions, TrackSummary};
 use super::track_order::LogTimeOrder;
 use super::track_outputs::ExtraOutputs;
+use super::track_warnings::{period_mismatch, unused_entries};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
 use crate::msgs::detection_frame::{describe_skips, DetectionFrame};
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::track_encode::fill_track3d;
 use crate::msgs::{ImageBox, Track3D, Tracks3D};
-use crate::tracker::{Detection, Lookback, TrackReport, Tracker, TrackerConfig};
+use crate::tracker::{Detection, Lookback, TrackReport, Tracker};
 
 /// The error of a detection message that does not decode.
 pub(super) fn undecodable(
@@ -115,6 +116,8 @@ pub struct TrackSession<'a, S: RecordSink> {
     /// Decoded detection messages by stamp, waiting for their frame to be complete.
     pub(super) pending: BTreeMap<u64, Vec<Pending>>,
     pub(super) next_frame: usize,
+    /// Stamps of the first and the last frame tracked (for the frame period).
+    pub(super) stamp_span: Option<(u64, u64)>,
     pub(super) frame_state: FrameState,
     /// Holds input messages until the tracks before them (in log time) are written.
     pub(super) order: LogTimeOrder,
@@ -270,6 +273,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
         }
         self.frame_state.finish(self.tracker.deleted());
         self.next_frame += 1;
+        self.stamp_span = Some((self.stamp_span.map_or(stamp, |s| s.0), stamp));
         if self.next_frame.is_multiple_of(64) {
             let text = match frames {
                 Some(n) => format!("tracking: frame {}/{n}", self.next_frame),
@@ -322,6 +326,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
             counters,
             mut summary,
             frame_state,
+            stamp_span,
+            next_frame,
             ..
         } = self;
         let st = tracker.stats();
@@ -357,6 +363,10 @@ impl<S: RecordSink> TrackSession<'_, S> {
         if let Some(w) = unused_entries(file, tracker.config(), &counters) {
             summary.warnings.push(w);
         }
+        let dt = tracker.config().dt_nominal;
+        summary
+            .warnings
+            .extend(period_mismatch(file, dt, stamp_span, next_frame));
         if counters.score_outside_unit > 0 {
             summary.warnings.push(format!(
                 "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
@@ -373,34 +383,6 @@ impl<S: RecordSink> TrackSession<'_, S> {
         summary.ego = ego.finish(file, &mut summary.warnings);
         (out, summary)
     }
-}
-
-/// A warning when a config entry saw no detection while a label close to its name (`car` for
-/// an entry `cars`: the same but for case or an edit or two) fell to the default entry: the
-/// entry's settings would otherwise go unused without a word. Entries for classes a log simply
-/// lacks, beside other labels (a nuScenes scene without buses), are not named.
-fn unused_entries(file: &str, config: &TrackerConfig, counters: &InputCounters) -> Option<String> {
-    let near = |entry: &str, label: &str| {
-        let (e, l) = (entry.to_lowercase(), label.to_lowercase());
-        let allowed = (e.chars().count().min(l.chars().count()) / 4).max(1);
-        e == l || strsim::levenshtein(&e, &l) <= allowed
-    };
-    let pairs: Vec<String> = (config.classes.keys())
-        .filter(|c| !counters.per_label.contains_key(*c))
-        .flat_map(|entry| {
-            (counters.per_label.keys())
-                .filter(|l| !config.classes.contains_key(*l) && near(entry, l))
-                .map(move |l| format!("entry {entry:?}, label {l:?}"))
-        })
-        .collect();
-    if pairs.is_empty() {
-        return None;
-    }
-    Some(format!(
-        "{file}: config entries that no detection's label matches, beside a near label that \
-         went to the default entry ({}): labels are compared exactly",
-        pairs.join("; ")
-    ))
 }
 
 /// Image box and attributes of a track's last matched detection.
@@ -618,6 +600,7 @@ mod tests {
     use prost::Message as _;
 
     use super::*;
+
     use crate::mcapio::sink::{MemorySink, SinkRecord};
     use crate::msgs::{self, v3, Detection3D, Detections3D, Encoding, Size3};
     use crate::pipeline::ego::EgoOptions;
@@ -701,6 +684,7 @@ mod tests {
             last_stamp: HashMap::new(),
             pending: BTreeMap::new(),
             next_frame: 0,
+            stamp_span: None,
             frame_state: FrameState::new(&opts.config),
             order: LogTimeOrder::default(),
             summary: TrackSummary::default(),
