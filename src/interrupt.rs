@@ -35,7 +35,14 @@ pub fn install() {
                 if let Some(sig) = signals.forever().next() {
                     let unwritten = abandon_partials();
                     let partly = abandon_in_place();
-                    eprintln!("{}", message(sig, &unwritten, &partly));
+                    // A progress bar may be drawn on the terminal's last line: clear it, so
+                    // the message starts a line of its own.
+                    use std::io::IsTerminal;
+                    let clear = match std::io::stderr().is_terminal() {
+                        true => "\r\x1b[2K",
+                        false => "",
+                    };
+                    eprintln!("{clear}{}", message(sig, &unwritten, &partly));
                     std::process::exit(128 + sig);
                 }
             })
