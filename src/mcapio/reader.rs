@@ -135,6 +135,18 @@ pub fn read_records(
 /// Largest summary section read by [`read_summary_records`].
 const SUMMARY_LIMIT: u64 = 64 << 20;
 
+/// Whether the file has a metadata record named `name`, from its summary alone (the metadata
+/// index, or statistics counting no metadata); `None` when the summary cannot say (no summary,
+/// or metadata without an index), and the file has to be read.
+pub fn has_metadata(path: &Path, name: &str) -> Option<bool> {
+    let (_, records) = read_summary_records(path)?;
+    let indexed = (records.iter()).any(|r| matches!(r, Record::MetadataIndex(_)));
+    let none =
+        (records.iter()).any(|r| matches!(r, Record::Statistics(s) if s.metadata_count == 0));
+    (indexed || none)
+        .then(|| (records.iter()).any(|r| matches!(r, Record::MetadataIndex(m) if m.name == name)))
+}
+
 /// The records of the summary section the footer points to, each checked like every record
 /// read here; `None` when the file has no summary section, or it is not readable (a file the
 /// linear read then reports on), or larger than 64 MiB. Also the header record at the start of

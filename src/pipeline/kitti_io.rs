@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use crate::formats::kitti::{
     box_to_camera, camera_to_box, format_row, parse_detection_line, parse_label_line, KittiRow,
 };
-use crate::mcapio::reader::{read_records, read_summary_records};
+use crate::mcapio::reader::{has_metadata, read_records};
 use crate::mcapio::recording::tracks_topic;
 use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
 use crate::mcapio::LabelledBox;
@@ -434,17 +434,10 @@ pub fn kitti_time_base(path: &Path) -> Result<Option<(u64, u64)>> {
 /// summary's metadata index when the file has one, which reads only the file's ends, else by
 /// reading the file.
 pub fn is_kitti_import(path: &Path) -> Result<bool> {
-    use mcap::records::Record;
-    if let Some((_, records)) = read_summary_records(path) {
-        let indexed = (records.iter()).any(|r| matches!(r, Record::MetadataIndex(_)));
-        let none =
-            (records.iter()).any(|r| matches!(r, Record::Statistics(s) if s.metadata_count == 0));
-        if indexed || none {
-            return Ok((records.iter())
-                .any(|r| matches!(r, Record::MetadataIndex(m) if m.name == KITTI_METADATA)));
-        }
+    match has_metadata(path, KITTI_METADATA) {
+        Some(known) => Ok(known),
+        None => Ok(kitti_time_base(path)?.is_some()),
     }
-    Ok(kitti_time_base(path)?.is_some())
 }
 
 /// Counts of an export.

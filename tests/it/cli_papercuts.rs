@@ -509,6 +509,13 @@ fn import_kitti_takes_labels_alone() {
         .map(|m| m.topic)
         .collect();
     assert_eq!(topics.into_iter().collect::<Vec<_>>(), ["/ground_truth"]);
+    // What `tune` and `export nuscenes` ask the summary before reading any message.
+    use probmot::mcapio::reader::has_metadata;
+    assert_eq!(has_metadata(&log, "probmot.kitti"), Some(true));
+    assert_eq!(
+        has_metadata(&repo("sample_logs/city.mcap"), "probmot.kitti"),
+        Some(false)
+    );
 
     let tracked = d.join("tracked.mcap");
     let run = probmot_ok(&["track", s(&log), "-o", s(&tracked)]);

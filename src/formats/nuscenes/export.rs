@@ -7,6 +7,7 @@ use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 use serde::{Deserialize, Serialize};
 
+use crate::mcapio::reader::has_metadata;
 use crate::mcapio::recording::tracks_stamp;
 use crate::mcapio::topic::for_each_message;
 use crate::mcapio::writer::{check_output_path, write_file_atomic};
@@ -116,6 +117,17 @@ pub(crate) struct ExportInput {
 
 pub(crate) fn read_export_input(path: &Path, topic: &str) -> Result<ExportInput> {
     let file = path.display().to_string();
+    let not_imported = || {
+        anyhow::anyhow!(
+            "{file}: no metadata record {SAMPLES_METADATA} (the sample token of each frame); \
+             export nuscenes needs a file written by `probmot import nuscenes` (or `probmot \
+             track` of one)"
+        )
+    };
+    // Said before the messages are read, when the summary can tell.
+    if has_metadata(path, SAMPLES_METADATA) == Some(false) {
+        return Err(not_imported());
+    }
     let mut scene = None;
     let mut samples = None;
     let mut frames = Vec::new();
@@ -146,11 +158,7 @@ pub(crate) fn read_export_input(path: &Path, topic: &str) -> Result<ExportInput>
         },
     )?;
     let Some(samples) = samples else {
-        bail!(
-            "{file}: no metadata record {SAMPLES_METADATA} (the sample token of each frame); \
-             export nuscenes needs a file written by `probmot import nuscenes` (or `probmot \
-             track` of one)"
-        );
+        return Err(not_imported());
     };
     Ok(ExportInput {
         scene: scene.unwrap_or_default(),
