@@ -193,11 +193,11 @@ pub fn kitti_hota<B: KittiFields + Sync>(
                 continue;
             }
         };
-        if let Some(side) = without_image_boxes(scenes, cls) {
+        if let Some(missing) = without_image_boxes(scenes, cls) {
             notes.push(format!(
-                "HOTA: class {c} is not evaluated: its {side} have no 2D image boxes, which \
-                 Kitti2DBox matches and selects by (`probmot import kitti` keeps the label \
-                 file's; a track carries its detection's)"
+                "HOTA: class {c} is not evaluated: {missing}, which Kitti2DBox matches and \
+                 selects by (`probmot import kitti` keeps the label file's; a track carries its \
+                 detection's)"
             ));
             continue;
         }
@@ -220,26 +220,28 @@ pub fn kitti_hota<B: KittiFields + Sync>(
     (out, notes)
 }
 
-/// Which side of class `cls` has boxes but not one 2D image box ("ground-truth boxes" or
-/// "tracks"): its HOTA would be 0 by construction, not by the tracks' quality.
-fn without_image_boxes<B: KittiFields>(scenes: &[Scene<B>], cls: u8) -> Option<&'static str> {
+/// Which side of class `cls` has boxes without a 2D image box, and how many of how many (e.g.
+/// "tracks: 3 of 120"): with all of them missing its HOTA would be 0 by construction, and with
+/// some, those would be matched and selected as empty boxes, not by the tracks' quality.
+fn without_image_boxes<B: KittiFields>(scenes: &[Scene<B>], cls: u8) -> Option<String> {
     let of_class = |b: &&B| class_id(&b.kitti_type()) == Some(cls);
-    // Whether the truth (`truth`) or the tracks have boxes of the class, none with an image box.
-    let lacks = |truth: bool| {
-        let mut boxes = (scenes.iter())
+    // Boxes of the class on one side (`truth` or the tracks): (without an image box, all).
+    let count = |truth: bool| {
+        (scenes.iter())
             .flat_map(|s| s.frames.iter())
             .flat_map(|f| if truth { &f.1 } else { &f.2 })
             .filter(of_class)
-            .peekable();
-        boxes.peek().is_some() && boxes.all(|b| b.image_box().is_none())
+            .fold((0u64, 0u64), |(n, all), b| {
+                (n + u64::from(b.image_box().is_none()), all + 1)
+            })
     };
-    if lacks(true) {
-        Some("ground-truth boxes")
-    } else if lacks(false) {
-        Some("tracks")
-    } else {
-        None
-    }
+    [(true, "ground-truth boxes"), (false, "tracks")]
+        .into_iter()
+        .find_map(|(truth, side)| match count(truth) {
+            (0, _) => None,
+            (n, all) if n == all => Some(format!("its {side} have no 2D image boxes")),
+            (n, all) => Some(format!("{n} of its {all} {side} have no 2D image box")),
+        })
 }
 
 #[cfg(test)]
@@ -343,5 +345,14 @@ mod tests {
                 "{notes:?}"
             );
         }
+        // Some tracks without an image box: left out too, with how many.
+        let tracks = vec![no_image(car(11)), car(13), ped(12)];
+        let truth = vec![car(1), car(3), ped(2)];
+        let (h, notes) = kitti_hota(&[scene(truth, tracks)], &classes, KittiSimilarity::Image);
+        assert_eq!(h.keys().collect::<Vec<_>>(), ["pedestrian"]);
+        assert!(
+            notes[0].contains("1 of its 2 tracks have no 2D image box"),
+            "{notes:?}"
+        );
     }
 }
