@@ -6,6 +6,7 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::Args;
+use probmot::mcapio::reader::read_summary_records;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::eval_events::EVENTS_TOPIC;
 use probmot::pipeline::rosbag_dir::resolve_input;
@@ -341,6 +342,32 @@ fn colour_and_marks(
     Ok(events.map_or_else(Vec::new, |ev| marks(&ev, |c| sel.keeps_class(c))))
 }
 
+/// Logs longer than this (minutes) plotted whole get a warning.
+const LONG_LOG_MIN: f64 = 10.0;
+
+/// A warning before a whole long log is read (its summary says how long): every box is held
+/// and every track drawn on one picture, so --from/--to is what the user wants.
+fn long_log_warning(a: &PlotArgs) -> Option<String> {
+    if a.from.is_some() || a.to.is_some() {
+        return None;
+    }
+    let (_, records) = read_summary_records(&a.file)?;
+    let minutes = records.iter().find_map(|r| match r {
+        mcap::records::Record::Statistics(s) if s.message_count > 0 => {
+            Some(s.message_end_time.saturating_sub(s.message_start_time) as f64 / 60e9)
+        }
+        _ => None,
+    })?;
+    (minutes > LONG_LOG_MIN).then(|| {
+        format!(
+            "{} is {minutes:.0} minutes long: a plot of all of it holds every box in memory \
+             (about 600 bytes each) and draws every track on one picture; --from/--to (seconds \
+             from the first frame) draws a window, e.g. --from 0 --to 30",
+            a.file.display()
+        )
+    })
+}
+
 pub fn run(mut a: PlotArgs) -> Result<ExitCode> {
     a.file = resolve_input(&a.file)?;
     let extent = validate(&a)?;
@@ -354,6 +381,9 @@ pub fn run(mut a: PlotArgs) -> Result<ExitCode> {
     let mut drawn = asked.clone();
     if drawn.contains(&Layer::Tracks) {
         drawn.push(Layer::GroundTruth);
+    }
+    if let Some(w) = long_log_warning(&a) {
+        eprintln!("warning: {w}");
     }
     // A whole long log takes a while to read; a window takes a fraction of a second.
     let spinner = super::spinner(

@@ -536,3 +536,36 @@ fn undrawable_boxes_are_named() {
     let good = probmot_ok(&["plot", city.to_str().unwrap(), "-o", png.to_str().unwrap()]);
     assert!(!stderr(&good).contains("warning"), "{}", stderr(&good));
 }
+
+/// A whole log of more than ten minutes gets a warning that names --from/--to before it is
+/// read; a window, or a short log, does not.
+#[test]
+fn plot_of_a_long_log_suggests_a_window() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("long.mcap");
+    let l = log.to_str().unwrap();
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "turning-car",
+        "--frames",
+        "1300",
+        "-o",
+        l,
+        "-q",
+    ]);
+    let png = dir.path().join("p.png");
+    let p = png.to_str().unwrap();
+    let whole = probmot_ok(&["plot", l, "-o", p, "--quiet"]);
+    assert!(
+        stderr(&whole).contains("is 11 minutes long")
+            && stderr(&whole).contains("--from 0 --to 30"),
+        "{}",
+        stderr(&whole)
+    );
+    let window = probmot_ok(&["plot", l, "-o", p, "--quiet", "--from", "0", "--to", "30"]);
+    assert!(!stderr(&window).contains("warning"), "{}", stderr(&window));
+    let city = repo("sample_logs/city.mcap");
+    let short = probmot_ok(&["plot", city.to_str().unwrap(), "-o", p, "--quiet"]);
+    assert!(!stderr(&short).contains("warning"), "{}", stderr(&short));
+}
