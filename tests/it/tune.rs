@@ -65,6 +65,15 @@ fn frame(i: u64) -> TuneFrame {
     }
 }
 
+/// A log of `frames` named `name`, nothing skipped.
+fn named_log(name: String, frames: Vec<TuneFrame>) -> TuneLog {
+    TuneLog {
+        name,
+        frames,
+        skipped_detections: Default::default(),
+    }
+}
+
 /// Three cars driving along x at 5 m/s, detected every frame (small noise, score ~0.8) and
 /// each also detected a second time half a metre off with a low score (a duplicate the base
 /// config turns into a false track), plus low-scoring clutter.
@@ -90,11 +99,7 @@ fn synthetic_log(seed: u64) -> TuneLog {
             f
         })
         .collect();
-    TuneLog {
-        name: format!("synthetic_{seed}"),
-        frames,
-        skipped_detections: Default::default(),
-    }
+    named_log(format!("synthetic_{seed}"), frames)
 }
 
 fn options(budget: usize) -> TuneOptions {
@@ -203,11 +208,7 @@ fn leaving_log(seed: u64) -> TuneLog {
             f
         })
         .collect();
-    TuneLog {
-        name: format!("leaving_{seed}"),
-        frames,
-        skipped_detections: Default::default(),
-    }
+    named_log(format!("leaving_{seed}"), frames)
 }
 
 /// `--pool-reporting`: the reporting options are chosen once on the searched classes (cars)
@@ -284,11 +285,7 @@ fn fast_log(seed: u64) -> TuneLog {
             f
         })
         .collect();
-    TuneLog {
-        name: format!("fast_{seed}"),
-        frames,
-        skipped_detections: Default::default(),
-    }
+    named_log(format!("fast_{seed}"), frames)
 }
 
 /// `two_point_speed` is searched when `--search` names it, and then keeps fast cars in one
