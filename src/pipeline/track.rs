@@ -522,7 +522,7 @@ fn run_pass(
         last_stamp: HashMap::new(),
         pending: BTreeMap::new(),
         next_frame: 0,
-        stamp_span: None,
+        intervals: super::track_warnings::FrameIntervals::default(),
         frame_state: FrameState::new(&opts.config),
         order: Default::default(),
         summary,

@@ -16,7 +16,7 @@ use super::progress::Progress;
 use super::track_options::{TrackOptions, TrackSummary};
 use super::track_order::LogTimeOrder;
 use super::track_outputs::ExtraOutputs;
-use super::track_warnings::{period_mismatch, unused_entries};
+use super::track_warnings::{period_mismatch, unused_entries, FrameIntervals};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
 use crate::msgs::detection_frame::{describe_skips, DetectionFrame};
@@ -116,8 +116,8 @@ pub struct TrackSession<'a, S: RecordSink> {
     /// Decoded detection messages by stamp, waiting for their frame to be complete.
     pub(super) pending: BTreeMap<u64, Vec<Pending>>,
     pub(super) next_frame: usize,
-    /// Stamps of the first and the last frame tracked (for the frame period).
-    pub(super) stamp_span: Option<(u64, u64)>,
+    /// Intervals between the tracked frames (for the frame-rate warning).
+    pub(super) intervals: FrameIntervals,
     pub(super) frame_state: FrameState,
     /// Holds input messages until the tracks before them (in log time) are written.
     pub(super) order: LogTimeOrder,
@@ -273,7 +273,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
         }
         self.frame_state.finish(self.tracker.deleted());
         self.next_frame += 1;
-        self.stamp_span = Some((self.stamp_span.map_or(stamp, |s| s.0), stamp));
+        self.intervals.push(stamp);
         if self.next_frame.is_multiple_of(64) {
             let text = match frames {
                 Some(n) => format!("tracking: frame {}/{n}", self.next_frame),
@@ -326,8 +326,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
             counters,
             mut summary,
             frame_state,
-            stamp_span,
-            next_frame,
+            intervals,
             ..
         } = self;
         let st = tracker.stats();
@@ -363,10 +362,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
         if let Some(w) = unused_entries(file, tracker.config(), &counters) {
             summary.warnings.push(w);
         }
-        let dt = tracker.config().dt_nominal;
-        summary
-            .warnings
-            .extend(period_mismatch(file, dt, stamp_span, next_frame));
+        let mismatch = period_mismatch(file, tracker.config(), &intervals);
+        summary.warnings.extend(mismatch);
         if counters.score_outside_unit > 0 {
             summary.warnings.push(format!(
                 "{file}: {} detections have a score outside [0, 1]; they are tracked as given",
@@ -684,7 +681,7 @@ mod tests {
             last_stamp: HashMap::new(),
             pending: BTreeMap::new(),
             next_frame: 0,
-            stamp_span: None,
+            intervals: FrameIntervals::default(),
             frame_state: FrameState::new(&opts.config),
             order: LogTimeOrder::default(),
             summary: TrackSummary::default(),

@@ -2,28 +2,55 @@
 //! reaches, and a frame rate far from the config's.
 
 use super::detections::InputCounters;
-use crate::tracker::TrackerConfig;
+use crate::tracker::{Preset, TrackerConfig};
 
-/// A warning when the frames come at another rate than the config's `dt_nominal` (by more than
-/// a factor of two): its noise was set for that period (the presets for nuScenes' 2 Hz or
-/// KITTI's 10 Hz), and a 10 Hz log tracked with the 2 Hz preset gets far more false tracks.
+/// The intervals between consecutive tracked frames, seconds (8 bytes a frame), for the
+/// frame-rate warning.
+#[derive(Debug, Default)]
+pub(super) struct FrameIntervals {
+    last: Option<u64>,
+    gaps: Vec<f64>,
+}
+
+impl FrameIntervals {
+    /// Notes the stamp of the next tracked frame.
+    pub(super) fn push(&mut self, stamp: u64) {
+        if let Some(last) = self.last {
+            self.gaps.push(stamp.saturating_sub(last) as f64 * 1e-9);
+        }
+        self.last = Some(stamp);
+    }
+
+    /// The median interval (robust to a pause or a dropped frame); `None` under two intervals.
+    fn median(&self) -> Option<f64> {
+        if self.gaps.len() < 2 {
+            return None;
+        }
+        let mut g = self.gaps.clone();
+        g.sort_by(f64::total_cmp);
+        Some(g[g.len() / 2])
+    }
+}
+
+/// A warning when a preset's `dt_nominal` is more than twice or less than half the log's frame
+/// period: its noise was set for its dataset's rate (nuScenes' 2 Hz for the default), and a
+/// 10 Hz log tracked with the 2 Hz preset gets far more false tracks. A config file (e.g.
+/// fitted by `probmot fit`, which converts the noise to its `dt_nominal`) is taken as meant.
 pub(super) fn period_mismatch(
     file: &str,
-    dt_nominal: f64,
-    span: Option<(u64, u64)>,
-    frames: usize,
+    config: &TrackerConfig,
+    intervals: &FrameIntervals,
 ) -> Option<String> {
-    let (first, last) = span?;
-    let gaps = frames.checked_sub(1).filter(|&n| n > 0)?;
-    let period = (last.saturating_sub(first)) as f64 * 1e-9 / gaps as f64;
-    if period <= 0.0 || (0.5..=2.0).contains(&(period / dt_nominal)) {
+    let preset = Preset::from_name(&config.name)?;
+    let (period, dt) = (intervals.median()?, config.dt_nominal);
+    if period <= 0.0 || (0.5..=2.0).contains(&(period / dt)) {
         return None;
     }
     Some(format!(
-        "{file}: frames are {period:.3} s apart on average, the config's dt_nominal is \
-         {dt_nominal} s: its noise was set for frames that far apart: fit the noise on labelled \
-         logs of this rate (`probmot fit` or `probmot tune`), or at least try --dt-nominal \
-         {period:.2}"
+        "{file}: frames are {period:.3} s apart (median), and the preset {}'s noise is set for \
+         frames {dt} s apart (its dt_nominal): fit the noise on labelled logs of this rate \
+         (`probmot fit` or `probmot tune`), or at least try --dt-nominal {period:.2}",
+        preset.name()
     ))
 }
 
@@ -63,20 +90,30 @@ pub(super) fn unused_entries(
 mod tests {
     use super::*;
 
-    /// A 10 Hz log under a 2 Hz config is named; a rate within a factor of two, or a single
-    /// frame, is not.
+    /// A 10 Hz log under the 2 Hz preset is named, even with a pause; a rate within a factor
+    /// of two, a config file (fitted), or a single interval is not.
     #[test]
-    fn a_frame_rate_far_from_dt_nominal_is_named() {
-        let ns = 1_000_000_000u64;
-        let w = period_mismatch("a.mcap", 0.5, Some((0, 30 * ns / 10)), 31).unwrap();
+    fn a_frame_rate_far_from_a_presets_is_named() {
+        let preset = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+        let at = |period_ns: u64, n: u64, pause_ns: u64| {
+            let mut f = FrameIntervals::default();
+            for i in 0..n {
+                f.push(i * period_ns + if i > n / 2 { pause_ns } else { 0 });
+            }
+            f
+        };
+        let ns = 1_000_000_000;
+        let w = period_mismatch("a.mcap", &preset, &at(ns / 10, 31, 30 * ns)).unwrap();
         assert!(
             w.contains("0.100 s apart") && w.contains("--dt-nominal 0.10"),
             "{w}"
         );
-        assert!(period_mismatch("a.mcap", 0.5, Some((0, 30 * ns / 2)), 31).is_none());
-        assert!(period_mismatch("a.mcap", 0.5, Some((0, 30 * ns / 3)), 31).is_none());
-        assert!(period_mismatch("a.mcap", 0.1, Some((0, 30 * ns / 2)), 31).is_some());
-        assert!(period_mismatch("a.mcap", 0.5, Some((5, 5)), 1).is_none());
-        assert!(period_mismatch("a.mcap", 0.5, None, 0).is_none());
+        assert!(w.contains("nuscenes-chiu2019"), "{w}");
+        assert!(period_mismatch("a.mcap", &preset, &at(ns / 2, 31, 0)).is_none());
+        assert!(period_mismatch("a.mcap", &preset, &at(ns / 3, 31, 0)).is_none());
+        assert!(period_mismatch("a.mcap", &preset, &at(ns / 10, 2, 0)).is_none());
+        let mut fitted = preset.clone();
+        fitted.name = "fit of 1 log(s) on nuscenes-chiu2019".into();
+        assert!(period_mismatch("a.mcap", &fitted, &at(ns / 10, 31, 0)).is_none());
     }
 }

@@ -655,3 +655,45 @@ fn import_kitti_detections_one_folder_too_high() {
         String::from_utf8_lossy(&run.stderr)
     );
 }
+
+/// A 10 Hz log under the default preset (set for nuScenes' 2 Hz) gets the frame-rate warning
+/// with the `--dt-nominal` to try; the same log with that flag, or with a config fitted on it,
+/// does not (the fitted noise is converted to its own `dt_nominal`).
+#[test]
+fn a_log_at_another_rate_than_the_preset_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("c10.mcap");
+    let out = dir.path().join("out.mcap");
+    let fitted = dir.path().join("fit.json");
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--rate",
+        "10",
+        "--frames",
+        "60",
+        "-q",
+        "-o",
+        s(&log),
+    ]);
+    let warning = |extra: &[&str]| {
+        let mut args = vec!["track", s(&log), "-o", s(&out), "--quiet"];
+        args.extend_from_slice(extra);
+        let run = probmot_ok(&args);
+        let stderr = String::from_utf8_lossy(&run.stderr).into_owned();
+        stderr
+            .lines()
+            .find(|l| l.contains("apart"))
+            .map(str::to_owned)
+    };
+    let w = warning(&[]).expect("a warning at 10 Hz under the 2 Hz preset");
+    assert!(
+        w.contains("0.100 s apart") && w.contains("--dt-nominal 0.10"),
+        "{w}"
+    );
+    assert!(w.contains("nuscenes-chiu2019"), "{w}");
+    assert_eq!(warning(&["--dt-nominal", "0.1"]), None);
+    probmot_ok(&["fit", s(&log), "-o", s(&fitted), "-q"]);
+    assert_eq!(warning(&["--config", s(&fitted)]), None);
+}
