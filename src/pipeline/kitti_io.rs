@@ -84,9 +84,10 @@ fn read_lines(path: &Path) -> Result<Vec<(usize, String)>> {
 }
 
 /// Resolves `--detections` arguments: files as given; for a directory, `SEQ.txt` in it or in its
-/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`) that holds
-/// detection lines, other than the `labels` file (a dataset folder given one level too high
-/// holds `label_02/SEQ.txt` and `calib/SEQ.txt`, which are skipped and named if nothing is found).
+/// immediate subdirectories (e.g. `pointrcnn/{Car,Pedestrian,Cyclist}/SEQ.txt`), other than the
+/// `labels` file and files that are clearly other KITTI files (a dataset folder given one level
+/// too high holds `label_02/SEQ.txt` and `calib/SEQ.txt`, which are skipped and named if nothing
+/// is found). Any other file is read as detections, so a damaged one fails with its line.
 pub fn resolve_detection_files(
     args: &[PathBuf],
     sequence: &str,
@@ -114,7 +115,7 @@ pub fn resolve_detection_files(
     let mut skipped = Vec::new();
     for f in candidates.into_iter().filter(|f| f.is_file()) {
         let is_labels = labels.is_some() && std::fs::canonicalize(&f).ok() == labels;
-        if is_labels || !holds_detections(&f) {
+        if is_labels || is_other_kitti_file(&f) {
             skipped.push(f.display().to_string());
         } else {
             out.push(f);
@@ -135,19 +136,27 @@ pub fn resolve_detection_files(
     Ok(out)
 }
 
-/// Whether the first line of `path` that is not blank is a detection line (an empty file
-/// counts: a sequence without detections).
-fn holds_detections(path: &Path) -> bool {
+/// Whether the first line of `path` that is not blank is a line of another KITTI file: a label
+/// or tracking result line, or a calibration line (`P0: ...`). An empty or unreadable file is
+/// not: it is read as detections (a sequence without any, or an error naming the file).
+fn is_other_kitti_file(path: &Path) -> bool {
     use std::io::BufRead;
     let Ok(file) = std::fs::File::open(path) else {
         return false;
     };
     let mut lines = std::io::BufReader::new(file).lines();
     match lines.find(|l| l.as_ref().map_or(true, |l| !l.trim().is_empty())) {
-        Some(Ok(line)) => parse_detection_line(&line).is_ok(),
-        Some(Err(_)) => false,
-        None => true,
+        Some(Ok(line)) => parse_label_line(&line).is_ok() || is_calib_line(&line),
+        _ => false,
     }
+}
+
+/// `KEY: numbers`, as in KITTI's calibration files (`P0:`, `R_rect`, `Tr_velo_cam`).
+fn is_calib_line(line: &str) -> bool {
+    line.split_once(':').is_some_and(|(key, _)| {
+        let key = key.trim();
+        !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+    })
 }
 
 fn attrs(pairs: &[(&str, String)]) -> BTreeMap<String, String> {

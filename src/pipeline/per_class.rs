@@ -37,7 +37,9 @@ impl PerClass {
             };
             let (class, value) = (class.trim(), number(value)?);
             if class == "*" {
-                out.other = Some(value);
+                if out.other.replace(value).is_some() {
+                    return Err("* (every other class) given twice".into());
+                }
             } else if class.is_empty() {
                 return Err(format!("'{part}': empty class name"));
             } else if out.named.insert(class.to_string(), value).is_some() {
@@ -75,6 +77,7 @@ mod tests {
             ("car=1,bus", "'bus': expected class=m/s"),
             ("=3", "empty class name"),
             ("car=1,car=2", "class car given twice"),
+            ("*=1,car=3,*=2", "* (every other class) given twice"),
         ] {
             let err = PerClass::parse(bad, "m/s").unwrap_err();
             assert!(err.contains(says), "{bad}: {err}");

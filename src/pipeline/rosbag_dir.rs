@@ -55,7 +55,8 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
         n if !metadata => bail!(
             "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 bag: \
              name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` tracks them \
-             all; `info`, `plot` and `viz` read one file, `eval --truth {dir}` the folder)"
+             all, `fit` and `tune` take them all as `{dir}/*.mcap`; `info`, `plot` and `viz` \
+             read one file, `eval --truth {dir}` the folder)"
         ),
         1 => Ok(mcaps.pop()),
         n => bail!(

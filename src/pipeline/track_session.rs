@@ -326,7 +326,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
             counters,
             mut summary,
             frame_state,
-            intervals,
+            mut intervals,
             ..
         } = self;
         let st = tracker.stats();
@@ -362,7 +362,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
         if let Some(w) = unused_entries(file, tracker.config(), &counters) {
             summary.warnings.push(w);
         }
-        let mismatch = period_mismatch(file, tracker.config(), &intervals);
+        let mismatch = period_mismatch(file, tracker.config(), &mut intervals);
         summary.warnings.extend(mismatch);
         if counters.score_outside_unit > 0 {
             summary.warnings.push(format!(

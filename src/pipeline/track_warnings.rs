@@ -21,37 +21,71 @@ impl FrameIntervals {
         self.last = Some(stamp);
     }
 
-    /// The median interval (robust to a pause or a dropped frame); `None` under two intervals.
-    fn median(&self) -> Option<f64> {
+    /// The median interval (robust to a pause or a dropped frame; the lower middle of an even
+    /// count); `None` under two intervals.
+    fn median(&mut self) -> Option<f64> {
         if self.gaps.len() < 2 {
             return None;
         }
-        let mut g = self.gaps.clone();
-        g.sort_by(f64::total_cmp);
-        Some(g[g.len() / 2])
+        self.gaps.sort_by(f64::total_cmp);
+        Some(self.gaps[(self.gaps.len() - 1) / 2])
     }
 }
 
-/// A warning when a preset's `dt_nominal` is more than twice or less than half the log's frame
-/// period: its noise was set for its dataset's rate (nuScenes' 2 Hz for the default), and a
-/// 10 Hz log tracked with the 2 Hz preset gets far more false tracks. A config file (e.g.
-/// fitted by `probmot fit`, which converts the noise to its `dt_nominal`) is taken as meant.
+/// A warning when the log's frame period is more than twice or less than half the config's
+/// `dt_nominal` while the config carries a preset's noise (its name and every class's Q, R and
+/// P0): that noise was set for its dataset's rate (nuScenes' 2 Hz for the default), and a 10 Hz
+/// log tracked with the 2 Hz preset gets far more false tracks. A config with other noise (fitted
+/// by `probmot fit` or `tune`, or edited) is taken as meant: fit converts its noise to its own
+/// `dt_nominal`, from the period of the logs it was fitted on.
 pub(super) fn period_mismatch(
     file: &str,
     config: &TrackerConfig,
-    intervals: &FrameIntervals,
+    intervals: &mut FrameIntervals,
 ) -> Option<String> {
     let preset = Preset::from_name(&config.name)?;
+    let own = preset.config().ok()?;
+    if !same_noise(config, &own) {
+        return None;
+    }
     let (period, dt) = (intervals.median()?, config.dt_nominal);
     if period <= 0.0 || (0.5..=2.0).contains(&(period / dt)) {
         return None;
     }
+    let set_for = if dt == own.dt_nominal {
+        format!(
+            "the preset {}'s noise is set for frames {dt} s apart",
+            preset.name()
+        )
+    } else {
+        format!(
+            "the config's dt_nominal is {dt} s (the preset {}'s noise, set for frames {} s apart)",
+            preset.name(),
+            own.dt_nominal
+        )
+    };
     Some(format!(
-        "{file}: frames are {period:.3} s apart (median), and the preset {}'s noise is set for \
-         frames {dt} s apart (its dt_nominal): fit the noise on labelled logs of this rate \
-         (`probmot fit` or `probmot tune`), or at least try --dt-nominal {period:.2}",
-        preset.name()
+        "{file}: frames are {period:.3} s apart (median), and {set_for}: fit the noise on \
+         labelled logs of this rate (`probmot fit` or `probmot tune`), or at least try \
+         --dt-nominal {}",
+        three_digits(period)
     ))
+}
+
+/// Whether every class (and the default entry) of `a` has the noise of `b`'s.
+fn same_noise(a: &TrackerConfig, b: &TrackerConfig) -> bool {
+    let noise = |c: &crate::tracker::ClassConfig| (c.q, c.r, c.p0);
+    let default = (a.default.as_ref().map(noise)) == (b.default.as_ref().map(noise));
+    default
+        && a.classes.len() == b.classes.len()
+        && (a.classes.iter().zip(&b.classes))
+            .all(|((ka, ca), (kb, cb))| ka == kb && noise(ca) == noise(cb))
+}
+
+/// `v` rounded to three significant digits, printed without trailing zeros (0.1, 0.00417).
+fn three_digits(v: f64) -> f64 {
+    let scale = 10f64.powi(2 - v.abs().log10().floor() as i32);
+    (v * scale).round() / scale
 }
 
 /// A warning when a config entry saw no detection while a label close to its name (`car` for
@@ -91,7 +125,8 @@ mod tests {
     use super::*;
 
     /// A 10 Hz log under the 2 Hz preset is named, even with a pause; a rate within a factor
-    /// of two, a config file (fitted), or a single interval is not.
+    /// of two, a config with other noise (fitted, or edited under the preset's name), or a
+    /// single interval is not. A `--dt-nominal` override is named as the config's.
     #[test]
     fn a_frame_rate_far_from_a_presets_is_named() {
         let preset = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
@@ -103,17 +138,32 @@ mod tests {
             f
         };
         let ns = 1_000_000_000;
-        let w = period_mismatch("a.mcap", &preset, &at(ns / 10, 31, 30 * ns)).unwrap();
+        let w = period_mismatch("a.mcap", &preset, &mut at(ns / 10, 31, 30 * ns)).unwrap();
         assert!(
-            w.contains("0.100 s apart") && w.contains("--dt-nominal 0.10"),
+            w.contains("0.100 s apart") && w.ends_with("--dt-nominal 0.1"),
             "{w}"
         );
-        assert!(w.contains("nuscenes-chiu2019"), "{w}");
-        assert!(period_mismatch("a.mcap", &preset, &at(ns / 2, 31, 0)).is_none());
-        assert!(period_mismatch("a.mcap", &preset, &at(ns / 3, 31, 0)).is_none());
-        assert!(period_mismatch("a.mcap", &preset, &at(ns / 10, 2, 0)).is_none());
+        assert!(
+            w.contains("preset nuscenes-chiu2019's noise is set for frames 0.5 s"),
+            "{w}"
+        );
+        assert!(period_mismatch("a.mcap", &preset, &mut at(ns / 2, 31, 0)).is_none());
+        assert!(period_mismatch("a.mcap", &preset, &mut at(ns / 3, 31, 0)).is_none());
+        assert!(period_mismatch("a.mcap", &preset, &mut at(ns / 10, 2, 0)).is_none());
+        // Two intervals, one of them a pause: the lower one counts.
+        assert!(period_mismatch("a.mcap", &preset, &mut at(ns / 2, 3, 5 * ns)).is_none());
         let mut fitted = preset.clone();
         fitted.name = "fit of 1 log(s) on nuscenes-chiu2019".into();
-        assert!(period_mismatch("a.mcap", &fitted, &at(ns / 10, 31, 0)).is_none());
+        assert!(period_mismatch("a.mcap", &fitted, &mut at(ns / 10, 31, 0)).is_none());
+        let mut edited = preset.clone();
+        edited.classes.get_mut("car").unwrap().q[0] *= 5.0;
+        assert!(period_mismatch("a.mcap", &edited, &mut at(ns / 10, 31, 0)).is_none());
+        let mut overridden = preset.clone();
+        overridden.dt_nominal = 0.3;
+        let w = period_mismatch("a.mcap", &overridden, &mut at(ns / 10, 31, 0)).unwrap();
+        assert!(w.contains("the config's dt_nominal is 0.3 s"), "{w}");
+        // Frames a few milliseconds apart get a suggestion that is not rounded to zero.
+        let w = period_mismatch("a.mcap", &preset, &mut at(4_170_000, 31, 0)).unwrap();
+        assert!(w.ends_with("--dt-nominal 0.00417"), "{w}");
     }
 }

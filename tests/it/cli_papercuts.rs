@@ -654,11 +654,21 @@ fn import_kitti_detections_one_folder_too_high() {
         "{}",
         String::from_utf8_lossy(&run.stderr)
     );
+    // A damaged detection file in the folder is an error naming it, not a file left out.
+    std::fs::remove_file(&out).unwrap();
+    std::fs::create_dir_all(root.join("pointrcnn/Pedestrian")).unwrap();
+    let damaged = format!("\u{feff}{det}");
+    std::fs::write(root.join("pointrcnn/Pedestrian/0000.txt"), damaged).unwrap();
+    let run = import(&root.join("pointrcnn"));
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("Pedestrian/0000.txt"), "{stderr}");
+    assert!(!out.exists());
 }
 
 /// A 10 Hz log under the default preset (set for nuScenes' 2 Hz) gets the frame-rate warning
-/// with the `--dt-nominal` to try; the same log with that flag, or with a config fitted on it,
-/// does not (the fitted noise is converted to its own `dt_nominal`).
+/// with the `--dt-nominal` to try; the same log with that flag, or with a config fitted on it
+/// (other noise than the preset's, converted to the fit's own `dt_nominal`), does not.
 #[test]
 fn a_log_at_another_rate_than_the_preset_is_named() {
     let dir = tempfile::tempdir().unwrap();
@@ -689,7 +699,7 @@ fn a_log_at_another_rate_than_the_preset_is_named() {
     };
     let w = warning(&[]).expect("a warning at 10 Hz under the 2 Hz preset");
     assert!(
-        w.contains("0.100 s apart") && w.contains("--dt-nominal 0.10"),
+        w.contains("0.100 s apart") && w.ends_with("--dt-nominal 0.1"),
         "{w}"
     );
     assert!(w.contains("nuscenes-chiu2019"), "{w}");
