@@ -291,25 +291,44 @@ pub fn no_channel(
     anyhow::anyhow!("{file}: no channel with topic {topic} ({has}){hint}")
 }
 
-/// The frames of one tracks topic (`probmot.Tracks3D` or ROS 2 tracks, [`TopicKind::Tracks`]):
-/// `(stamp, tracks)` per message in file order; an error when the file has no such channel.
-pub fn tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Track3D>)>> {
+/// Streams one tracks topic (`probmot.Tracks3D` or ROS 2 tracks, [`TopicKind::Tracks`]): `f`
+/// gets `(stamp, tracks)` per message in file order, one message at a time; an error when the
+/// file has no such channel (after the pass, since a channel record may come late).
+pub fn for_each_tracks_frame(
+    path: &Path,
+    topic: &str,
+    mut f: impl FnMut(u64, Vec<Track3D>) -> Result<()>,
+) -> Result<()> {
     let req = TopicRequest {
         topic: topic.to_string(),
         kind: TopicKind::Tracks,
         role: "tracks or ground truth".to_string(),
     };
-    let read = frames(path, std::slice::from_ref(&req))?;
-    let Some(frames) = read.frames.into_iter().next().flatten() else {
-        return Err(no_channel(path.display(), topic, &read.topics));
-    };
-    frames
-        .into_iter()
-        .map(|f| match f.boxes {
-            Boxes::Tracks(t) => Ok((f.stamp, t)),
+    let mut found = false;
+    let topics = for_each_frame(path, std::slice::from_ref(&req), |event, _| match event {
+        FrameEvent::Channel(_) => {
+            found = true;
+            Ok(())
+        }
+        FrameEvent::Frame(_, frame) => match frame.boxes {
+            Boxes::Tracks(t) => f(frame.stamp, t),
             Boxes::Detections(_) => bail!("{}: topic {topic} gave detections", path.display()),
-        })
-        .collect()
+        },
+    })?;
+    match found {
+        true => Ok(()),
+        false => Err(no_channel(path.display(), topic, &topics)),
+    }
+}
+
+/// The frames of one tracks topic, as [`for_each_tracks_frame`] gives them, held in memory.
+pub fn tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Track3D>)>> {
+    let mut frames = Vec::new();
+    for_each_tracks_frame(path, topic, |stamp, tracks| {
+        frames.push((stamp, tracks));
+        Ok(())
+    })?;
+    Ok(frames)
 }
 
 #[cfg(test)]

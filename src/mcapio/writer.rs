@@ -350,8 +350,23 @@ pub fn refuse_outputs_onto_inputs(outputs: &[PathBuf], inputs: &[PathBuf]) -> Re
 /// written in place.
 pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
     use std::io::Write;
-    let (mut file, partial) = Partial::create(dest)?;
-    file.write_all(bytes)
+    write_file_atomic_with(dest, |w| {
+        w.write_all(bytes)
+            .with_context(|| format!("writing {}", dest.display()))
+    })
+}
+
+/// Writes `dest` atomically as [`write_file_atomic`] does, from `fill`, which streams into a
+/// buffered writer: the output is never held in memory whole. An error of `fill` (or an
+/// interrupt) leaves nothing behind.
+pub fn write_file_atomic_with(
+    dest: &Path,
+    fill: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
+) -> Result<()> {
+    let (file, partial) = Partial::create(dest)?;
+    let mut w = BufWriter::with_capacity(1 << 16, file);
+    fill(&mut w)?;
+    let file = (w.into_inner().map_err(|e| e.into_error()))
         .with_context(|| format!("writing {}", dest.display()))?;
     partial.persist(file)
 }

@@ -1,6 +1,7 @@
 //! `probmot import kitti` and `probmot export kitti`.
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
@@ -9,8 +10,10 @@ use crate::formats::kitti::{
     box_to_camera, camera_to_box, format_row, parse_detection_line, parse_label_line, KittiRow,
 };
 use crate::mcapio::reader::{has_metadata, read_records};
-use crate::mcapio::recording::tracks_topic;
-use crate::mcapio::writer::{check_output_path, write_file_atomic, AtomicOutput, OutputOptions};
+use crate::mcapio::recording::for_each_tracks_frame;
+use crate::mcapio::writer::{
+    check_output_path, write_file_atomic_with, AtomicOutput, OutputOptions,
+};
 use crate::mcapio::LabelledBox;
 use crate::msgs::size3;
 use crate::msgs::{self, v3, Detection3D, Detections3D, ImageBox, Track3D, Tracks3D};
@@ -461,18 +464,32 @@ pub struct ExportSummary {
     pub warnings: Vec<String>,
 }
 
-/// The KITTI frame number of each message of `frames`: on `import kitti`'s time base
-/// (`base`: a stamp off it is an error), else 0, 1, 2, ... in the order of the distinct stamps,
-/// with a warning saying so.
-fn frame_numbers(
-    input: &Path,
-    topic: &str,
-    base: Option<(u64, u64)>,
-    frames: &[(u64, Vec<Track3D>)],
-    warnings: &mut Vec<String>,
-) -> Result<Vec<u32>> {
-    let Some((first, period)) = base else {
-        let mut stamps: Vec<u64> = frames.iter().map(|f| f.0).collect();
+/// How an export numbers its frames: on `import kitti`'s time base, or by the order of the
+/// topic's distinct stamps (read in a first pass, 8 bytes a frame).
+enum FrameNumbers {
+    /// First stamp and period of `import kitti`'s time base; a stamp off it is an error.
+    TimeBase(u64, u64),
+    /// The topic's distinct stamps, sorted: a frame's number is its stamp's index.
+    Order(Vec<u64>),
+}
+
+impl FrameNumbers {
+    /// On `base` when the log has one, else 0, 1, 2, ... in the order of the distinct stamps,
+    /// with a warning saying so.
+    fn of(
+        input: &Path,
+        topic: &str,
+        base: Option<(u64, u64)>,
+        warnings: &mut Vec<String>,
+    ) -> Result<FrameNumbers> {
+        if let Some((first, period)) = base {
+            return Ok(FrameNumbers::TimeBase(first, period));
+        }
+        let mut stamps = Vec::new();
+        for_each_tracks_frame(input, topic, |stamp, _| {
+            stamps.push(stamp);
+            Ok(())
+        })?;
         stamps.sort_unstable();
         stamps.dedup();
         warnings.push(format!(
@@ -481,21 +498,32 @@ fn frame_numbers(
             input.display(),
             stamps.len()
         ));
-        let index = |s: &u64| stamps.binary_search(s).expect("a stamp of the topic") as u32;
-        return Ok(frames.iter().map(|f| index(&f.0)).collect());
-    };
-    (frames.iter())
-        .map(|(stamp, _)| {
-            if *stamp < first || (stamp - first) % period != 0 {
-                bail!(
-                    "{}: topic {topic} has a frame at stamp {stamp} ns, not on the KITTI time \
-                     base ({first} + k * {period} ns)",
-                    input.display()
-                );
+        Ok(FrameNumbers::Order(stamps))
+    }
+
+    /// The frame number of the message stamped `stamp`.
+    fn number(&self, input: &Path, topic: &str, stamp: u64) -> Result<u32> {
+        match self {
+            FrameNumbers::TimeBase(first, period) => {
+                if stamp < *first || !(stamp - first).is_multiple_of(*period) {
+                    bail!(
+                        "{}: topic {topic} has a frame at stamp {stamp} ns, not on the KITTI \
+                         time base ({first} + k * {period} ns)",
+                        input.display()
+                    );
+                }
+                Ok(((stamp - first) / period) as u32)
             }
-            Ok(((stamp - first) / period) as u32)
-        })
-        .collect()
+            FrameNumbers::Order(stamps) => match stamps.binary_search(&stamp) {
+                Ok(i) => Ok(i as u32),
+                Err(_) => bail!(
+                    "{}: topic {topic}: stamp {stamp} was not there on the first read (did the \
+                     file change while it was exported?)",
+                    input.display()
+                ),
+            },
+        }
+    }
 }
 
 /// One box as a KITTI row of frame `frame`: a label row for ground truth (`truth`: original
@@ -551,40 +579,42 @@ pub fn export_kitti(
 ) -> Result<ExportSummary> {
     check_output_path(Some(input), output)?;
     let base = kitti_time_base(input)?;
-    let frames = tracks_topic(input, topic)?;
-    let mut text = String::new();
     let mut summary = ExportSummary::default();
     let truth = topic != "/tracks" && !scores;
-    let numbers = frame_numbers(input, topic, base, &frames, &mut summary.warnings)?;
+    let numbers = FrameNumbers::of(input, topic, base, &mut summary.warnings)?;
     let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
     let mut flat = 0u64;
-    for ((stamp, boxes), frame) in frames.iter().zip(numbers) {
-        if !boxes.is_empty() {
-            summary.frames += 1;
-        }
-        for (i, b) in boxes.iter().enumerate() {
-            let row = kitti_row(b, frame, truth);
-            if !KITTI_TYPES
-                .iter()
-                .any(|t| t.eq_ignore_ascii_case(&row.kind))
-            {
-                *unknown_types.entry(row.kind.clone()).or_default() += 1;
+    // The rows go straight to the output, a message at a time (an hour-long log's text is
+    // hundreds of megabytes).
+    write_file_atomic_with(output, |w| {
+        for_each_tracks_frame(input, topic, |stamp, boxes| {
+            let frame = numbers.number(input, topic, stamp)?;
+            summary.frames += u64::from(!boxes.is_empty());
+            for (i, b) in boxes.iter().enumerate() {
+                let row = kitti_row(b, frame, truth);
+                if !KITTI_TYPES
+                    .iter()
+                    .any(|t| t.eq_ignore_ascii_case(&row.kind))
+                {
+                    *unknown_types.entry(row.kind.clone()).or_default() += 1;
+                }
+                if !row.is_finite() {
+                    bail!(
+                        "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a \
+                         non-finite number; a KITTI result file cannot hold it",
+                        input.display(),
+                        b.label,
+                        b.id
+                    );
+                }
+                flat += u64::from(b.image_box.is_none());
+                writeln!(w, "{}", format_row(&row))
+                    .with_context(|| format!("writing {}", output.display()))?;
+                summary.rows += 1;
             }
-            if !row.is_finite() {
-                bail!(
-                    "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite \
-                     number; a KITTI result file cannot hold it",
-                    input.display(),
-                    b.label,
-                    b.id
-                );
-            }
-            flat += u64::from(b.image_box.is_none());
-            text.push_str(&format_row(&row));
-            text.push('\n');
-            summary.rows += 1;
-        }
-    }
+            Ok(())
+        })
+    })?;
     if flat > 0 {
         summary.warnings.push(format!(
             "{}: {flat} of {} rows have no 2D image box (the log was not imported from KITTI) \
@@ -607,7 +637,6 @@ pub fn export_kitti(
             each.join(", ")
         ));
     }
-    write_file_atomic(output, text.as_bytes())?;
     Ok(summary)
 }
 

@@ -614,3 +614,31 @@ fn the_nuscenes_protocol_checks_only_what_it_reads() {
         "{err}"
     );
 }
+
+/// `export kitti` writes its rows as it reads: a box it cannot write in the last message stops
+/// it after more than a buffer of rows went to the partial file, and the partial file is
+/// removed: no output, nothing left beside it.
+#[test]
+fn export_kitti_stopped_late_leaves_nothing() {
+    use probmot::msgs::Tracks3D;
+    use prost::Message as _;
+    let dir = tempfile::tempdir().unwrap();
+    let nan = dir.path().join("nan_last.mcap");
+    city_with_messages(&nan, "/ground_truth", |i, data| match i {
+        39 => {
+            let mut t = Tracks3D::decode(data).unwrap();
+            t.tracks[0].center.as_mut().unwrap().x = f64::NAN;
+            t.encode_to_vec()
+        }
+        _ => data.to_vec(),
+    });
+    let out = dir.path().join("gt.txt");
+    let (n, o) = (nan.to_str().unwrap(), out.to_str().unwrap());
+    let r = probmot(&["export", "kitti", n, "-o", o, "--topic", "/ground_truth"]);
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert_eq!(r.status.code(), Some(2), "{err}");
+    assert!(err.contains("non-finite") && err.contains("box 0"), "{err}");
+    // The 39 messages before it hold about 130 KB of rows, more than the 64 KB buffer.
+    let left: Vec<String> = entries(dir.path());
+    assert_eq!(left, ["nan_last.mcap"], "{err}");
+}
