@@ -3,11 +3,10 @@
 //! allocate more than a few MiB, whatever its length fields claim. See `fuzz/README.md` and
 //! `tests/fixtures/fuzz/README.md`.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use crate::common::alloc::largest_allocation;
 use crate::common::repo;
 use probmot::mcapio::reader::read_records;
 use probmot::msgs::{self, Detections3D, DetectionsEnvelope, Encoding};
@@ -15,47 +14,6 @@ use probmot::pipeline::info::file_info;
 use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_file, SceneOutput, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::tracker::TrackerConfig;
-
-/// Counts the largest single allocation of the current thread, so a test can tell that a file
-/// claiming a 4 GiB record did not make the reader allocate 4 GiB (which, with overcommit, may
-/// even "work" and go unnoticed).
-struct PeakAlloc;
-
-thread_local! {
-    static LARGEST: Cell<usize> = const { Cell::new(0) };
-}
-
-fn note(size: usize) {
-    let _ = LARGEST.try_with(|l| l.set(l.get().max(size)));
-}
-
-unsafe impl GlobalAlloc for PeakAlloc {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        note(layout.size());
-        System.alloc(layout)
-    }
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        note(layout.size());
-        System.alloc_zeroed(layout)
-    }
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        note(new_size);
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static ALLOC: PeakAlloc = PeakAlloc;
-
-/// Runs `f` and returns its result with the largest allocation it made on this thread.
-fn largest_allocation<T>(f: impl FnOnce() -> T) -> (T, usize) {
-    LARGEST.with(|l| l.set(0));
-    let out = f();
-    (out, LARGEST.with(|l| l.get()))
-}
 
 /// More than the reader's 1 MiB read block and the writer's buffers, far less than the
 /// gigabytes the fixed inputs used to cost.

@@ -7,6 +7,8 @@ use std::process::{Command, Output};
 use probmot::msgs::{Detections3D, Tracks3D};
 use prost::Message as _;
 
+pub mod alloc;
+
 /// The probmot binary built for the tests.
 pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_probmot"))

@@ -5,6 +5,7 @@
 
 mod config_options;
 mod flip;
+mod hot_loop;
 mod ids_classes;
 mod life_cycle;
 mod properties;
