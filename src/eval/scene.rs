@@ -6,7 +6,7 @@ use std::path::Path;
 use anyhow::{bail, Result};
 
 use super::kitti_box::{KittiBox, KittiBoxes};
-use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
+use crate::mcapio::recording;
 use crate::mcapio::LabelledBox;
 
 /// Ground truth and tracks of one log, by frame stamp (ns). Every stamp of either channel is a
@@ -70,40 +70,23 @@ fn read_boxes<B>(
     truth_ids: bool,
     keep: &mut dyn FnMut(LabelledBox) -> B,
 ) -> Result<Messages<B>> {
-    let req = TopicRequest {
-        topic: topic.to_string(),
-        kind: TopicKind::Tracks,
-        role: "tracks or ground truth".to_string(),
-    };
     let mut out = Vec::new();
-    let mut found = false;
     let mut reported = 0u64;
-    let topics = recording::for_each_frame(path, std::slice::from_ref(&req), |event, stats| {
+    recording::for_each_tracks_frame(path, topic, |stamp, tracks, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
-        match event {
-            FrameEvent::Channel(_) => found = true,
-            FrameEvent::Frame(_, f) => {
-                let boxes: Vec<LabelledBox> = match f.boxes {
-                    Boxes::Tracks(t) => t.into_iter().map(LabelledBox::from_track).collect(),
-                    Boxes::Detections(_) => unreachable!("a tracks request gives tracks"),
-                };
-                check_finite(path, (topic, f.stamp), &boxes, Reads::Box3d)?;
-                if truth_ids {
-                    check_ids(path, topic, f.stamp, &boxes)?;
-                }
-                // A new allocation of the kept size: `collect` would reuse the decoded
-                // boxes' larger one in place, and a long log holds millions of them.
-                let mut kept = Vec::with_capacity(boxes.len());
-                kept.extend(boxes.into_iter().map(&mut *keep));
-                out.push((f.stamp, kept));
-            }
+        let boxes: Vec<LabelledBox> = tracks.into_iter().map(LabelledBox::from_track).collect();
+        check_finite(path, (topic, stamp), &boxes, Reads::Box3d)?;
+        if truth_ids {
+            check_ids(path, topic, stamp, &boxes)?;
         }
+        // A new allocation of the kept size: `collect` would reuse the decoded boxes' larger
+        // one in place, and a long log holds millions of them.
+        let mut kept = Vec::with_capacity(boxes.len());
+        kept.extend(boxes.into_iter().map(&mut *keep));
+        out.push((stamp, kept));
         Ok(())
     })?;
-    if !found {
-        return Err(recording::no_channel(path.display(), topic, &topics));
-    }
     let size = std::fs::metadata(path).map_or(reported, |m| m.len());
     progress(size.saturating_sub(reported));
     Ok(out)

@@ -292,12 +292,13 @@ pub fn no_channel(
 }
 
 /// Streams one tracks topic (`probmot.Tracks3D` or ROS 2 tracks, [`TopicKind::Tracks`]): `f`
-/// gets `(stamp, tracks)` per message in file order, one message at a time; an error when the
-/// file has no such channel (after the pass, since a channel record may come late).
+/// gets `(stamp, tracks, bytes read so far)` per message in file order, one message at a time;
+/// an error when the file has no such channel (after the pass, since a channel record may come
+/// late).
 pub fn for_each_tracks_frame(
     path: &Path,
     topic: &str,
-    mut f: impl FnMut(u64, Vec<Track3D>) -> Result<()>,
+    mut f: impl FnMut(u64, Vec<Track3D>, ReadStats) -> Result<()>,
 ) -> Result<()> {
     let req = TopicRequest {
         topic: topic.to_string(),
@@ -305,16 +306,20 @@ pub fn for_each_tracks_frame(
         role: "tracks or ground truth".to_string(),
     };
     let mut found = false;
-    let topics = for_each_frame(path, std::slice::from_ref(&req), |event, _| match event {
-        FrameEvent::Channel(_) => {
-            found = true;
-            Ok(())
-        }
-        FrameEvent::Frame(_, frame) => match frame.boxes {
-            Boxes::Tracks(t) => f(frame.stamp, t),
-            Boxes::Detections(_) => bail!("{}: topic {topic} gave detections", path.display()),
+    let topics = for_each_frame(
+        path,
+        std::slice::from_ref(&req),
+        |event, stats| match event {
+            FrameEvent::Channel(_) => {
+                found = true;
+                Ok(())
+            }
+            FrameEvent::Frame(_, frame) => match frame.boxes {
+                Boxes::Tracks(t) => f(frame.stamp, t, stats),
+                Boxes::Detections(_) => bail!("{}: topic {topic} gave detections", path.display()),
+            },
         },
-    })?;
+    )?;
     match found {
         true => Ok(()),
         false => Err(no_channel(path.display(), topic, &topics)),
@@ -324,7 +329,7 @@ pub fn for_each_tracks_frame(
 /// The frames of one tracks topic, as [`for_each_tracks_frame`] gives them, held in memory.
 pub fn tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<Track3D>)>> {
     let mut frames = Vec::new();
-    for_each_tracks_frame(path, topic, |stamp, tracks| {
+    for_each_tracks_frame(path, topic, |stamp, tracks, _| {
         frames.push((stamp, tracks));
         Ok(())
     })?;

@@ -357,15 +357,21 @@ pub fn write_file_atomic(dest: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// Writes `dest` atomically as [`write_file_atomic`] does, from `fill`, which streams into a
-/// buffered writer: the output is never held in memory whole. An error of `fill` (or an
-/// interrupt) leaves nothing behind.
+/// buffered writer: the output is never held in memory whole. After an error of `fill` (or an
+/// interrupt) no partial file is left behind and what is still buffered is dropped; a
+/// destination written in place (stdout, a pipe, a device) keeps what was flushed before, so
+/// callers check their input before they write to one.
 pub fn write_file_atomic_with(
     dest: &Path,
     fill: impl FnOnce(&mut BufWriter<File>) -> Result<()>,
 ) -> Result<()> {
     let (file, partial) = Partial::create(dest)?;
     let mut w = BufWriter::with_capacity(1 << 16, file);
-    fill(&mut w)?;
+    if let Err(e) = fill(&mut w) {
+        // Dropping the writer would flush its buffer into the destination.
+        drop(w.into_parts());
+        return Err(e);
+    }
     let file = (w.into_inner().map_err(|e| e.into_error()))
         .with_context(|| format!("writing {}", dest.display()))?;
     partial.persist(file)

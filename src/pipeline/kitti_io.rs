@@ -140,8 +140,8 @@ pub fn resolve_detection_files(
 }
 
 /// Whether the first line of `path` that is not blank is a line of another KITTI file: a label
-/// or tracking result line, or a calibration line (`P0: ...`). An empty or unreadable file is
-/// not: it is read as detections (a sequence without any, or an error naming the file).
+/// or tracking result line, a calibration line or an oxts (GPS/IMU) line. An empty or unreadable
+/// file is not: it is read as detections (a sequence without any, or an error naming the file).
 fn is_other_kitti_file(path: &Path) -> bool {
     use std::io::BufRead;
     let Ok(file) = std::fs::File::open(path) else {
@@ -149,17 +149,25 @@ fn is_other_kitti_file(path: &Path) -> bool {
     };
     let mut lines = std::io::BufReader::new(file).lines();
     match lines.find(|l| l.as_ref().map_or(true, |l| !l.trim().is_empty())) {
-        Some(Ok(line)) => parse_label_line(&line).is_ok() || is_calib_line(&line),
+        Some(Ok(line)) => is_other_kitti_line(&line),
         _ => false,
     }
 }
 
-/// `KEY: numbers`, as in KITTI's calibration files (`P0:`, `R_rect`, `Tr_velo_cam`).
-fn is_calib_line(line: &str) -> bool {
-    line.split_once(':').is_some_and(|(key, _)| {
-        let key = key.trim();
-        !key.is_empty() && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
-    })
+/// A line of a KITTI label or tracking result file (17 or 18 fields), of a calibration file
+/// (`P0: ...`, `R_rect ...`, `Tr_velo_cam ...`: a matrix name, then 9 or 12 numbers) or of an
+/// oxts file (30 numbers separated by spaces). PointRCNN detection lines are comma-separated.
+fn is_other_kitti_line(line: &str) -> bool {
+    let numbers = |fields: &[&str]| fields.iter().all(|f| f.parse::<f64>().is_ok());
+    let fields: Vec<&str> = line.split_whitespace().collect();
+    let calib = fields.split_first().is_some_and(|(key, rest)| {
+        let key = key.trim_end_matches(':');
+        let named =
+            ["P0", "P1", "P2", "P3", "R0_rect", "R_rect"].contains(&key) || key.starts_with("Tr_");
+        named && [9, 12].contains(&rest.len()) && numbers(rest)
+    });
+    let oxts = fields.len() == 30 && numbers(&fields);
+    parse_label_line(line).is_ok() || calib || oxts
 }
 
 fn attrs(pairs: &[(&str, String)]) -> BTreeMap<String, String> {
@@ -434,7 +442,11 @@ pub fn kitti_time_base(path: &Path) -> Result<Option<(u64, u64)>> {
                         .parse()
                         .with_context(|| format!("metadata {KITTI_METADATA}: bad {k}"))
                 };
-                base = Some((get("first_stamp_ns")?, get("frame_period_ns")?));
+                let period = get("frame_period_ns")?;
+                if period == 0 {
+                    bail!("metadata {KITTI_METADATA}: frame_period_ns is 0");
+                }
+                base = Some((get("first_stamp_ns")?, period));
             }
         }
         Ok(())
@@ -465,43 +477,17 @@ pub struct ExportSummary {
 }
 
 /// How an export numbers its frames: on `import kitti`'s time base, or by the order of the
-/// topic's distinct stamps (read in a first pass, 8 bytes a frame).
+/// topic's distinct stamps.
 enum FrameNumbers {
-    /// First stamp and period of `import kitti`'s time base; a stamp off it is an error.
+    /// First stamp and period (not 0) of `import kitti`'s time base.
     TimeBase(u64, u64),
     /// The topic's distinct stamps, sorted: a frame's number is its stamp's index.
     Order(Vec<u64>),
 }
 
 impl FrameNumbers {
-    /// On `base` when the log has one, else 0, 1, 2, ... in the order of the distinct stamps,
-    /// with a warning saying so.
-    fn of(
-        input: &Path,
-        topic: &str,
-        base: Option<(u64, u64)>,
-        warnings: &mut Vec<String>,
-    ) -> Result<FrameNumbers> {
-        if let Some((first, period)) = base {
-            return Ok(FrameNumbers::TimeBase(first, period));
-        }
-        let mut stamps = Vec::new();
-        for_each_tracks_frame(input, topic, |stamp, _| {
-            stamps.push(stamp);
-            Ok(())
-        })?;
-        stamps.sort_unstable();
-        stamps.dedup();
-        warnings.push(format!(
-            "{}: not written by `probmot import kitti` (no KITTI time base): frames are \
-             numbered 0, 1, 2, ... in the order of the {} stamps of topic {topic}",
-            input.display(),
-            stamps.len()
-        ));
-        Ok(FrameNumbers::Order(stamps))
-    }
-
-    /// The frame number of the message stamped `stamp`.
+    /// The frame number of the message stamped `stamp`; a stamp off the time base (or, by
+    /// order, one the checking pass did not see) is an error.
     fn number(&self, input: &Path, topic: &str, stamp: u64) -> Result<u32> {
         match self {
             FrameNumbers::TimeBase(first, period) => {
@@ -524,6 +510,86 @@ impl FrameNumbers {
             },
         }
     }
+}
+
+/// The first pass of an export: every row checked and counted before the output is opened, so
+/// a row that cannot be written leaves nothing written, whatever the destination (stdout or a
+/// pipe has no partial file to remove). Keeps 8 bytes a frame (the stamps).
+fn check_rows(
+    input: &Path,
+    topic: &str,
+    base: Option<(u64, u64)>,
+    truth: bool,
+    summary: &mut ExportSummary,
+) -> Result<FrameNumbers> {
+    let mut stamps = Vec::new();
+    let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
+    let mut flat = 0u64;
+    let on_base = base.map(|(first, period)| FrameNumbers::TimeBase(first, period));
+    for_each_tracks_frame(input, topic, |stamp, boxes, _| {
+        match &on_base {
+            Some(numbers) => _ = numbers.number(input, topic, stamp)?,
+            None => stamps.push(stamp),
+        }
+        summary.frames += u64::from(!boxes.is_empty());
+        for (i, b) in boxes.iter().enumerate() {
+            let row = kitti_row(b, 0, truth);
+            if !KITTI_TYPES
+                .iter()
+                .any(|t| t.eq_ignore_ascii_case(&row.kind))
+            {
+                *unknown_types.entry(row.kind.clone()).or_default() += 1;
+            }
+            if !row.is_finite() {
+                bail!(
+                    "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a non-finite \
+                     number; a KITTI result file cannot hold it",
+                    input.display(),
+                    b.label,
+                    b.id
+                );
+            }
+            flat += u64::from(b.image_box.is_none());
+            summary.rows += 1;
+        }
+        Ok(())
+    })?;
+    let numbers = match on_base {
+        Some(numbers) => numbers,
+        None => {
+            stamps.sort_unstable();
+            stamps.dedup();
+            summary.warnings.push(format!(
+                "{}: not written by `probmot import kitti` (no KITTI time base): frames are \
+                 numbered 0, 1, 2, ... in the order of the {} stamps of topic {topic}",
+                input.display(),
+                stamps.len()
+            ));
+            FrameNumbers::Order(stamps)
+        }
+    };
+    if flat > 0 {
+        summary.warnings.push(format!(
+            "{}: {flat} of {} rows have no 2D image box (the log was not imported from KITTI) \
+             and are written with 0 0 0 0: KITTI's evaluation reads their height as 0 px and \
+             ignores every such track it does not match (`probmot eval --protocol kitti` on the \
+             MCAP counts them)",
+            input.display(),
+            summary.rows
+        ));
+    }
+    if !unknown_types.is_empty() {
+        let each: Vec<String> = (unknown_types.iter())
+            .map(|(t, n)| format!("{t} {n}"))
+            .collect();
+        summary.warnings.push(format!(
+            "{}: rows of types KITTI's labels do not have, written as they are (its evaluation \
+             scores Car, Pedestrian and Cyclist): {}",
+            input.display(),
+            each.join(", ")
+        ));
+    }
+    Ok(numbers)
 }
 
 /// One box as a KITTI row of frame `frame`: a label row for ground truth (`truth`: original
@@ -581,62 +647,19 @@ pub fn export_kitti(
     let base = kitti_time_base(input)?;
     let mut summary = ExportSummary::default();
     let truth = topic != "/tracks" && !scores;
-    let numbers = FrameNumbers::of(input, topic, base, &mut summary.warnings)?;
-    let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
-    let mut flat = 0u64;
+    let numbers = check_rows(input, topic, base, truth, &mut summary)?;
     // The rows go straight to the output, a message at a time (an hour-long log's text is
     // hundreds of megabytes).
     write_file_atomic_with(output, |w| {
-        for_each_tracks_frame(input, topic, |stamp, boxes| {
+        for_each_tracks_frame(input, topic, |stamp, boxes, _| {
             let frame = numbers.number(input, topic, stamp)?;
-            summary.frames += u64::from(!boxes.is_empty());
-            for (i, b) in boxes.iter().enumerate() {
-                let row = kitti_row(b, frame, truth);
-                if !KITTI_TYPES
-                    .iter()
-                    .any(|t| t.eq_ignore_ascii_case(&row.kind))
-                {
-                    *unknown_types.entry(row.kind.clone()).or_default() += 1;
-                }
-                if !row.is_finite() {
-                    bail!(
-                        "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) has a \
-                         non-finite number; a KITTI result file cannot hold it",
-                        input.display(),
-                        b.label,
-                        b.id
-                    );
-                }
-                flat += u64::from(b.image_box.is_none());
-                writeln!(w, "{}", format_row(&row))
+            for b in &boxes {
+                writeln!(w, "{}", format_row(&kitti_row(b, frame, truth)))
                     .with_context(|| format!("writing {}", output.display()))?;
-                summary.rows += 1;
             }
             Ok(())
         })
     })?;
-    if flat > 0 {
-        summary.warnings.push(format!(
-            "{}: {flat} of {} rows have no 2D image box (the log was not imported from KITTI) \
-             and are written with 0 0 0 0: KITTI's evaluation reads their height as 0 px and \
-             ignores every such track it does not match (`probmot eval --protocol kitti` on the \
-             MCAP counts them)",
-            input.display(),
-            summary.rows
-        ));
-    }
-    if !unknown_types.is_empty() {
-        let each: Vec<String> = unknown_types
-            .iter()
-            .map(|(t, n)| format!("{t} {n}"))
-            .collect();
-        summary.warnings.push(format!(
-            "{}: rows of types KITTI's labels do not have, written as they are (its evaluation \
-             scores Car, Pedestrian and Cyclist): {}",
-            input.display(),
-            each.join(", ")
-        ));
-    }
     Ok(summary)
 }
 
@@ -651,6 +674,40 @@ fn capitalize(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The first lines of the files a KITTI tracking folder holds: labels, calibration and
+    /// oxts are other files; PointRCNN detections (and anything else) are not.
+    #[test]
+    fn other_kitti_files_are_told_from_detections_by_their_first_line() {
+        let others = [
+            "0 -1 DontCare -1 -1 -10.000000 219.310000 188.490000 245.500000 218.560000 \
+             -1000.000000 -1000.000000 -1000.000000 -10.000000 -1.000000 -1.000000 -1.000000",
+            "P0: 7.215377e+02 0.000000e+00 6.095593e+02 0.000000e+00 0.000000e+00 \
+             7.215377e+02 1.728540e+02 0.000000e+00 0.000000e+00 0.000000e+00 1.000000e+00 \
+             0.000000e+00",
+            "R_rect 9.999239e-01 9.837760e-03 -7.445048e-03 -9.869795e-03 9.999421e-01 \
+             -4.278459e-03 7.402527e-03 4.351614e-03 9.999631e-01",
+            "Tr_velo_cam 7.533745e-03 -9.999714e-01 -6.166020e-04 -4.069766e-03 1.480249e-02 \
+             7.280733e-04 -9.998902e-01 -7.631618e-02 9.998621e-01 7.523790e-03 1.480755e-02 \
+             -2.717806e-01",
+            "49.015003823272 8.4342971002335 113.87133789062 0.022100000000000 \
+             -0.0093 -1.3946 0.79 -5.4 0.56 0.77 0.37 -0.21 -0.79 -0.05 -0.43 0.01 -0.05 \
+             0.08 1.3 0.3 0.46 0.4 0.3 4 10 4 4 1 1 0",
+        ];
+        for line in others {
+            assert!(is_other_kitti_line(line), "{line}");
+        }
+        let not = [
+            "0,2,296.7,161.8,455.2,292.2,8.8,2.0,1.8,4.4,-3.7,1.8,13.2,-1.7,-1.5",
+            "\u{feff}0,2,296.7,161.8,455.2,292.2,8.8,2.0,1.8,4.4,-3.7,1.8,13.2,-1.7,-1.5",
+            "Error: 1 2 3 4 5 6 7 8 9",
+            "frame: 0",
+            "P0: not numbers",
+        ];
+        for line in not {
+            assert!(!is_other_kitti_line(line), "{line}");
+        }
+    }
 
     #[test]
     fn numeric_attributes_read_as_python_floats() {

@@ -65,10 +65,10 @@ pub(super) fn period_mismatch(
         )
     };
     Some(format!(
-        "{file}: frames are {period:.3} s apart (median), and {set_for}: fit the noise on \
+        "{file}: frames are {period} s apart (median), and {set_for}: fit the noise on \
          labelled logs of this rate (`probmot fit` or `probmot tune`), or at least try \
-         --dt-nominal {}",
-        three_digits(period)
+         --dt-nominal {period}",
+        period = three_digits(period)
     ))
 }
 
@@ -140,7 +140,7 @@ mod tests {
         let ns = 1_000_000_000;
         let w = period_mismatch("a.mcap", &preset, &mut at(ns / 10, 31, 30 * ns)).unwrap();
         assert!(
-            w.contains("0.100 s apart") && w.ends_with("--dt-nominal 0.1"),
+            w.contains("0.1 s apart") && w.ends_with("--dt-nominal 0.1"),
             "{w}"
         );
         assert!(
@@ -164,6 +164,9 @@ mod tests {
         assert!(w.contains("the config's dt_nominal is 0.3 s"), "{w}");
         // Frames a few milliseconds apart get a suggestion that is not rounded to zero.
         let w = period_mismatch("a.mcap", &preset, &mut at(4_170_000, 31, 0)).unwrap();
-        assert!(w.ends_with("--dt-nominal 0.00417"), "{w}");
+        assert!(
+            w.contains("0.00417 s apart") && w.ends_with("--dt-nominal 0.00417"),
+            "{w}"
+        );
     }
 }

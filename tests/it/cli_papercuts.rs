@@ -617,7 +617,11 @@ fn import_kitti_detections_one_folder_too_high() {
     let det = "0,2,100,150,200,220,0.9,1.5,1.7,4.0,2.0,1.6,15.0,-1.57,-1.5\n";
     std::fs::write(root.join("pointrcnn/Car/0000.txt"), det).unwrap();
     std::fs::create_dir_all(root.join("calib")).unwrap();
-    std::fs::write(root.join("calib/0000.txt"), "P0: 7.2e+02 0.0 6.0e+02\n").unwrap();
+    let p0 = "P0: 7.2e+02 0.0 6.0e+02 0.0 0.0 7.2e+02 1.7e+02 0.0 0.0 0.0 1.0 0.0\n";
+    std::fs::write(root.join("calib/0000.txt"), p0).unwrap();
+    std::fs::create_dir_all(root.join("oxts")).unwrap();
+    let oxts = format!("49.0 8.4 113.8 0.02{}\n", " 0.1".repeat(26));
+    std::fs::write(root.join("oxts/0000.txt"), oxts).unwrap();
     let out = dir.path().join("0000.mcap");
     let import = |dets: &std::path::Path| {
         let args = [
@@ -637,6 +641,7 @@ fn import_kitti_detections_one_folder_too_high() {
         stderr.contains("no detection file 0000.txt")
             && stderr.contains("skipped, not detection files")
             && stderr.contains("calib/0000.txt")
+            && stderr.contains("oxts/0000.txt")
             && stderr.contains("label_02/0000.txt")
             && !stderr.contains("comma-separated"),
         "{stderr}"
@@ -699,7 +704,7 @@ fn a_log_at_another_rate_than_the_preset_is_named() {
     };
     let w = warning(&[]).expect("a warning at 10 Hz under the 2 Hz preset");
     assert!(
-        w.contains("0.100 s apart") && w.ends_with("--dt-nominal 0.1"),
+        w.contains("0.1 s apart") && w.ends_with("--dt-nominal 0.1"),
         "{w}"
     );
     assert!(w.contains("nuscenes-chiu2019"), "{w}");

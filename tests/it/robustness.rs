@@ -615,9 +615,10 @@ fn the_nuscenes_protocol_checks_only_what_it_reads() {
     );
 }
 
-/// `export kitti` writes its rows as it reads: a box it cannot write in the last message stops
-/// it after more than a buffer of rows went to the partial file, and the partial file is
-/// removed: no output, nothing left beside it.
+/// `export kitti` checks every row before it opens the output, then writes them as it reads: a
+/// box it cannot write in the last message (after about 130 KB of rows, more than its 64 KB
+/// buffer) leaves no output and nothing beside it, and writes nothing to stdout, which has no
+/// partial file to remove.
 #[test]
 fn export_kitti_stopped_late_leaves_nothing() {
     use probmot::msgs::Tracks3D;
@@ -638,7 +639,14 @@ fn export_kitti_stopped_late_leaves_nothing() {
     let err = String::from_utf8_lossy(&r.stderr);
     assert_eq!(r.status.code(), Some(2), "{err}");
     assert!(err.contains("non-finite") && err.contains("box 0"), "{err}");
-    // The 39 messages before it hold about 130 KB of rows, more than the 64 KB buffer.
     let left: Vec<String> = entries(dir.path());
     assert_eq!(left, ["nan_last.mcap"], "{err}");
+    // Standard output through a link in the temporary folder (never the machine's /dev, see
+    // tests/it/special_outputs.rs), to a pipe.
+    let stdout = dir.path().join("stdout");
+    std::os::unix::fs::symlink("/proc/self/fd/1", &stdout).unwrap();
+    let o = stdout.to_str().unwrap();
+    let r = probmot(&["export", "kitti", n, "-o", o, "--topic", "/ground_truth"]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(r.stdout.is_empty(), "{} bytes on stdout", r.stdout.len());
 }
