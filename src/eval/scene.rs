@@ -32,7 +32,7 @@ impl<B> Default for Scene<B> {
 /// Reads the tracks messages of one topic (`probmot.Tracks3D`, or ROS 2
 /// `vision_msgs/msg/Detection3DArray` tracks: [`recording::frames`]): `(stamp, boxes)` per
 /// message (the stamp is the message's, or its `log_time` when that is 0). A box with a
-/// non-finite centre, size, yaw or score is an error ([`check_finite`]).
+/// non-finite centre, size, yaw or score is an error.
 pub fn read_tracks_topic(path: &Path, topic: &str) -> Result<Vec<(u64, Vec<LabelledBox>)>> {
     read_boxes(path, topic, &|_| {}, false, &mut |b| b)
 }

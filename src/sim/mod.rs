@@ -2,7 +2,7 @@
 //!
 //! A scenario scripts the true motion of every object ([`scenario`]); a sensor model turns the
 //! truth into noisy detections with misses, false positives and heading flips ([`sensor`]);
-//! [`write`] stores both as MCAP channels `/detections` and `/ground_truth`.
+//! [`mod@write`] stores both as MCAP channels `/detections` and `/ground_truth`.
 
 pub mod ego;
 pub mod scenario;

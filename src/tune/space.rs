@@ -291,7 +291,7 @@ pub fn shared_dims() -> Vec<Dim> {
     d
 }
 
-/// Names of the reporting dimensions ([`reporting_dims`]).
+/// Names of the reporting dimensions (`coast`, `backfill`).
 pub const REPORTING_NAMES: [&str; 2] = ["coast", "backfill"];
 
 /// Which frames a track reports (offline options, see [`crate::tracker::lookback`]).

@@ -51,38 +51,55 @@ impl Default for NuscenesParams {
 /// Every metric of one class (or the overall aggregate). NaN where undefined (JSON `null`).
 #[derive(Debug, Clone, Copy, Serialize, PartialEq)]
 pub struct Metrics {
+    /// Average MOTA over recall thresholds (the devkit's headline metric).
     #[serde(serialize_with = "nan_as_null")]
     pub amota: f64,
+    /// Average MOTP over recall thresholds, metres (lower is better).
     #[serde(serialize_with = "nan_as_null")]
     pub amotp: f64,
+    /// Recall at the threshold of the best MOTA.
     #[serde(serialize_with = "nan_as_null")]
     pub recall: f64,
+    /// Recall-normalised MOTA at that threshold.
     #[serde(serialize_with = "nan_as_null")]
     pub motar: f64,
+    /// MOTA at that threshold.
     #[serde(serialize_with = "nan_as_null")]
     pub mota: f64,
+    /// MOTP (mean centre distance of matches), metres.
     #[serde(serialize_with = "nan_as_null")]
     pub motp: f64,
+    /// Mostly tracked trajectories (tracked for at least 80 % of their life).
     #[serde(serialize_with = "nan_as_null")]
     pub mt: f64,
+    /// Mostly lost trajectories (tracked for under 20 % of their life).
     #[serde(serialize_with = "nan_as_null")]
     pub ml: f64,
+    /// False alarms per frame.
     #[serde(serialize_with = "nan_as_null")]
     pub faf: f64,
+    /// True positives.
     #[serde(serialize_with = "nan_as_null")]
     pub tp: f64,
+    /// False positives.
     #[serde(serialize_with = "nan_as_null")]
     pub fp: f64,
+    /// False negatives (`fn` in JSON).
     #[serde(rename = "fn", serialize_with = "nan_as_null")]
     pub fn_: f64,
+    /// Identity switches.
     #[serde(serialize_with = "nan_as_null")]
     pub ids: f64,
+    /// Fragmentations.
     #[serde(serialize_with = "nan_as_null")]
     pub frag: f64,
+    /// Track initialization duration, seconds.
     #[serde(serialize_with = "nan_as_null")]
     pub tid: f64,
+    /// Longest gap duration, seconds.
     #[serde(serialize_with = "nan_as_null")]
     pub lgd: f64,
+    /// Ground-truth boxes.
     #[serde(serialize_with = "nan_as_null")]
     pub gt: f64,
 }
