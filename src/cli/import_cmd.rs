@@ -360,7 +360,13 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
             let input = resolve_input(&k.input)?;
-            let s = export_kitti(&input, &k.topic, &k.output, k.topic != "/ground_truth")?;
+            let bar = super::eval_args::bytes_bar(&[&input], super::show_progress(a.quiet));
+            bar.set_length(2 * bar.length().unwrap_or(0));
+            let progress = |bytes: u64| bar.set_position(bytes);
+            let scores = k.topic != "/ground_truth";
+            let s = export_kitti(&input, &k.topic, &k.output, scores, &progress);
+            bar.finish_and_clear();
+            let s = s?;
             for w in &s.warnings {
                 eprintln!("warning: {w}");
             }

@@ -518,15 +518,16 @@ impl FrameNumbers {
 fn check_rows(
     input: &Path,
     topic: &str,
-    base: Option<(u64, u64)>,
-    truth: bool,
+    (base, truth): (Option<(u64, u64)>, bool),
     summary: &mut ExportSummary,
+    progress: &mut dyn FnMut(u64),
 ) -> Result<FrameNumbers> {
     let mut stamps = Vec::new();
     let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
     let mut flat = 0u64;
     let on_base = base.map(|(first, period)| FrameNumbers::TimeBase(first, period));
-    for_each_tracks_frame(input, topic, |stamp, boxes, _| {
+    for_each_tracks_frame(input, topic, |stamp, boxes, stats| {
+        progress(stats.bytes_read);
         match &on_base {
             Some(numbers) => _ = numbers.number(input, topic, stamp)?,
             None => stamps.push(stamp),
@@ -637,21 +638,29 @@ fn kitti_row(b: &Track3D, frame: u32, truth: bool) -> KittiRow {
 /// truncation and occlusion come from the box's `kitti_*` attributes and image box (a track
 /// carries those of its last matched detection); missing ones are written as the label with a
 /// capital, a zero box, -10 and 0.
+///
+/// Reads the input twice (checking every row, then writing): `progress` gets the bytes read so
+/// far over both passes, out of twice the file's size.
 pub fn export_kitti(
     input: &Path,
     topic: &str,
     output: &Path,
     scores: bool,
+    progress: &dyn Fn(u64),
 ) -> Result<ExportSummary> {
     check_output_path(Some(input), output)?;
     let base = kitti_time_base(input)?;
     let mut summary = ExportSummary::default();
     let truth = topic != "/tracks" && !scores;
-    let numbers = check_rows(input, topic, base, truth, &mut summary)?;
+    let size = std::fs::metadata(input).map_or(0, |m| m.len());
+    let numbers = check_rows(input, topic, (base, truth), &mut summary, &mut |b| {
+        progress(b)
+    })?;
     // The rows go straight to the output, a message at a time (an hour-long log's text is
     // hundreds of megabytes).
     write_file_atomic_with(output, |w| {
-        for_each_tracks_frame(input, topic, |stamp, boxes, _| {
+        for_each_tracks_frame(input, topic, |stamp, boxes, stats| {
+            progress(size + stats.bytes_read);
             let frame = numbers.number(input, topic, stamp)?;
             for b in &boxes {
                 writeln!(w, "{}", format_row(&kitti_row(b, frame, truth)))
