@@ -6,8 +6,9 @@
 # BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary directory)
 #
 # `scripts/bench.sh long [WORKDIR]` measures instead every command that reads a whole log
-# (track, eval, eval --protocol kitti, info, fit, plot) on long dense logs, side by side in one run: wall time and peak
-# RSS (/usr/bin/time), medians of BENCH_REPS runs (default 3; a list gives one count per log,
+# (track, eval, eval --protocol kitti, info, fit, plot, export kitti) on long dense logs, side by
+# side in one run: wall time and peak RSS (/usr/bin/time), medians of BENCH_REPS runs (default
+# 3; a list gives one count per log,
 # e.g. "3 1") per log of BENCH_FRAMES frames (default "2000 20000"; the issue's log is
 # `simulate --scenario city --frames 20000 --objects 200`, its 10x log 200000 frames: about
 # 2.9 GB, 3.8 GB tracked, twice that on disk during its runs), plus the boxes eval holds and its
@@ -52,7 +53,7 @@ long_logs() {
     "$bin" simulate --scenario city --frames "$n" --objects 200 -o "$log" >/dev/null
     "$bin" track "$log" -o "$out" --quiet
     local boxes; boxes=$(boxes_of "$out")
-    for c in track eval kitti info fit plot; do : > "$work/$n-$c.tm"; done
+    for c in track eval kitti info fit plot export; do : > "$work/$n-$c.tm"; done
     for _ in $(seq "$reps"); do
       timed "$n-track" "$bin" track "$log" -o "$work/city$n.again.mcap" --quiet
       timed "$n-eval" "$bin" eval --truth "$out" --quiet
@@ -60,15 +61,16 @@ long_logs() {
       timed "$n-info" "$bin" info "$out" --quiet
       timed "$n-fit" "$bin" fit "$log" -o "$work/fit$n.json" --quiet
       timed "$n-plot" "$bin" plot "$out" --class car --from 0 --to 30 -o "$work/plot$n.png"
+      timed "$n-export" "$bin" export kitti "$out" -o "$work/export$n.txt" --quiet
     done
     echo "log of $n frames x 200 objects ($(du -h "$log" | cut -f1), tracked $(du -h "$out" | cut -f1), eval holds $boxes boxes), medians of $reps:"
-    for c in track eval kitti info fit plot; do
+    for c in track eval kitti info fit plot export; do
       echo "  $c: $(med "$n-$c" 1) s, peak RSS $(med "$n-$c" 2) kB ($(div "$(med "$n-$c" 1)" "$(med "$n-track" 1)")x track's time)"
     done
     echo "  eval: $(div "$(( $(med "$n-eval" 2) * 1024 ))" "$boxes") bytes of peak RSS per box"
     echo "  kitti (eval --protocol kitti): $(div "$(( $(med "$n-kitti" 2) * 1024 ))" "$boxes") bytes of peak RSS per box"
     echo "$n $boxes $(med "$n-eval" 2)" >> "$work/eval-rss.txt"
-    [ "${BENCH_KEEP:-0}" = 1 ] || rm -f "$log" "$out" "$work/city$n.again.mcap"
+    [ "${BENCH_KEEP:-0}" = 1 ] || rm -f "$log" "$out" "$work/city$n.again.mcap" "$work/export$n.txt"
   done
   # The growth between the logs: peak RSS added per box added (what a longer log costs).
   if [ "$(wc -l < "$work/eval-rss.txt")" -ge 2 ]; then
