@@ -520,7 +520,7 @@ fn check_rows(
     topic: &str,
     (base, truth): (Option<(u64, u64)>, bool),
     summary: &mut ExportSummary,
-    progress: &mut dyn FnMut(u64),
+    progress: &dyn Fn(u64),
 ) -> Result<FrameNumbers> {
     let mut stamps = Vec::new();
     let mut unknown_types: BTreeMap<String, u64> = BTreeMap::new();
@@ -569,28 +569,42 @@ fn check_rows(
             FrameNumbers::Order(stamps)
         }
     };
+    summary
+        .warnings
+        .extend(row_warnings(input, flat, summary.rows, &unknown_types));
+    Ok(numbers)
+}
+
+/// What an export's rows may not say as a KITTI reader expects: rows without a 2D image box
+/// (`flat` of `rows`) and types KITTI's labels do not have.
+fn row_warnings(
+    input: &Path,
+    flat: u64,
+    rows: u64,
+    unknown_types: &BTreeMap<String, u64>,
+) -> Vec<String> {
+    let mut warnings = Vec::new();
     if flat > 0 {
-        summary.warnings.push(format!(
-            "{}: {flat} of {} rows have no 2D image box (the log was not imported from KITTI) \
+        warnings.push(format!(
+            "{}: {flat} of {rows} rows have no 2D image box (the log was not imported from KITTI) \
              and are written with 0 0 0 0: KITTI's evaluation reads their height as 0 px and \
              ignores every such track it does not match (`probmot eval --protocol kitti` on the \
              MCAP counts them)",
             input.display(),
-            summary.rows
         ));
     }
     if !unknown_types.is_empty() {
         let each: Vec<String> = (unknown_types.iter())
             .map(|(t, n)| format!("{t} {n}"))
             .collect();
-        summary.warnings.push(format!(
+        warnings.push(format!(
             "{}: rows of types KITTI's labels do not have, written as they are (its evaluation \
              scores Car, Pedestrian and Cyclist): {}",
             input.display(),
             each.join(", ")
         ));
     }
-    Ok(numbers)
+    warnings
 }
 
 /// One box as a KITTI row of frame `frame`: a label row for ground truth (`truth`: original
@@ -653,9 +667,7 @@ pub fn export_kitti(
     let mut summary = ExportSummary::default();
     let truth = topic != "/tracks" && !scores;
     let size = std::fs::metadata(input).map_or(0, |m| m.len());
-    let numbers = check_rows(input, topic, (base, truth), &mut summary, &mut |b| {
-        progress(b)
-    })?;
+    let numbers = check_rows(input, topic, (base, truth), &mut summary, progress)?;
     // The rows go straight to the output, a message at a time (an hour-long log's text is
     // hundreds of megabytes).
     write_file_atomic_with(output, |w| {
