@@ -79,6 +79,7 @@ pub fn base_name(t: &str) -> &str {
 /// `pkg::msg::Type` is `Type`.
 pub fn parse_idl(text: &str) -> Sections {
     let tokens = idl_tokens(text);
+    let aliases = idl_typedefs(&tokens);
     let mut out = Sections::new();
     let mut i = 0;
     while i + 2 < tokens.len() {
@@ -89,8 +90,8 @@ pub fn parse_idl(text: &str) -> Sections {
             i += 3;
             while i < tokens.len() && tokens[i] != "}" {
                 if tokens[i] == ";" {
-                    if let Some(f) = idl_member(&member) {
-                        fields.push(f);
+                    if let Some((ty, name)) = idl_member(&member) {
+                        fields.push((resolve_alias(ty, &aliases), name));
                     }
                     member.clear();
                 } else {
@@ -103,6 +104,34 @@ pub fn parse_idl(text: &str) -> Sections {
         i += 1;
     }
     out
+}
+
+/// The array typedefs of an IDL text (`typedef double double__36[36];`, as rosidl writes a
+/// fixed-size array field): alias -> `.msg` spelling (`float64[36]`).
+fn idl_typedefs(tokens: &[String]) -> BTreeMap<String, String> {
+    let mut out = BTreeMap::new();
+    for (i, _) in tokens.iter().enumerate().filter(|(_, t)| *t == "typedef") {
+        let Some(end) = tokens[i..].iter().position(|t| t == ";") else {
+            continue;
+        };
+        let decl: Vec<&str> = tokens[i + 1..i + end].iter().map(String::as_str).collect();
+        if let Some((ty, name)) = idl_member(&decl) {
+            out.insert(name, ty);
+        }
+    }
+    out
+}
+
+/// `ty` with a typedef alias (also as a sequence's element type) replaced by what it names.
+fn resolve_alias(ty: String, aliases: &BTreeMap<String, String>) -> String {
+    let (base, suffix) = match ty.find('[') {
+        Some(k) => ty.split_at(k),
+        None => (ty.as_str(), ""),
+    };
+    match aliases.get(base) {
+        Some(named) => format!("{named}{suffix}"),
+        None => ty,
+    }
 }
 
 /// The tokens of an IDL text: identifiers and numbers, `::`, and single punctuation characters;
@@ -329,6 +358,7 @@ IDL: pkg/msg/Thing
 #include "geometry_msgs/msg/Pose.idl"
 module pkg {
   module msg {
+    typedef double double__36[36];
     module Thing_Constants {
       const uint8 CAR = 1; // a comment
     };
@@ -342,6 +372,7 @@ module pkg {
       float probability;
       sequence<pkg::msg::Other> others;
       sequence<double, 3> bounded;
+      double__36 covariance;
       boolean flag;
       unsigned long count;
       uint8 uuid[16];
@@ -359,6 +390,7 @@ module pkg {
                 ("float32", "probability"),
                 ("Other[]", "others"),
                 ("float64[<=3]", "bounded"),
+                ("float64[36]", "covariance"),
                 ("bool", "flag"),
                 ("uint32", "count"),
                 ("uint8[16]", "uuid"),
