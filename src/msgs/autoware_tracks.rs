@@ -27,9 +27,9 @@
 //! - `kinematics.is_stationary`: horizontal speed below [`STATIONARY_SPEED`];
 //! - `shape`: BOUNDING_BOX with `dimensions` = length, width, height, no footprint.
 
-use super::autoware::{
-    self, class_code, class_name, orientation, read_classification, read_header, read_pose,
-    read_shape, read_twist, Package, RawObject,
+use super::autoware::{self, class_code, class_name, orientation, Package};
+use super::autoware_object::{
+    read_classification, read_header, read_pose, read_shape, read_twist, RawObject,
 };
 use super::cdr_cursor::CdrCursor;
 use super::cdr_writer::CdrWriter;

@@ -9,6 +9,7 @@ mod generated {
 pub use generated::*;
 
 pub mod autoware;
+pub mod autoware_object;
 pub mod autoware_tracks;
 pub mod cdr_cursor;
 pub mod cdr_writer;
