@@ -35,7 +35,7 @@ fn bench(c: &mut Criterion) {
     let out = dir.path().join("out.mcap");
     let mut opts = TrackOptions {
         detection_topics: vec![],
-        tracks_topic: "/tracks".into(),
+        tracks_topic: None,
         tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,

@@ -26,7 +26,8 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// Every input record (schemas, channels, messages with their times and sequence numbers,
 /// attachments, metadata) is copied unchanged; the tracks are written one message per frame,
 /// as `probmot.Tracks3D` (and as foxglove.SceneUpdate on /tracks/scene, see --scene-topic) or,
-/// for ROS 2 inputs, `vision_msgs/msg/Detection3DArray` (see --tracks-format). A tracks message
+/// for ROS 2 inputs, `vision_msgs/msg/Detection3DArray`, for Autoware inputs
+/// `autoware_perception_msgs/msg/TrackedObjects` (see --tracks-format). A tracks message
 /// has the frame's stamp in the message and, as log_time, the latest log_time of the frame's
 /// detection messages; it is written before any later input message, so the output is in
 /// log-time order when the input is. Frames are the distinct detection stamps, replayed in
@@ -44,11 +45,19 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 ///                                      metadata key `label` (else `class`, else `class_id`,
 ///                                      else empty: the config's default entry), score from
 ///                                      `score` (else 1); other metadata become attributes
+///   autoware_perception_msgs/msg/DetectedObjects (also autoware_auto_perception_msgs)
+///                                      Autoware: ros2msg or ros2idl schema + cdr; label of
+///                                      the most probable class (CAR..PEDESTRIAN = car..
+///                                      pedestrian; UNKNOWN, ANIMAL, ... only with a config
+///                                      entry of that name), score = existence_probability,
+///                                      box from pose and shape, velocity from the twist
 ///
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
 ///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks: see --tracks-format)
 ///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out)
+///   probmot track autoware_bag/ -o tracked_bag/  (Autoware: TrackedObjects on
+///                                                 /perception/object_recognition/tracking/objects)
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
 ///   probmot track drive.mcap -o out.mcap --distance iou3d --matcher hungarian
 ///   probmot track logs/*.mcap --out-dir tracked/ --jobs 2
@@ -73,18 +82,22 @@ pub struct TrackArgs {
     #[arg(long, value_name = "N")]
     jobs: Option<usize>,
     /// Detection topic(s); default: every channel of a supported detection schema
-    /// (probmot.Detections3D, vision_msgs/msg/Detection3DArray, foxglove.SceneUpdate).
+    /// (probmot.Detections3D, vision_msgs/msg/Detection3DArray, foxglove.SceneUpdate,
+    /// autoware_perception_msgs/msg/DetectedObjects).
     #[arg(long = "detections-topic", value_name = "TOPIC")]
     detections_topics: Vec<String>,
-    /// Topic of the tracks channel to write.
-    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
-    tracks_topic: String,
+    /// Topic of the tracks channel to write [default: /tracks; Autoware tracks:
+    /// /perception/object_recognition/tracking/objects].
+    #[arg(long, value_name = "TOPIC")]
+    tracks_topic: Option<String>,
     /// Message type of the tracks channel: `probmot` (probmot.Tracks3D, protobuf: velocities,
-    /// variances, ages) or `ros2` (vision_msgs/msg/Detection3DArray, CDR: track id in
-    /// Detection3D.id, label and score in the hypothesis, box in bbox; readable by ROS 2 tools).
-    /// Default: ros2 when the input is a ROS 2 bag (MCAP profile `ros2`) or its detections are
-    /// ROS 2 messages, else probmot. With ros2, --scene-topic and --tracks-frame ego are refused.
-    /// See docs/ros2.md.
+    /// variances, ages), `ros2` (vision_msgs/msg/Detection3DArray, CDR: track id in
+    /// Detection3D.id, label and score in the hypothesis, box in bbox; readable by ROS 2 tools)
+    /// or `autoware` (autoware_perception_msgs/msg/TrackedObjects, CDR: a UUID per track,
+    /// class, pose and twist with covariances, shape). Default: autoware when the detections
+    /// are Autoware's DetectedObjects, ros2 when the input is a ROS 2 bag (MCAP profile `ros2`)
+    /// or its detections are ROS 2 messages, else probmot. With ros2 or autoware, --scene-topic
+    /// and --tracks-frame ego are refused. See docs/ros2.md.
     /// Example: probmot track bag.mcap -o out.mcap --tracks-format probmot
     #[arg(long, value_enum, value_name = "FORMAT")]
     tracks_format: Option<TracksFormatArg>,
@@ -150,6 +163,8 @@ enum TracksFormatArg {
     Probmot,
     /// vision_msgs/msg/Detection3DArray (ROS 2, CDR).
     Ros2,
+    /// autoware_perception_msgs/msg/TrackedObjects (Autoware, CDR).
+    Autoware,
 }
 
 /// Frames the tracks are written in.
@@ -252,6 +267,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         tracks_format: a.tracks_format.map(|f| match f {
             TracksFormatArg::Probmot => TracksFormat::Probmot,
             TracksFormatArg::Ros2 => TracksFormat::Ros2,
+            TracksFormatArg::Autoware => TracksFormat::Autoware,
         }),
         config,
         no_track: a.no_track,
@@ -301,7 +317,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
                 eprintln!("warning: {w}");
             }
             if let Some(rrd) = &a.rerun {
-                write_recording(&a, out, rrd)?;
+                write_recording(&a, out, rrd, &s.tracks_topic)?;
             }
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&s)?);
@@ -316,7 +332,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
 
 /// The Rerun recording of the finished output (`--rerun`).
 #[cfg(feature = "rerun")]
-fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
+fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path, tracks_topic: &str) -> Result<()> {
     use anyhow::Context as _;
     // The recording shows one detections topic: the first --detections-topic, else /detections
     // (`probmot viz --detections-topic T` draws another one).
@@ -325,7 +341,7 @@ fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
         .first()
         .map(String::as_str)
         .unwrap_or("/detections");
-    let r = super::viz_cmd::track_recording(tracked, rrd, detections, &a.tracks_topic)
+    let r = super::viz_cmd::track_recording(tracked, rrd, detections, tracks_topic)
         .context("--rerun")?;
     if !a.quiet && !a.json {
         println!(
@@ -340,7 +356,7 @@ fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path) -> Result<()> {
 }
 
 #[cfg(not(feature = "rerun"))]
-fn write_recording(_: &TrackArgs, _: &Path, _: &Path) -> Result<()> {
+fn write_recording(_: &TrackArgs, _: &Path, _: &Path, _: &str) -> Result<()> {
     bail!("--rerun: {NEEDS_FEATURE}")
 }
 

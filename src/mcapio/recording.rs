@@ -14,6 +14,7 @@ use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
 use super::reader::{read_records, ReadStats};
+use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::ros2_tracks;
@@ -25,9 +26,10 @@ use crate::msgs::{self, Detection3D, Encoding, Track3D, Tracks3D, TRACKS_SCHEMA}
 pub enum TopicKind {
     /// Detections of any supported input schema ([`DetectionSource`]).
     Detections,
-    /// `probmot.Tracks3D` (tracks or ground truth) in protobuf or JSON, or ROS 2
+    /// `probmot.Tracks3D` (tracks or ground truth) in protobuf or JSON, ROS 2
     /// `vision_msgs/msg/Detection3DArray` tracks (track id in `Detection3D.id`, as `track
-    /// --tracks-format ros2` writes them).
+    /// --tracks-format ros2` writes them), or Autoware `TrackedObjects` (track id from the
+    /// UUID, [`autoware_tracks::uuid_track_id`]).
     Tracks,
 }
 
@@ -86,6 +88,7 @@ enum Decoder {
     Detections(DetectionSource),
     Tracks(Encoding),
     Ros2Tracks(VisionLayout),
+    AutowareTracks(KinematicsOrder),
 }
 
 /// A schema record: name, encoding, data.
@@ -119,6 +122,16 @@ fn decoder_for(
         .map(Decoder::Detections)
         .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}")),
         TopicKind::Tracks => {
+            if let Some(layout) = autoware_tracks::layout_for_channel(
+                &schema.name,
+                &schema.encoding,
+                &schema.data,
+                message_encoding,
+            ) {
+                return layout
+                    .map(Decoder::AutowareTracks)
+                    .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"));
+            }
             if ros2_vision::SCHEMA_NAMES.contains(&schema.name.as_str()) {
                 return match DetectionSource::for_channel(
                     &schema.name,
@@ -134,7 +147,8 @@ fn decoder_for(
             if schema.name != TRACKS_SCHEMA {
                 bail!(
                     "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
-                     vision_msgs/msg/Detection3DArray tracks) for the {}",
+                     vision_msgs/msg/Detection3DArray tracks, or Autoware TrackedObjects) for \
+                     the {}",
                     req.topic,
                     schema.name,
                     req.role
@@ -254,6 +268,14 @@ fn decode_frame(decoder: &Decoder, data: &[u8], log_time: u64) -> Result<Frame> 
                 boxes: Boxes::Tracks(m.tracks),
             }
         }
+        Decoder::AutowareTracks(order) => {
+            let m = autoware_tracks::decode_tracks(data, *order)?;
+            Frame {
+                stamp: tracks_stamp(m.stamp, log_time),
+                log_time,
+                boxes: Boxes::Tracks(m.tracks),
+            }
+        }
         Decoder::Tracks(enc) => {
             let m: Tracks3D = msgs::decode(data, *enc)?;
             Frame {
@@ -280,7 +302,13 @@ pub fn no_channel(
             format!("topics: {}", names.join(", "))
         }
     };
+    let autoware_hint = format!(
+        "; the file has Autoware tracks on {0} (`probmot track` writes them there for an \
+         Autoware input): name that topic (--tracks-topic {0}; export: --topic)",
+        autoware_tracks::TRACKING_TOPIC
+    );
     let hint = match topic {
+        "/tracks" if topics.contains(autoware_tracks::TRACKING_TOPIC) => &autoware_hint,
         "/tracks" if !topics.contains("/detections") && topics.contains("/ground_truth") => {
             "; the file holds ground truth but no detections to track (`--topic /ground_truth` \
              reads the truth)"

@@ -72,6 +72,40 @@ impl<'a> CdrCursor<'a> {
         })
     }
 
+    /// `uint8` (also `byte` and `char`).
+    pub fn u8(&mut self) -> Result<u8, CdrError> {
+        Ok(self.take::<1>()?[0])
+    }
+
+    /// `bool`: one byte, anything but 0 is true.
+    pub fn bool(&mut self) -> Result<bool, CdrError> {
+        Ok(self.u8()? != 0)
+    }
+
+    /// `uint8[N]`: a fixed-size byte array (no length on the wire, no alignment).
+    pub fn u8_array<const N: usize>(&mut self) -> Result<[u8; N], CdrError> {
+        let end = self
+            .pos
+            .checked_add(N)
+            .ok_or(CdrError::Truncated(self.pos))?;
+        let b = self
+            .data
+            .get(self.pos..end)
+            .ok_or(CdrError::Truncated(self.data.len()))?;
+        self.pos = end;
+        Ok(b.try_into().expect("N bytes"))
+    }
+
+    /// `float32`.
+    pub fn f32(&mut self) -> Result<f32, CdrError> {
+        let b = self.take::<4>()?;
+        Ok(if self.little_endian {
+            f32::from_le_bytes(b)
+        } else {
+            f32::from_be_bytes(b)
+        })
+    }
+
     /// `int32`.
     pub fn i32(&mut self) -> Result<i32, CdrError> {
         Ok(self.u32()? as i32)

@@ -18,6 +18,9 @@ pub enum SkipReason {
     NonPositiveSize,
     /// The label is not in the config and the config has no default entry.
     UnknownLabel,
+    /// An Autoware class that is none of probmot's (UNKNOWN, ANIMAL, ...) and has no config
+    /// entry of its own name (the `default` entry does not apply to it).
+    ClassWithoutEntry,
     /// The centre or size field is missing.
     MissingField,
 }
@@ -29,6 +32,10 @@ impl SkipReason {
             SkipReason::NonFinite => "non-finite field",
             SkipReason::NonPositiveSize => "non-positive size",
             SkipReason::UnknownLabel => "label not in the config (no default entry)",
+            SkipReason::ClassWithoutEntry => {
+                "Autoware class that is none of probmot's (unknown, animal, ...), without a \
+                 config entry of its name"
+            }
             SkipReason::MissingField => "missing centre or size",
         }
     }
@@ -51,6 +58,10 @@ pub struct DetectionBox {
     pub image_box: Option<ImageBox>,
     /// Free-form attributes, copied to the track the box updates.
     pub attributes: BTreeMap<String, String>,
+    /// Tracked only under a config entry of its own label, never with the config's `default`
+    /// entry: an Autoware class that is none of probmot's (UNKNOWN, ANIMAL, ...; see
+    /// [`super::autoware`]), whose boxes another class's statistics would not fit.
+    pub needs_own_entry: bool,
 }
 
 /// A box that failed the check: where it was, its label and why.
@@ -138,6 +149,7 @@ impl DetectionFrame {
                     velocity: d.velocity.map(|v| [v.x, v.y, v.z]),
                     image_box: d.image_box,
                     attributes: d.attributes,
+                    needs_own_entry: false,
                 }),
                 Err(reason) => frame.rejected.push(Rejected {
                     index,

@@ -8,10 +8,11 @@
 //! | `probmot.Detections3D` | any (`protobuf` as probmot writes it) | `protobuf` or `json` |
 //! | `vision_msgs/msg/Detection3DArray` | `ros2msg` | `cdr` |
 //! | `foxglove.SceneUpdate` | `protobuf` | `protobuf` |
+//! | `autoware_perception_msgs/msg/DetectedObjects` (or `autoware_auto_perception_msgs`) | `ros2msg` or `ros2idl` | `cdr` |
 
 use super::detection_frame::DetectionFrame;
 use super::{
-    decode as decode_probmot, foxglove_scene, ros2_vision, DecodeError, Detections3D,
+    autoware, decode as decode_probmot, foxglove_scene, ros2_vision, DecodeError, Detections3D,
     DetectionsEnvelope, Encoding, DETECTIONS_SCHEMA,
 };
 
@@ -19,7 +20,8 @@ use super::{
 pub const SUPPORTED: &str = "probmot.Detections3D (message encoding protobuf or json), \
      vision_msgs/msg/Detection3DArray (schema encoding ros2msg, message encoding cdr, \
      vision_msgs 4.x or 2.x layout), foxglove.SceneUpdate (schema and message encoding protobuf; one box per \
-     cube)";
+     cube), autoware_perception_msgs/msg/DetectedObjects or autoware_auto_perception_msgs/msg/DetectedObjects \
+     (schema encoding ros2msg or ros2idl, message encoding cdr)";
 
 /// How the messages of one detection channel are decoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -30,6 +32,8 @@ pub enum DetectionSource {
     Ros2Vision(ros2_vision::VisionLayout),
     /// `foxglove.SceneUpdate` in protobuf; one box per cube.
     FoxgloveScene,
+    /// Autoware's `DetectedObjects` in CDR ([`autoware`]), of either package.
+    Autoware(autoware::Package),
 }
 
 /// True for the schema names of the supported detection inputs (whatever their encodings):
@@ -38,6 +42,7 @@ pub fn is_detection_schema(schema_name: &str) -> bool {
     schema_name == DETECTIONS_SCHEMA
         || ros2_vision::SCHEMA_NAMES.contains(&schema_name)
         || schema_name == foxglove_scene::SCHEMA_NAME
+        || autoware::DETECTED_SCHEMA_NAMES.contains(&schema_name)
 }
 
 /// Channel metadata key marking a channel as one of probmot's own outputs (value: what it
@@ -124,6 +129,20 @@ impl DetectionSource {
             }
             return Ok(DetectionSource::FoxgloveScene);
         }
+        if autoware::DETECTED_SCHEMA_NAMES.contains(&schema_name) {
+            if message_encoding != "cdr" {
+                return unsupported(&format!(
+                    "schema '{schema_name}' with message encoding '{message_encoding}' (probmot \
+                     reads cdr)"
+                ));
+            }
+            return match autoware::detect_package(schema_name, schema_encoding, schema_data) {
+                Ok(package) => Ok(DetectionSource::Autoware(package)),
+                Err(why) => Err(format!(
+                    "schema '{schema_name}': unsupported field layout: {why}"
+                )),
+            };
+        }
         unsupported("")
     }
 
@@ -133,6 +152,12 @@ impl DetectionSource {
             DetectionSource::Probmot(_) => DETECTIONS_SCHEMA,
             DetectionSource::Ros2Vision(_) => ros2_vision::SCHEMA_NAMES[0],
             DetectionSource::FoxgloveScene => foxglove_scene::SCHEMA_NAME,
+            DetectionSource::Autoware(autoware::Package::Perception) => {
+                autoware::DETECTED_SCHEMA_NAMES[0]
+            }
+            DetectionSource::Autoware(autoware::Package::AutoPerception) => {
+                autoware::DETECTED_SCHEMA_NAMES[1]
+            }
         }
     }
 
@@ -153,6 +178,7 @@ impl DetectionSource {
                     foxglove_scene::SCHEMA_NAME
                 )
             }
+            DetectionSource::Autoware(_) => format!("{} (cdr)", self.schema_name()),
         }
     }
 
@@ -162,13 +188,18 @@ impl DetectionSource {
             DetectionSource::Probmot(enc) => decode_probmot(bytes, enc),
             DetectionSource::Ros2Vision(layout) => ros2_vision::decode(bytes, layout),
             DetectionSource::FoxgloveScene => foxglove_scene::decode(bytes),
+            DetectionSource::Autoware(_) => autoware::decode(bytes),
         }
     }
 
     /// Decodes one message into a checked [`DetectionFrame`]; `log_time` is its stamp when the
     /// message carries none.
     pub fn decode_frame(&self, bytes: &[u8], log_time: u64) -> Result<DetectionFrame, DecodeError> {
-        Ok(DetectionFrame::from_message(self.decode(bytes)?, log_time))
+        let mut frame = DetectionFrame::from_message(self.decode(bytes)?, log_time);
+        if let DetectionSource::Autoware(_) = self {
+            autoware::mark_classes_without_probmot_class(&mut frame);
+        }
+        Ok(frame)
     }
 
     /// The stamp and the number of boxes of one message, for the first pass of `track`:

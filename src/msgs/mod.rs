@@ -8,13 +8,18 @@ mod generated {
 
 pub use generated::*;
 
+pub mod autoware;
+pub mod autoware_object;
+pub mod autoware_tracks;
 pub mod cdr_cursor;
+pub mod cdr_writer;
 pub mod colors;
 pub mod detection_frame;
 pub mod detection_source;
 pub mod eval_events;
 pub mod foxglove_scene;
 pub mod ros2_common;
+pub mod ros2_schema;
 pub mod ros2_tf;
 pub mod ros2_tracks;
 pub mod ros2_vision;
@@ -76,6 +81,9 @@ pub enum DecodeError {
     /// Bad CDR (ROS 2) bytes.
     #[error("cdr: {0}")]
     Cdr(#[from] cdr::Error),
+    /// Bad CDR bytes, found by the bounds-checked reader ([`cdr_cursor::CdrCursor`]).
+    #[error("cdr: {0}")]
+    CdrChecked(#[from] cdr_cursor::CdrError),
     /// Well-formed bytes whose content cannot be used (e.g. a timestamp out of range).
     #[error("{0}")]
     Content(String),

@@ -17,6 +17,7 @@
 //! Velocities and track ages have no field in this message; `--tracks-format probmot` writes
 //! them (`probmot.Tracks3D`).
 
+use super::cdr_writer::CdrWriter;
 use super::ros2_vision::{self, VisionLayout};
 use super::{DecodeError, Track3D, Tracks3D};
 
@@ -101,61 +102,6 @@ float64 y
 float64 z
 ";
 
-/// A little-endian plain CDR (XCDR1) writer: primitives aligned to their size, counted from
-/// the end of the 4-byte encapsulation header.
-struct CdrWriter<'a> {
-    buf: &'a mut Vec<u8>,
-}
-
-impl CdrWriter<'_> {
-    fn align(&mut self, n: usize) {
-        let pos = self.buf.len() - 4;
-        let pad = pos.next_multiple_of(n) - pos;
-        self.buf.resize(self.buf.len() + pad, 0);
-    }
-
-    fn u32(&mut self, v: u32) {
-        self.align(4);
-        self.buf.extend_from_slice(&v.to_le_bytes());
-    }
-
-    fn i32(&mut self, v: i32) {
-        self.u32(v as u32);
-    }
-
-    fn f64(&mut self, v: f64) {
-        self.align(8);
-        self.buf.extend_from_slice(&v.to_le_bytes());
-    }
-
-    /// A `string`: length counting the NUL, the bytes, the NUL.
-    fn string(&mut self, s: &str) {
-        self.u32(s.len() as u32 + 1);
-        self.buf.extend_from_slice(s.as_bytes());
-        self.buf.push(0);
-    }
-
-    /// `builtin_interfaces/Time` + frame id: a `std_msgs/Header`.
-    fn header(&mut self, stamp: u64, frame_id: &str) {
-        let sec = stamp / 1_000_000_000;
-        // Stamps past 2038 do not fit `int32 sec`; they saturate (ROS 2 has the same limit).
-        self.i32(i32::try_from(sec).unwrap_or(i32::MAX));
-        self.u32((stamp % 1_000_000_000) as u32);
-        self.string(frame_id);
-    }
-
-    /// `geometry_msgs/Pose` of a box centre rotated by `yaw` about +z.
-    fn pose(&mut self, center: [f64; 3], yaw: f64) {
-        for v in center {
-            self.f64(v);
-        }
-        let (s, c) = (yaw / 2.0).sin_cos();
-        for v in [0.0, 0.0, s, c] {
-            self.f64(v);
-        }
-    }
-}
-
 /// Writes one `Detection3D` of a track.
 fn write_track(w: &mut CdrWriter<'_>, t: &Track3D, stamp: u64, frame_id: &str) {
     let c = t.center.unwrap_or_default();
@@ -203,9 +149,7 @@ fn decimal(mut v: u64, buf: &mut [u8; 20]) -> &str {
 /// Encodes one frame's tracks as a CDR `vision_msgs/msg/Detection3DArray` into `buf` (cleared
 /// first), with the little-endian encapsulation header `00 01 00 00`.
 pub fn encode_tracks_into(tracks: &Tracks3D, buf: &mut Vec<u8>) {
-    buf.clear();
-    buf.extend_from_slice(&[0, 1, 0, 0]);
-    let mut w = CdrWriter { buf };
+    let mut w = CdrWriter::new(buf);
     w.header(tracks.stamp, &tracks.frame_id);
     w.u32(tracks.tracks.len() as u32);
     for t in &tracks.tracks {

@@ -35,12 +35,11 @@
 //! there is none); a non-empty `id` (2.x: `tracking_id`) is kept as the attribute `id`. The
 //! per-detection headers are not used.
 
-use std::collections::BTreeMap;
-
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 
 use super::ros2_common::{cdr_string, Header, Pose, Vector3};
+use super::ros2_schema::{self, fields, Expected, Fields, Sections};
 use super::{v3, DecodeError, Detection3D, Detections3D, Size3};
 
 /// Schema names accepted for `vision_msgs/msg/Detection3DArray` (rosbag2 writes the first).
@@ -66,66 +65,6 @@ impl VisionLayout {
             VisionLayout::V2 => "vision_msgs 2.x layout",
         }
     }
-}
-
-/// `(type, name)` of each field, as the `.msg` text writes them.
-type Fields = Vec<(String, String)>;
-
-/// The fields of each message type a ros2msg schema text defines, by type name without package
-/// (`Detection3D`, `Header`, ...). The top-level type is stored under `top`.
-fn parse_sections(text: &str, top: &str) -> BTreeMap<String, Fields> {
-    let mut out: BTreeMap<String, Fields> = BTreeMap::new();
-    let mut current = top.to_string();
-    let mut after_separator = false;
-    out.entry(current.clone()).or_default();
-    for raw in text.lines() {
-        let line = raw.split('#').next().unwrap_or("").trim();
-        if line.starts_with("===") {
-            after_separator = true;
-            continue;
-        }
-        if after_separator {
-            if let Some(name) = line.strip_prefix("MSG:") {
-                current = base_name(name.trim()).to_string();
-                out.entry(current.clone()).or_default();
-                after_separator = false;
-                continue;
-            }
-        }
-        let tokens: Vec<&str> = line.split_whitespace().collect();
-        if tokens.len() < 2 {
-            continue;
-        }
-        // Constants: `TYPE NAME=VALUE` or `TYPE NAME = VALUE`.
-        if tokens[1].contains('=') || tokens.get(2) == Some(&"=") {
-            continue;
-        }
-        out.entry(current.clone())
-            .or_default()
-            .push((base_name(tokens[0]).to_string(), tokens[1].to_string()));
-    }
-    out
-}
-
-/// `pkg/msg/Type` or `pkg/Type` -> `Type` (array suffixes kept).
-fn base_name(t: &str) -> &str {
-    t.rsplit('/').next().unwrap_or(t)
-}
-
-fn fields(spec: &[(&str, &str)]) -> Fields {
-    spec.iter()
-        .map(|(t, n)| (t.to_string(), n.to_string()))
-        .collect()
-}
-
-fn show(f: &Fields) -> String {
-    if f.is_empty() {
-        return "no fields".into();
-    }
-    f.iter()
-        .map(|(t, n)| format!("{t} {n}"))
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// `(type name, required, fields)` of the message types of one layout. The vision_msgs types
@@ -271,34 +210,23 @@ fn v2_sections() -> Vec<(&'static str, bool, Fields)> {
 }
 
 /// Why the schema text does not have `layout`, or `Ok`.
-fn check_layout(sections: &BTreeMap<String, Fields>, layout: VisionLayout) -> Result<(), String> {
-    for (name, required, want) in expected_sections(layout) {
-        match sections.get(name) {
-            Some(got) if *got == want => {}
-            Some(got) => {
-                return Err(format!(
-                    "{name} has fields [{}]; the {} has [{}]",
-                    show(got),
-                    layout.describe(),
-                    show(&want)
-                ))
-            }
-            None if required => {
-                return Err(format!(
-                    "the schema text does not define {name}, so the field layout cannot be checked"
-                ))
-            }
-            None => {}
-        }
-    }
-    Ok(())
+fn check_layout(sections: &Sections, layout: VisionLayout) -> Result<(), String> {
+    let expected: Vec<Expected> = expected_sections(layout)
+        .into_iter()
+        .map(|(name, required, fields)| Expected {
+            name,
+            required,
+            fields,
+        })
+        .collect();
+    ros2_schema::check(sections, &expected, layout.describe())
 }
 
 /// Finds the layout of a channel from its schema record (`ros2msg` text).
 pub fn detect_layout(schema_data: &[u8]) -> Result<VisionLayout, String> {
     let text =
         std::str::from_utf8(schema_data).map_err(|_| "the schema text is not UTF-8".to_string())?;
-    let sections = parse_sections(text, "Detection3DArray");
+    let sections = ros2_schema::parse_msg(text, "Detection3DArray");
     let v4 = match check_layout(&sections, VisionLayout::V4) {
         Ok(()) => return Ok(VisionLayout::V4),
         Err(why) => why,

@@ -39,3 +39,14 @@ pub fn to_track3d(
     fill_track3d(&mut t, r, label);
     t
 }
+
+/// Filter variances of a track's velocity in x, y, z (m²/s²) and of its yaw rate (rad²/s²),
+/// kept beside its [`Track3D`] (which has no field for them) for the outputs that carry them
+/// (Autoware's `TrackedObject` twist covariance, [`super::autoware_tracks`]).
+pub type RateVariances = [f64; 4];
+
+/// The [`RateVariances`] of one reported track.
+pub fn rate_variances(r: &TrackReport) -> RateVariances {
+    let v = r.velocity_variance;
+    [v[0], v[1], v[2], r.yaw_rate_variance]
+}

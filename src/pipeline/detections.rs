@@ -75,8 +75,9 @@ pub fn reject(
     skip(r.index, &r.label, r.reason, counters, strict, origin)
 }
 
-/// Looks up the class of a checked box and converts it. `Ok(None)`: its label is unknown
-/// (counted); `Err`: refused with `--strict`.
+/// Looks up the class of a checked box and converts it. `Ok(None)`: its label is unknown, or it
+/// is an Autoware class without a config entry of its name (counted); `Err`: refused with
+/// `--strict`.
 pub fn convert(
     d: &DetectionBox,
     tracker: &mut Tracker,
@@ -84,6 +85,11 @@ pub fn convert(
     strict: bool,
     origin: &Origin<'_>,
 ) -> Result<Option<Detection>> {
+    if d.needs_own_entry && !tracker.config().classes.contains_key(&d.label) {
+        let reason = SkipReason::ClassWithoutEntry;
+        skip(d.index, &d.label, reason, counters, strict, origin)?;
+        return Ok(None);
+    }
     let Some(class) = tracker.class_id(&d.label) else {
         count_label(&mut counters.unknown_labels, &d.label);
         skip(

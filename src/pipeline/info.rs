@@ -7,6 +7,7 @@ use anyhow::Result;
 use mcap::records::Record;
 
 use crate::mcapio::reader::read_records;
+use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_source::{
     is_default_candidate, is_detection_schema, scenes_left_out, DetectionSource,
 };
@@ -85,6 +86,7 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
         schemas: HashMap::new(),
         channels: BTreeMap::new(),
         sources: HashMap::new(),
+        autoware_tracks: HashMap::new(),
         transforms: TransformCollector::new(),
     };
     let mut reported = 0u64;
@@ -118,6 +120,8 @@ struct InfoState {
     schemas: HashMap<u16, (String, String, Vec<u8>)>,
     channels: BTreeMap<u16, ChannelSummary>,
     sources: HashMap<u16, DetectionSource>,
+    /// Channels of Autoware `TrackedObjects` tracks, with their kinematics field order.
+    autoware_tracks: HashMap<u16, KinematicsOrder>,
     transforms: TransformCollector,
 }
 
@@ -137,8 +141,18 @@ impl InfoState {
             Err(_) if !is_detection_schema(&schema) => "not a detection schema".to_string(),
             Err(why) => why.clone(),
         };
+        let autoware_tracks = autoware_tracks::layout_for_channel(
+            &schema,
+            &schema_encoding,
+            &schema_data,
+            &c.message_encoding,
+        );
+        if let Some(Ok(order)) = autoware_tracks {
+            self.autoware_tracks.insert(c.id, order);
+        }
         let tracks = schema == msgs::TRACKS_SCHEMA
-            && Encoding::from_message_encoding(&c.message_encoding).is_some();
+            && Encoding::from_message_encoding(&c.message_encoding).is_some()
+            || matches!(autoware_tracks, Some(Ok(_)));
         let is_transform = self.transforms.on_channel(&c, &schema).is_some();
         let role = match source {
             Ok(s) => {
@@ -193,6 +207,17 @@ impl InfoState {
                 }
                 Err(_) => ch.undecodable += 1,
             },
+            ("tracks", _, _) if self.autoware_tracks.contains_key(&header.channel_id) => {
+                let order = self.autoware_tracks[&header.channel_id];
+                match autoware_tracks::decode_tracks(data, order) {
+                    Ok(m) => {
+                        for t in m.tracks {
+                            *ch.per_label.entry(t.label).or_default() += 1;
+                        }
+                    }
+                    Err(_) => ch.undecodable += 1,
+                }
+            }
             ("tracks", Some(enc), _) => match msgs::decode::<Tracks3D>(data, enc) {
                 Ok(m) => {
                     for t in m.tracks {

@@ -368,6 +368,7 @@ fn create_output(
     format: TracksFormat,
     extra: &ExtraOutputs,
 ) -> Result<BackgroundOutput> {
+    let tracks_topic = opts.tracks_topic_for(format);
     let out_opts = OutputOptions {
         profile,
         compression: opts.compression,
@@ -384,7 +385,7 @@ fn create_output(
         out.add_channel_with_id(
             channel_id,
             schema_id,
-            &opts.tracks_topic,
+            tracks_topic,
             message_encoding,
             &format.channel_metadata(),
         )?;
@@ -412,8 +413,7 @@ struct PlannedChannels {
     transforms: TransformCollector,
 }
 
-/// The channels of the output from the scan `s`: refuses a tracks topic the input already has,
-/// adds the selection warnings to `summary`.
+/// The channels of the output from the scan `s`; adds the selection warnings to `summary`.
 fn planned_channels(
     mut s: Scan,
     opts: &TrackOptions,
@@ -421,13 +421,6 @@ fn planned_channels(
     summary: &mut TrackSummary,
 ) -> Result<PlannedChannels> {
     let mut p = PlannedChannels::default();
-
-    if s.topics.contains(&opts.tracks_topic) {
-        bail!(
-            "{file}: already has a channel on {}; choose another topic with --tracks-topic",
-            opts.tracks_topic
-        );
-    }
     selection_warnings(&s, opts, file, &mut summary.warnings);
     p.transforms = std::mem::take(&mut s.transforms);
     summary.stamps_backwards = std::mem::take(&mut s.stamps_backwards);
@@ -452,6 +445,28 @@ fn planned_channels(
     }
     p.scan_ids = Some((s.schema_ids, s.channel_ids, s.topics));
     Ok(p)
+}
+
+/// Refuses a tracks topic the input already has (`topics`: the input's topics, when scanned).
+fn check_tracks_topic(
+    opts: &TrackOptions,
+    format: TracksFormat,
+    topics: Option<&HashSet<String>>,
+    file: &str,
+) -> Result<()> {
+    let topic = opts.tracks_topic_for(format);
+    if !topics.is_some_and(|t| t.contains(topic)) {
+        return Ok(());
+    }
+    let hint = if opts.tracks_topic.is_none() && format == TracksFormat::Autoware {
+        " (the default for Autoware tracks; the bag holds Autoware's own tracks there), e.g. \
+         --tracks-topic /probmot/tracking/objects"
+    } else {
+        ""
+    };
+    bail!(
+        "{file}: already has a channel on {topic}; choose another topic with --tracks-topic{hint}"
+    )
 }
 
 /// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
@@ -488,6 +503,9 @@ fn run_pass(
         &profile,
         det_channels.values().map(|d| &d.0),
     );
+    check_tracks_topic(opts, format, scan_ids.as_ref().map(|s| &s.2), &file)?;
+    let tracks_topic = opts.tracks_topic_for(format);
+    summary.tracks_topic = tracks_topic.to_string();
     if ids.is_some() {
         format.check_extras(
             &file,
@@ -496,9 +514,9 @@ fn run_pass(
         )?;
     }
     let ego = EgoMotion::new(transforms, &opts.ego, opts.strict)?;
-    let scene_topic = opts.scene.topic(&opts.tracks_topic, format);
+    let scene_topic = opts.scene.topic(tracks_topic, format);
     let request = ExtraRequest {
-        tracks_topic: &opts.tracks_topic,
+        tracks_topic,
         tracks_in_ego_frame: opts.ego.tracks_in_ego_frame,
         scene_topic: scene_topic.as_deref(),
     };

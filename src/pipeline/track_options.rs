@@ -13,8 +13,10 @@ pub struct TrackOptions {
     /// Detection topics; empty: every channel of a supported detection schema
     /// ([`crate::msgs::detection_source::is_detection_schema`]).
     pub detection_topics: Vec<String>,
-    /// Topic of the tracks channel written.
-    pub tracks_topic: String,
+    /// Topic of the tracks channel written; `None`: the format's default
+    /// ([`super::tracks_format::TracksFormat::default_topic`]: `/tracks`, or Autoware's tracking
+    /// topic for Autoware tracks).
+    pub tracks_topic: Option<String>,
     /// Message type of the tracks channel; `None`: by input
     /// ([`super::tracks_format::TracksFormat::resolve`]).
     pub tracks_format: Option<super::tracks_format::TracksFormat>,
@@ -37,6 +39,15 @@ pub struct TrackOptions {
     /// overlaps with reading and tracking: faster for one file when a core is spare; when files
     /// already run in parallel on every core, writing on the file's own thread costs less.
     pub background_writer: bool,
+}
+
+impl TrackOptions {
+    /// The topic of the tracks channel of a run whose tracks are written as `format`.
+    pub fn tracks_topic_for(&self, format: super::tracks_format::TracksFormat) -> &str {
+        self.tracks_topic
+            .as_deref()
+            .unwrap_or_else(|| format.default_topic())
+    }
 }
 
 /// Whether and where `track` writes the tracks as `foxglove.SceneUpdate` beside the tracks
@@ -106,6 +117,9 @@ pub struct TrackSummary {
     pub metadata: u64,
     /// Tracks messages written.
     pub tracks_messages: u64,
+    /// Topic of the tracks channel (not in the JSON summary, whose fields stay as they were).
+    #[serde(skip)]
+    pub tracks_topic: String,
     /// Per detection topic, messages whose stamp is earlier than the previous message's.
     pub stamps_backwards: BTreeMap<String, u64>,
     /// Detection messages that sharing a stamp with a message of another topic were merged.

@@ -21,7 +21,7 @@ use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
 use crate::msgs::detection_frame::{describe_skips, DetectionFrame};
 use crate::msgs::detection_source::DetectionSource;
-use crate::msgs::track_encode::fill_track3d;
+use crate::msgs::track_encode::{fill_track3d, rate_variances, RateVariances};
 use crate::msgs::{ImageBox, Track3D, Tracks3D};
 use crate::tracker::{Detection, Lookback, TrackReport, Tracker};
 
@@ -298,7 +298,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
         let (_, channel_id) = self.ids.expect("ids exist with detections");
         let log_time = self.order.tracks_time(&mut self.out, latest)?;
         let state = &mut self.frame_state;
-        self.format.encode_into(&state.out, &mut state.buf);
+        self.format
+            .encode_into(&state.out, &state.rates, &mut state.buf);
         let sequence = self.summary.tracks_messages as u32;
         self.out.write_to_known_channel(
             &MessageHeader {
@@ -447,6 +448,9 @@ pub(super) struct FrameState {
     src: Vec<(u32, u32)>,
     last_extra: HashMap<u64, Extra>,
     out: Tracks3D,
+    /// Velocity and yaw-rate variances of `out.tracks`, in the same order (written by the
+    /// Autoware tracks format; `Track3D` has no field for them).
+    rates: Vec<RateVariances>,
     buf: Vec<u8>,
     /// Present when a class reports offline (see [`crate::tracker::lookback`]).
     held: Option<HeldFrames>,
@@ -528,6 +532,8 @@ impl FrameState {
             return Ok(());
         }
         self.out.tracks.resize_with(reports.len(), Track3D::default);
+        self.rates.clear();
+        self.rates.extend(reports.iter().map(rate_variances));
         for (t, r) in self.out.tracks.iter_mut().zip(reports) {
             let extra = take_extra(&mut self.last_extra, &self.src, frame, r);
             fill_track3d(t, r, tracker.label(r.class));
@@ -561,6 +567,8 @@ impl FrameState {
         held.shown_boxes += held.shown.len() as u64;
         held.shown_tracks
             .extend(held.shown.iter().map(|v| v.report.id));
+        self.rates.clear();
+        (self.rates).extend(held.shown.iter().map(|v| rate_variances(&v.report)));
         for (t, v) in self.out.tracks.iter_mut().zip(&mut held.shown) {
             fill_track3d(t, &v.report, tracker.label(v.report.class));
             t.image_box = v.image_box;
@@ -648,7 +656,7 @@ mod tests {
     ) -> (MemorySink, Vec<(u64, Tracks3D)>, TrackSummary) {
         let opts = TrackOptions {
             detection_topics: vec![],
-            tracks_topic: "/tracks".into(),
+            tracks_topic: None,
             tracks_format: None,
             config,
             no_track: false,

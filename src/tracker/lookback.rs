@@ -240,6 +240,8 @@ mod tests {
             score: 1.0,
             position_variance: [0.0; 3],
             yaw_variance: 0.0,
+            velocity_variance: [0.0; 3],
+            yaw_rate_variance: 0.0,
             age: 0,
             hits: 1,
             frames_since_update: 0,

@@ -69,6 +69,11 @@ pub struct TrackReport {
     pub position_variance: [f64; 3],
     /// Variance of yaw (rad^2).
     pub yaw_variance: f64,
+    /// Variances of the velocity in x, y, z (m^2/s^2).
+    pub velocity_variance: [f64; 3],
+    /// Variance of the yaw rate (rad^2/s^2; without angular velocity the yaw-rate state stays 0
+    /// and this is its prior variance).
+    pub yaw_rate_variance: f64,
     /// Frames since birth.
     pub age: u32,
     /// Total hits.
@@ -92,6 +97,8 @@ impl Track {
     ) -> TrackReport {
         let x = &self.kf.x;
         let p = &self.kf.p;
+        // Per nominal frame squared to per second squared.
+        let per_s2 = 1.0 / (dt_nominal * dt_nominal);
         TrackReport {
             id: self.id,
             class: self.class,
@@ -101,6 +108,8 @@ impl Track {
             score: self.score,
             position_variance: [p[(0, 0)], p[(1, 1)], p[(2, 2)]],
             yaw_variance: p[(3, 3)],
+            velocity_variance: [p[(7, 7)] * per_s2, p[(8, 8)] * per_s2, p[(9, 9)] * per_s2],
+            yaw_rate_variance: p[(10, 10)] * per_s2,
             age: self.age,
             hits: self.hits,
             frames_since_update: self.time_since_update,

@@ -20,6 +20,7 @@ use super::{drawn_detection, drawn_track, read_layers, FileLayers, Frame, Layer,
 use crate::mcapio::reader::read_records;
 use crate::mcapio::recording::tracks_stamp;
 use crate::mcapio::LabelledBox;
+use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::eval_events::EVAL_EVENTS_SCHEMA;
@@ -56,6 +57,7 @@ enum Decoder {
     Detections(DetectionSource),
     Tracks(Encoding),
     Ros2Tracks(ros2_vision::VisionLayout),
+    AutowareTracks(KinematicsOrder),
 }
 
 impl Decoder {
@@ -73,6 +75,11 @@ impl Decoder {
                 .map(Decoder::Detections)
                 .map_err(|why| anyhow::anyhow!("{}: {why}", what()));
         }
+        if let Some(order) = autoware_tracks::layout_for_channel(name, enc, data, me) {
+            return order
+                .map(Decoder::AutowareTracks)
+                .map_err(|why| anyhow::anyhow!("{}: {why}", what()));
+        }
         if ros2_vision::SCHEMA_NAMES.contains(&name) {
             return match source() {
                 Ok(DetectionSource::Ros2Vision(l)) => Ok(Decoder::Ros2Tracks(l)),
@@ -84,7 +91,7 @@ impl Decoder {
             (true, Some(e)) => Ok(Decoder::Tracks(e)),
             _ => bail!(
                 "{}: schema '{name}' / encoding '{me}', expected {TRACKS_SCHEMA} (protobuf or \
-                 json) or ROS 2 vision_msgs/msg/Detection3DArray tracks",
+                 json), ROS 2 vision_msgs/msg/Detection3DArray or Autoware TrackedObjects tracks",
                 what()
             ),
         }
@@ -101,6 +108,7 @@ impl Decoder {
             }
             Decoder::Tracks(e) => tracks(msgs::decode::<Tracks3D>(data, *e)?, h),
             Decoder::Ros2Tracks(l) => tracks(ros2_tracks::decode_tracks(data, *l)?, h),
+            Decoder::AutowareTracks(o) => tracks(autoware_tracks::decode_tracks(data, *o)?, h),
         })
     }
 }

@@ -209,7 +209,7 @@ fn copy_path_keeps_every_record_of_the_conformance_corpus() {
     let dir = tempfile::tempdir().unwrap();
     let opts = TrackOptions {
         detection_topics: vec![],
-        tracks_topic: "/tracks".into(),
+        tracks_topic: None,
         tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,

@@ -22,7 +22,7 @@ const ALLOCATION_BOUND: usize = 64 << 20;
 fn options() -> TrackOptions {
     TrackOptions {
         detection_topics: Vec::new(),
-        tracks_topic: "/tracks".into(),
+        tracks_topic: None,
         tracks_format: None,
         config: TrackerConfig::preset("nuscenes-chiu2019").unwrap(),
         no_track: false,

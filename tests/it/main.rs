@@ -4,6 +4,7 @@
 mod common;
 
 mod ab3dmot_kitti;
+mod autoware;
 mod cli_papercuts;
 mod conformance;
 mod doc_examples;
