@@ -10,6 +10,7 @@ pub mod plot_types;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;
+pub mod text;
 pub mod truth_colors;
 pub mod window;
 

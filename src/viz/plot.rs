@@ -22,6 +22,7 @@ use super::plot_types::{draw_err, rgb, FONT};
 pub use super::plot_types::{
     equal_aspect, EventMark, Extent, Panel, BACKGROUND, DETECTION_GREY, UNMATCHED,
 };
+use super::text::{check_font, GlyphBackend};
 
 /// Size and title of the picture.
 #[derive(Debug, Clone)]
@@ -117,10 +118,12 @@ pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
         bail!("nothing to plot: no box in any panel");
     };
     register_fonts()?;
+    check_font()?;
     let (w, h) = (opts.width, opts.height);
     let mut buf = vec![0u8; w as usize * h as usize * 3];
     {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+        let backend = GlyphBackend(BitMapBackend::with_buffer(&mut buf, (w, h)));
+        let root = backend.into_drawing_area();
         root.fill(&rgb(BACKGROUND)).map_err(draw_err)?;
         // Text sizes follow the picture's height (700 px: 1x).
         let k = (f64::from(h) / 700.0).clamp(0.7, 2.5);
