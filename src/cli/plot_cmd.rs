@@ -35,7 +35,7 @@ use super::layer_topics::LayerTopics;
 /// many labels found no room.
 ///
 /// The region shown: --extent when given; else, with --events and a window (--from/--to), that
-/// of the window's identity switches and fragmentations with 10 m around them (at least 30 m
+/// of the window's identity switches and fragmentations with 6 m around them (at least 20 m
 /// across: what `eval --events` prints as --extent beside each worst moment); else that of the
 /// window's tracks and ground truth (far detections do not zoom out). Only the chunks of the
 /// window are read (files with chunk indexes, as probmot writes them).
@@ -44,7 +44,7 @@ use super::layer_topics::LayerTopics;
 ///   probmot plot city.tracked.mcap -o city.png --class car
 ///   probmot plot city.tracked.mcap -o first5s.png --from 0 --to 5 --layers tracks,ground_truth
 ///   probmot plot ped.tracked.mcap -o sw.png --from 9.5 --to 13.5 --events ped.events.mcap
-///   probmot plot ped.tracked.mcap -o sw.png --from 9.5 --to 13.5 --extent -17,17,-13,18 \
+///   probmot plot ped.tracked.mcap -o sw.png --from 9.5 --to 13.5 --extent -13,13,-8,13 \
 ///       --events ped.events.mcap --layout sw.layout.json
 ///   probmot plot city.tracked.mcap -o near.png --extent -30,30,-20,20
 #[derive(Debug, Args)]

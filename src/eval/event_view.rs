@@ -4,10 +4,10 @@
 //! region as with it.
 
 /// Metres kept around the outermost events, on every side.
-pub const AROUND_M: f64 = 10.0;
+pub const AROUND_M: f64 = 6.0;
 
 /// Smallest side of the region, metres (a lone event is shown with its neighbourhood).
-pub const MIN_SIDE_M: f64 = 30.0;
+pub const MIN_SIDE_M: f64 = 20.0;
 
 /// The region `(x0, x1, y0, y1)` (metres) around the finite `points`: their bounding box with
 /// [`AROUND_M`] on every side, widened about its centre to at least [`MIN_SIDE_M`] on each axis,
@@ -58,20 +58,17 @@ mod tests {
     fn frames_every_point_with_room_around() {
         assert_eq!(frame_points([]), None);
         assert_eq!(frame_points([(f64::NAN, 1.0)]), None);
-        // A lone event: 30 m square about it, whole metres.
-        assert_eq!(
-            frame_points([(10.4, -3.0)]),
-            Some((-5.0, 26.0, -18.0, 12.0))
-        );
-        // Far apart: each outermost event has 10 m around it.
+        // A lone event: 20 m square about it, whole metres.
+        assert_eq!(frame_points([(10.4, -3.0)]), Some((0.0, 21.0, -13.0, 7.0)));
+        // Far apart: each outermost event has 6 m around it.
         let pts = [(0.0, 0.0), (100.0, 5.0), (f64::INFINITY, 0.0)];
         let (x0, x1, y0, y1) = frame_points(pts).unwrap();
-        assert_eq!((x0, x1), (-10.0, 110.0));
-        assert!(y0 <= -10.0 && y1 >= 15.0 && y1 - y0 >= MIN_SIDE_M);
+        assert_eq!((x0, x1), (-6.0, 106.0));
+        assert!(y0 <= -6.0 && y1 >= 11.0 && y1 - y0 >= MIN_SIDE_M);
         // A window keeps the events of its span, ends included.
         let timed = [(1.0, (0.0, 0.0)), (3.0, (100.0, 0.0)), (5.0, (500.0, 0.0))];
         let w = frame_window(timed, 1.0, 3.0).unwrap();
-        assert_eq!((w.0, w.1), (-10.0, 110.0));
+        assert_eq!((w.0, w.1), (-6.0, 106.0));
         assert_eq!(frame_window(timed, 3.5, 4.5), None);
     }
 }

@@ -213,7 +213,7 @@ impl Scene {
             request: LabelRequest {
                 size: sz.label_box(&text),
                 target,
-                steps: 12,
+                steps: 8,
                 strict: true,
             },
             text,

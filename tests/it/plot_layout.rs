@@ -300,3 +300,29 @@ fn a_200_object_drive_plots_with_labels_apart() {
     );
     assert!(placed >= 120, "{placed} labels");
 }
+
+#[test]
+fn docs_pictures_are_those_the_script_makes() {
+    // scripts/make_docs_images.sh is the one writer of the docs' plot pictures; made again with
+    // the binary under test, they are byte for byte the committed ones (else run the script).
+    let dir = tempfile::tempdir().unwrap();
+    let out = std::process::Command::new("bash")
+        .arg(repo("scripts/make_docs_images.sh"))
+        .arg(dir.path())
+        .env("PROBMOT", env!("CARGO_BIN_EXE_probmot"))
+        .output()
+        .expect("run bash");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for name in ["turning-car-bev.png", "pedestrian-switch.png"] {
+        let made = std::fs::read(dir.path().join(name)).unwrap();
+        let committed = std::fs::read(repo(&format!("docs/{name}"))).unwrap();
+        assert!(
+            made == committed,
+            "docs/{name} is stale: run scripts/make_docs_images.sh"
+        );
+    }
+}
