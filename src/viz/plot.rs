@@ -1,14 +1,17 @@
 //! Static bird's-eye-view pictures: one panel per layer side by side, every box of the chosen
 //! frames drawn in place as an oriented rectangle with a heading tick, a colour per id (grey for
-//! detections), each id's centre path, and the id's label beside its last box (labels placed so
-//! that they do not overlap). Track boxes can take the colour of the ground truth they match, so
-//! a track that follows one object keeps one colour and an identity switch shows as a colour
-//! change; the evaluation's errors can be marked. Axes are in metres with the same metres per
-//! pixel on x and y, and every panel shows the same region: that of the tracks and ground truth
-//! (detections far away do not zoom the scene out) unless given.
+//! detections), each id's centre path, and the id's label beside its last box (labels placed
+//! apart, [`super::labels`]), with a legend under the panels ([`super::legend`]). Track boxes can
+//! take the colour of the ground truth they match, so a track that follows one object keeps one
+//! colour and an identity switch shows as a colour change; the evaluation's errors can be
+//! marked. Axes are in metres with the same metres per pixel on x and y, and every panel shows
+//! the same region: the one given, else that of the marked switches and fragmentations (when
+//! asked), else that of the tracks and ground truth (detections far away do not zoom the scene
+//! out).
 //!
-//! Pure drawing: frames in, PNG bytes out. Text is drawn with a TTF embedded in the binary (Hack,
-//! from the `epaint_default_fonts` crate), so no system font is needed.
+//! Pure drawing: frames in, PNG bytes and the layout ([`super::plot_layout`]) out. Text is drawn
+//! with a TTF embedded in the binary (Hack, from the `epaint_default_fonts` crate), so no system
+//! font is needed ([`super::text`]).
 
 use std::sync::OnceLock;
 

@@ -80,6 +80,37 @@ fn stderr(out: &std::process::Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// Checks the legend of the turning-car picture (its layout in `layout`, a `--layout` file): a
+/// strip under the panels with the entries of the three layers, whose samples show colours of
+/// ids and the grey of detections, and text. Returns its top row.
+fn check_legend(pic: &Picture, layout: &Path) -> usize {
+    let (w, h) = (pic.width, pic.height);
+    let layout: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(layout).unwrap()).unwrap();
+    let legend_top = layout["legend"]["rect"]["y0"].as_f64().unwrap() as usize;
+    assert!(
+        legend_top > h / 2 && legend_top < h - 20,
+        "legend at {legend_top}"
+    );
+    let texts: Vec<&str> = (layout["legend"]["entries"].as_array().unwrap().iter())
+        .map(|e| e["text"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        texts,
+        [
+            "detection (no id)",
+            "track: colour of the ground-truth object it matches",
+            "track matching no ground truth",
+            "ground truth: a colour per object id",
+            "bold: last box of an id, line: its path, tick: heading"
+        ]
+    );
+    let legend = pic.colours(0, w, legend_top, h);
+    assert!(legend.contains(&DETECTION_GREY) && legend.contains(&id_color(1)));
+    assert!(pic.dark_pixels(0, w, legend_top, h) > 200, "legend text");
+    legend_top
+}
+
 #[test]
 fn plot_draws_three_panels_with_colours_per_track_and_text() {
     let dir = tempfile::tempdir().unwrap();
@@ -115,30 +146,8 @@ fn plot_draws_three_panels_with_colours_per_track_and_text() {
     let pic = Picture::read(&png);
     assert_eq!((pic.width, pic.height), (w, h), "size as requested");
 
-    // Panels split the width evenly: detections | tracks | ground truth; the legend is a strip
-    // under them, whose samples show colours of ids and the grey of detections.
-    let layout: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(&layout).unwrap()).unwrap();
-    let legend_top = layout["legend"]["rect"]["y0"].as_f64().unwrap() as usize;
-    assert!(
-        legend_top > h / 2 && legend_top < h - 20,
-        "legend at {legend_top}"
-    );
-    let texts: Vec<&str> = (layout["legend"]["entries"].as_array().unwrap().iter())
-        .map(|e| e["text"].as_str().unwrap())
-        .collect();
-    assert_eq!(
-        texts,
-        [
-            "detection (no id)",
-            "track: colour of the ground-truth object it matches",
-            "track matching no ground truth",
-            "ground truth: a colour per object id",
-            "bold: last box of an id, line: its path, tick: heading"
-        ]
-    );
-    let legend = pic.colours(0, w, legend_top, h);
-    assert!(legend.contains(&DETECTION_GREY) && legend.contains(&id_color(1)));
+    // Panels split the width evenly: detections | tracks | ground truth; the legend under them.
+    let legend_top = check_legend(&pic, &layout);
     let third = w / 3;
     let palette: BTreeSet<(u8, u8, u8)> = PALETTE.iter().copied().collect();
     let dets = pic.colours(0, third, 0, legend_top);
@@ -183,13 +192,11 @@ fn plot_draws_three_panels_with_colours_per_track_and_text() {
             "caption of panel {p}"
         );
     }
-    // Axis labels at the bottom of the panels ("x (m)" and tick numbers), and the legend's
-    // texts under them.
+    // Axis labels at the bottom of the panels ("x (m)" and tick numbers).
     assert!(
         pic.dark_pixels(third, 2 * third, legend_top - 40, legend_top) > 30,
         "x axis text"
     );
-    assert!(pic.dark_pixels(0, w, legend_top, h) > 200, "legend text");
 }
 
 #[test]
