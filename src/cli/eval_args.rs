@@ -132,7 +132,8 @@ pub struct EvalArgs {
     /// Also write the evaluation's decisions at each class's best-MOTA threshold (matches,
     /// misses, false positives, identity switches, fragmentations) as channels /eval/events
     /// (probmot.EvalEvents) and /eval/events_scene (foxglove.SceneUpdate) of a copy of the truth
-    /// log; with several logs OUT is a directory of copies. The report lists the worst moments.
+    /// log; with several logs OUT is a directory of copies. The report lists the worst moments,
+    /// each with the `probmot plot` window (--from/--to) and region (--extent) that frame it.
     /// Example: probmot eval --truth drive.tracked.mcap --events drive.events.mcap
     #[arg(long, value_name = "OUT.mcap")]
     pub(super) events: Option<PathBuf>,

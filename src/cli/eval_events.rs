@@ -6,6 +6,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
+use probmot::eval::event_view::frame_window;
 use probmot::eval::events::{
     resolve, ClassEvents, Collector, Counts, EventBoxes, Located, Protocol,
 };
@@ -33,6 +34,9 @@ struct Moment {
     previous_track_id: u64,
     from_s: f64,
     to_s: f64,
+    /// The region framing the log's identity switches and fragmentations of the window, metres
+    /// `[x0, x1, y0, y1]` (`plot --extent`).
+    extent: Option<[f64; 4]>,
 }
 
 /// What `--events` wrote and found, for the report.
@@ -67,11 +71,17 @@ impl EventsReport {
         );
         s.push_str(&format!(" ({EVENTS_TOPIC}, {EVENTS_SCENE_TOPIC})\n"));
         if !self.worst.is_empty() {
-            s.push_str("worst moments (time after the log's first frame; plot window):\n");
+            s.push_str(
+                "worst moments (time after the log's first frame; plot window and region):\n",
+            );
         }
+        let width = self.worst.iter().map(|m| m.event.len()).max().unwrap_or(0);
         for m in &self.worst {
+            let extent = m.extent.map_or(String::new(), |e| {
+                format!(" --extent {:.0},{:.0},{:.0},{:.0}", e[0], e[1], e[2], e[3])
+            });
             s.push_str(&format!(
-                "  {:>8.2} s  {:<10}  {:<40}  {}  --from {:.1} --to {:.1}\n",
+                "  {:>8.2} s  {:<10}  {:<width$}  {}  --from {:.1} --to {:.1}{extent}\n",
                 m.time_s, m.class, m.event, m.log, m.from_s, m.to_s
             ));
         }
@@ -178,6 +188,24 @@ struct ClassSummary {
     listed: Vec<Located>,
 }
 
+/// The region of the identity switches and fragmentations of `m`'s log in its plot window
+/// (every class: `plot` draws them all by default).
+fn frame_listed<B: EventBoxes + ?Sized>(
+    classes: &[ClassSummary],
+    scenes: &B,
+    m: &Moment,
+) -> Option<(f64, f64, f64, f64)> {
+    let same_log = |e: &&Located| scenes.name(e.scene) == m.log;
+    let timed = (classes
+        .iter()
+        .flat_map(|c| c.listed.iter().filter(same_log)))
+    .map(|e| {
+        let t = (scenes.stamp(e.scene, e.frame) - scenes.stamp(e.scene, 0)) as f64 / 1e9;
+        (t, (e.event.center[0], e.event.center[1]))
+    });
+    frame_window(timed, m.from_s, m.to_s)
+}
+
 fn report<B: EventBoxes + ?Sized>(
     outputs: Vec<PathBuf>,
     classes: &[ClassSummary],
@@ -201,6 +229,7 @@ fn report<B: EventBoxes + ?Sized>(
                     previous_track_id: e.event.previous_track_id,
                     from_s: (time_s - CONTEXT_S).max(0.0),
                     to_s: time_s + CONTEXT_S,
+                    extent: None,
                 });
             }
         }
@@ -210,6 +239,9 @@ fn report<B: EventBoxes + ?Sized>(
         });
     }
     worst.truncate(WORST);
+    for m in &mut worst {
+        m.extent = frame_listed(classes, scenes, m).map(|e| [e.0, e.1, e.2, e.3]);
+    }
     EventsReport {
         outputs,
         counts: classes

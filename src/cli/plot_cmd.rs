@@ -10,27 +10,42 @@ use probmot::mcapio::reader::read_summary_records;
 use probmot::mcapio::writer::{check_output_path, write_file_atomic};
 use probmot::msgs::eval_events::EVENTS_TOPIC;
 use probmot::pipeline::rosbag_dir::resolve_input;
-use probmot::viz::plot::{bev_drawable, render_png, EventMark, Extent, Panel, PlotOptions};
+use probmot::viz::plot::{
+    bev_drawable, render_png_with_layout, EventMark, Extent, Panel, PlotOptions,
+};
 use probmot::viz::truth_colors::{marks, match_by_distance, match_from_events};
 use probmot::viz::window::{read_events, read_window};
 use probmot::viz::{FileLayers, Layer, Selection};
 
 use super::layer_topics::LayerTopics;
 
-/// Draw a bird's-eye-view PNG of a recording, one panel per layer, a colour per object.
+/// Draw a bird's-eye-view PNG of a recording, one panel per layer, with a legend.
 ///
 /// The panels (detections, tracks, ground truth) stand side by side, every box of the time
-/// window in place, detections grey, axes in metres with equal scale on x and y, each panel's
-/// coordinate frame in its title. The region is that of the tracks and ground truth (far
-/// detections do not zoom out; --extent sets it). With ground truth in the file, each track box
-/// takes the colour of the ground-truth object it matches (dark grey: none), so an identity
-/// switch shows as a colour change; --events marks the evaluation's errors. Only the chunks of
-/// the window are read (files with chunk indexes, as probmot writes them).
+/// window in place, axes in metres with equal scale on x and y, each panel's coordinate frame in
+/// its title. The legend under the panels says what the colours and marks mean: detections
+/// grey; ground truth a colour per object id; each track box in the colour of the ground-truth
+/// object it matches (dark grey: it matches none; --own-colors: a colour per track id), so an
+/// identity switch shows as a change of colour; the last box of each id bold, its path a thin
+/// line, the heading a tick; with --events, identity switches (magenta rings), fragmentations
+/// (orange rings), false positives (red crosses) and misses (small blue rings).
+///
+/// Labels (each id at its last box, each switch and fragmentation at its ring) keep off the
+/// boxes and each other; one set apart has a line to what it names; a panel's title says how
+/// many labels found no room.
+///
+/// The region shown: --extent when given; else, with --events and a window (--from/--to), that
+/// of the window's identity switches and fragmentations with 6 m around them (at least 20 m
+/// across: what `eval --events` prints as --extent beside each worst moment); else that of the
+/// window's tracks and ground truth (far detections do not zoom out). Only the chunks of the
+/// window are read (files with chunk indexes, as probmot writes them).
 ///
 /// Examples:
 ///   probmot plot city.tracked.mcap -o city.png --class car
 ///   probmot plot city.tracked.mcap -o first5s.png --from 0 --to 5 --layers tracks,ground_truth
 ///   probmot plot ped.tracked.mcap -o sw.png --from 9.5 --to 13.5 --events ped.events.mcap
+///   probmot plot ped.tracked.mcap -o sw.png --from 9.5 --to 13.5 --extent -13,13,-8,13 \
+///       --events ped.events.mcap --layout sw.layout.json
 ///   probmot plot city.tracked.mcap -o near.png --extent -30,30,-20,20
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
@@ -43,7 +58,8 @@ pub struct PlotArgs {
     /// Only boxes of these classes (comma-separated or repeated); default: every class.
     #[arg(long, value_name = "CLASS", value_delimiter = ',')]
     class: Vec<String>,
-    /// Window start, seconds after the file's first frame (inclusive).
+    /// Window start, seconds after the file's first frame (inclusive). With --events, the
+    /// region shown is that of the window's identity switches and fragmentations.
     #[arg(long, value_name = "SECONDS")]
     from: Option<f64>,
     /// Window end, seconds after the file's first frame (inclusive).
@@ -62,8 +78,9 @@ pub struct PlotArgs {
     /// Title above the panels; default: file name, classes and time window.
     #[arg(long)]
     title: Option<String>,
-    /// Region shown, metres: X0,X1,Y0,Y1 (default: that of the tracks and ground truth of the
-    /// window). Example: --extent -30,30,-20,20
+    /// Region shown, metres: X0,X1,Y0,Y1 (default: that of the window's identity switches and
+    /// fragmentations with --events and --from/--to, else that of the tracks and ground truth of
+    /// the window). `eval --events` prints one per worst moment. Example: --extent -30,30,-20,20
     #[arg(
         long,
         value_name = "X0,X1,Y0,Y1",
@@ -85,6 +102,11 @@ pub struct PlotArgs {
     /// Example: --own-colors
     #[arg(long)]
     own_colors: bool,
+    /// Also write where everything went in the picture (each panel's region and plotting area,
+    /// label boxes and leader lines, event marks, legend entries; pixels) as JSON, for checking
+    /// a picture without looking at it. Example: --layout city.layout.json
+    #[arg(long, value_name = "OUT.json")]
+    layout: Option<PathBuf>,
     #[command(flatten)]
     topics: LayerTopics,
     /// Print nothing on success (and no spinner while a long log is read).
@@ -112,6 +134,9 @@ fn validate(a: &PlotArgs) -> Result<Option<Extent>> {
         );
     }
     check_output_path(Some(&a.file), &a.output)?;
+    if let Some(layout) = &a.layout {
+        check_output_path(Some(&a.file), layout)?;
+    }
     for (name, v) in [("--width", a.width), ("--height", a.height)] {
         if !(100..=MAX_SIDE).contains(&v) {
             bail!("{name} {v} is out of range: give 100 to {MAX_SIDE} pixels");
@@ -430,9 +455,13 @@ pub fn run(mut a: PlotArgs) -> Result<ExitCode> {
         title: Some(title),
         extent,
         marks,
+        frame_events: a.from.is_some() || a.to.is_some(),
     };
-    let png = render_png(&panels, &opts)?;
+    let (png, layout) = render_png_with_layout(&panels, &opts)?;
     write_file_atomic(&a.output, &png)?;
+    if let Some(path) = &a.layout {
+        write_file_atomic(path, &serde_json::to_vec_pretty(&layout)?)?;
+    }
     if !a.quiet {
         println!(
             "{}: {}x{} px, {} panel(s) ({}), {} frames from {:.2} to {:.2} s, {boxes_total} boxes{}",

@@ -3,6 +3,7 @@
 
 pub mod columns;
 pub mod event_boxes;
+pub mod event_view;
 pub mod events;
 pub mod events_log;
 pub mod filters;

@@ -1,111 +1,250 @@
-//! Placing the labels of a plot panel so that they do not cover each other: each label tries
-//! positions around what it names (above, below, right, left, then higher and higher above) and
-//! takes the first one inside the panel that overlaps no label placed before it.
+//! Placing the labels of a plot panel, in picture pixels. Each label, in the order given (most
+//! important first), tries places around what it names at growing distances (touching it, then
+//! one step out, two, ...; above, below, right, left and the corners) and takes the cheapest
+//! place that is inside the plotting area and covers no label placed before and no mark (the
+//! event rings). A strict label (an id's) also covers no box (the bold last boxes, the small
+//! marks); another (an event's) may, at a cost. The cost prefers places that cover few boxes and
+//! drawn lines (an occupancy grid of the outlines and paths), are near, and whose leader line
+//! crosses few labels and marks (and that cover few leader lines). A label with no such place is
+//! left out: labels never overlap.
 
-use plotters::style::RGBColor;
+use super::plot_layout::PxRect;
 
-use crate::mcapio::LabelledBox;
-
-/// Advance of one character of the embedded font (Hack is monospaced), in em.
-const ADVANCE_EM: f64 = 0.6;
-
-/// A label to place: its text, colour and the region (metres) it names.
+/// A label to place.
 #[derive(Debug, Clone)]
-pub struct Label {
-    /// Text.
-    pub text: String,
-    /// Colour.
-    pub color: RGBColor,
-    /// `(x0, x1, y0, y1)` of what it names (a box's outline, or a point).
-    pub target: (f64, f64, f64, f64),
+pub struct LabelRequest {
+    /// Width and height of its box (text and backing), pixels.
+    pub size: (f64, f64),
+    /// What it names (pixels); the label stays outside it.
+    pub target: PxRect,
+    /// How many steps out it may go (a step is a label height).
+    pub steps: usize,
+    /// Whether it must keep clear of the boxes (else covering one costs).
+    pub strict: bool,
 }
 
-impl Label {
-    /// A label for a box (its bird's-eye outline).
-    pub fn beside(text: String, b: &LabelledBox, color: RGBColor) -> Label {
-        let c = b.bev_corners();
-        let xs = c.iter().map(|p| p.0);
-        let ys = c.iter().map(|p| p.1);
-        Label {
-            text,
-            color,
-            target: (
-                xs.clone().fold(f64::MAX, f64::min),
-                xs.fold(f64::MIN, f64::max),
-                ys.clone().fold(f64::MAX, f64::min),
-                ys.fold(f64::MIN, f64::max),
-            ),
+/// What labels keep clear of.
+#[derive(Debug, Clone, Default)]
+pub struct Obstacles {
+    /// Never covered by a label (the event rings).
+    pub marks: Vec<PxRect>,
+    /// Never covered by a strict label, covered by another at a cost (the bold last boxes).
+    pub boxes: Vec<PxRect>,
+}
+
+/// A placed label: its box and the leader line `[at the label, at the target]`, if not touching.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Placed {
+    /// The label's box.
+    pub rect: PxRect,
+    /// Leader line.
+    pub leader: Option<[(f64, f64); 2]>,
+}
+
+/// Which cells of a grid over the plotting area hold drawn lines, with a summed-area table so
+/// that the share of a rectangle's cells that hold lines costs four lookups.
+pub struct Occupancy {
+    area: PxRect,
+    cell: f64,
+    cols: usize,
+    rows: usize,
+    /// `(cols + 1) * (rows + 1)` prefix sums.
+    sums: Vec<u32>,
+}
+
+impl Occupancy {
+    /// The grid of `cell`-pixel cells over `area` with the segments drawn in it.
+    pub fn new(area: PxRect, cell: f64, segments: &[[(f64, f64); 2]]) -> Occupancy {
+        let cols = (area.width() / cell).ceil().max(1.0) as usize;
+        let rows = (area.height() / cell).ceil().max(1.0) as usize;
+        let mut hit = vec![false; cols * rows];
+        for [a, b] in segments {
+            let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()) / (cell / 2.0)).ceil() as usize;
+            for i in 0..=n.min(100_000) {
+                let t = if n == 0 { 0.0 } else { i as f64 / n as f64 };
+                let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+                let (c, r) = ((x - area.x0) / cell, (y - area.y0) / cell);
+                if c >= 0.0 && r >= 0.0 && (c as usize) < cols && (r as usize) < rows {
+                    hit[r as usize * cols + c as usize] = true;
+                }
+            }
+        }
+        let mut sums = vec![0u32; (cols + 1) * (rows + 1)];
+        for r in 0..rows {
+            for c in 0..cols {
+                let v = u32::from(hit[r * cols + c]);
+                sums[(r + 1) * (cols + 1) + c + 1] =
+                    v + sums[r * (cols + 1) + c + 1] + sums[(r + 1) * (cols + 1) + c]
+                        - sums[r * (cols + 1) + c];
+            }
+        }
+        Occupancy {
+            area,
+            cell,
+            cols,
+            rows,
+            sums,
         }
     }
 
-    /// A label for a point.
-    pub fn at(text: String, p: (f64, f64), color: RGBColor) -> Label {
-        Label {
-            text,
-            color,
-            target: (p.0, p.0, p.1, p.1),
+    /// Share (0 to 1) of the cells under `r` that hold lines.
+    pub fn share(&self, r: &PxRect) -> f64 {
+        let idx =
+            |v: f64, lo: f64, n: usize| (((v - lo) / self.cell).floor().max(0.0) as usize).min(n);
+        let (c0, c1) = (
+            idx(r.x0, self.area.x0, self.cols),
+            idx(r.x1, self.area.x0, self.cols),
+        );
+        let (r0, r1) = (
+            idx(r.y0, self.area.y0, self.rows),
+            idx(r.y1, self.area.y0, self.rows),
+        );
+        if c1 <= c0 || r1 <= r0 {
+            return 0.0;
         }
+        let s = |r: usize, c: usize| i64::from(self.sums[r * (self.cols + 1) + c]);
+        let n = s(r1, c1) - s(r0, c1) - s(r1, c0) + s(r0, c0);
+        n as f64 / ((c1 - c0) * (r1 - r0)) as f64
     }
 }
 
-type Rect = (f64, f64, f64, f64);
-
-fn overlaps(a: Rect, b: Rect) -> bool {
-    a.0 < b.1 && b.0 < a.1 && a.2 < b.3 && b.2 < a.3
-}
-
-fn inside(r: Rect, bounds: Rect) -> bool {
-    r.0 >= bounds.0 && r.1 <= bounds.1 && r.2 >= bounds.2 && r.3 <= bounds.3
-}
-
-/// Candidate bottom-left corners for a `w` x `h` text beside `t`, best first.
-fn candidates(t: Rect, w: f64, h: f64) -> Vec<(f64, f64)> {
-    let g = 0.3 * h;
-    let mid = (t.2 + t.3) / 2.0 - h / 2.0;
-    let mut c = vec![
-        (t.0, t.3 + g),
-        (t.0, t.2 - g - h),
-        (t.1 - w, t.3 + g),
-        (t.1 + g, mid),
-        (t.0 - g - w, mid),
-        (t.1 - w, t.2 - g - h),
+/// Candidate boxes for a `w` x `h` label `d` pixels off `t`, with a preference cost each:
+/// above (left-aligned, centred, right-aligned), below, then 16 directions around (above
+/// first), each box the nearest one in that direction that keeps `d` from `t`.
+fn around(t: &PxRect, (w, h): (f64, f64), d: f64) -> Vec<(PxRect, f64)> {
+    let (cx, cy) = t.center();
+    let at = |x0: f64, y0: f64| PxRect {
+        x0,
+        x1: x0 + w,
+        y0,
+        y1: y0 + h,
+    };
+    let (above, below) = (t.y0 - d - h, t.y1 + d);
+    let mut out = vec![
+        (at(t.x0, above), 0.0),
+        (at(cx - w / 2.0, above), 0.05),
+        (at(t.x1 - w, above), 0.1),
+        (at(t.x0, below), 0.2),
+        (at(cx - w / 2.0, below), 0.25),
+        (at(t.x1 - w, below), 0.3),
     ];
-    for n in 1..=8 {
-        let up = f64::from(n) * 1.15 * h;
-        for x in [t.0, t.1 - w] {
-            c.push((x, t.3 + g + up));
-            c.push((x, t.2 - g - h - up));
-        }
+    let (a, b) = (
+        t.width() / 2.0 + d + w / 2.0,
+        t.height() / 2.0 + d + h / 2.0,
+    );
+    for i in 0..16 {
+        // From straight up, alternating right and left, down to straight down.
+        let step = f64::from((i + 1) / 2) * std::f64::consts::PI / 8.0;
+        let angle = if i % 2 == 0 { step } else { -step };
+        let (ux, uy) = (angle.sin(), -angle.cos());
+        let s = match (ux.abs() > 1e-9, uy.abs() > 1e-9) {
+            (true, true) => (a / ux.abs()).min(b / uy.abs()),
+            (true, false) => a / ux.abs(),
+            _ => b / uy.abs(),
+        };
+        let (mx, my) = (cx + ux * s, cy + uy * s);
+        out.push((at(mx - w / 2.0, my - h / 2.0), 0.1 + 0.04 * f64::from(i)));
     }
-    c
+    out
 }
 
-/// Places `labels` in order inside `bounds` (metres), text `h` metres high; returns each label
-/// with the bottom-left corner of its text. A label with no free position takes its first
-/// position inside the panel (moved inside when none is).
-pub fn place_labels(labels: &[Label], bounds: Rect, h: f64) -> Vec<(&Label, (f64, f64))> {
-    let mut placed: Vec<Rect> = Vec::new();
-    let mut out = Vec::new();
-    for l in labels {
-        let w = l.text.chars().count() as f64 * ADVANCE_EM * h;
-        // Padded: glyphs reach a little beyond the em box.
-        let rect = |(x, y): (f64, f64)| (x - 0.1 * h, x + w + 0.2 * h, y - 0.15 * h, y + 1.2 * h);
-        let cands = candidates(l.target, w, h);
-        let free = cands
-            .iter()
-            .copied()
-            .find(|&p| inside(rect(p), bounds) && placed.iter().all(|r| !overlaps(*r, rect(p))));
-        let at = free
-            .or_else(|| cands.iter().copied().find(|&p| inside(rect(p), bounds)))
-            .unwrap_or_else(|| {
-                let (x, y) = cands[0];
-                (
-                    x.clamp(bounds.0, (bounds.1 - w).max(bounds.0)),
-                    y.clamp(bounds.2, (bounds.3 - h).max(bounds.2)),
-                )
-            });
-        placed.push(rect(at));
-        out.push((l, at));
+/// The leader line from `label` to `target`: from the label's point nearest the target's
+/// centre to the target's point nearest that; `None` when shorter than `touch` pixels.
+fn leader(label: &PxRect, target: &PxRect, touch: f64) -> Option<[(f64, f64); 2]> {
+    let from = label.nearest(target.center());
+    let to = target.nearest(from);
+    let len = (from.0 - to.0).hypot(from.1 - to.1);
+    (len > touch).then_some([from, to])
+}
+
+/// What a new label must keep clear of.
+struct Taken<'a> {
+    bounds: PxRect,
+    obstacles: &'a Obstacles,
+    labels: Vec<PxRect>,
+    leaders: Vec<[(f64, f64); 2]>,
+}
+
+impl Taken<'_> {
+    /// The extra cost of a label at `r` with leader `line` naming `target`, `None` when the
+    /// place is not allowed.
+    fn cost(
+        &self,
+        r: &PxRect,
+        line: Option<[(f64, f64); 2]>,
+        target: &PxRect,
+        strict: bool,
+    ) -> Option<f64> {
+        if !self.bounds.contains_rect(r) {
+            return None;
+        }
+        let hit = |o: &PxRect| o.overlaps(r);
+        if self.labels.iter().any(hit) || self.obstacles.marks.iter().any(hit) {
+            return None;
+        }
+        let boxes = self.obstacles.boxes.iter().filter(|o| hit(o)).count();
+        if strict && boxes > 0 {
+            return None;
+        }
+        // A leader line under a label, or through one, is allowed at a cost.
+        let mut cost = 1.5 * boxes as f64
+            + 2.0
+                * self
+                    .leaders
+                    .iter()
+                    .filter(|[a, b]| r.crossed_by(*a, *b))
+                    .count() as f64;
+        if let Some([a, b]) = line {
+            let crossed = |o: &&PxRect| *o != target && o.crossed_by(a, b);
+            cost += 2.0 * self.labels.iter().filter(crossed).count() as f64
+                + (self.obstacles.marks.iter().filter(crossed).count() as f64)
+                + 0.3 * self.obstacles.boxes.iter().filter(crossed).count() as f64;
+        }
+        Some(cost)
+    }
+}
+
+/// Places the labels in order; `None` for one left out. `lines` is the occupancy of what is
+/// drawn, `bounds` the plotting area.
+pub fn place_labels(
+    requests: &[LabelRequest],
+    bounds: PxRect,
+    obstacles: &Obstacles,
+    lines: &Occupancy,
+) -> Vec<Option<Placed>> {
+    let mut taken = Taken {
+        bounds,
+        obstacles,
+        labels: Vec::new(),
+        leaders: Vec::new(),
+    };
+    let mut out = Vec::with_capacity(requests.len());
+    for req in requests {
+        let (w, h) = req.size;
+        let gap = 2.0;
+        let mut best: Option<(f64, Placed)> = None;
+        for step in 0..=req.steps {
+            let d = gap + step as f64 * h;
+            // A nearer step always wins over a farther one that covers no more.
+            if best.as_ref().is_some_and(|(c, _)| *c <= step as f64 * 0.8) {
+                break;
+            }
+            for (rect, pref) in around(&req.target, (w, h), d) {
+                let line = leader(&rect, &req.target, gap + 1.0);
+                let Some(extra) = taken.cost(&rect, line, &req.target, req.strict) else {
+                    continue;
+                };
+                let cost = 3.0 * lines.share(&rect) + step as f64 * 0.8 + pref + extra;
+                if best.as_ref().is_none_or(|(c, _)| cost < *c) {
+                    best = Some((cost, Placed { rect, leader: line }));
+                }
+            }
+        }
+        if let Some((_, p)) = best {
+            taken.labels.push(p.rect);
+            taken.leaders.extend(p.leader);
+        }
+        out.push(best.map(|(_, p)| p));
     }
     out
 }
@@ -114,31 +253,89 @@ pub fn place_labels(labels: &[Label], bounds: Rect, h: f64) -> Vec<(&Label, (f64
 mod tests {
     use super::*;
 
+    fn rect(x0: f64, x1: f64, y0: f64, y1: f64) -> PxRect {
+        PxRect { x0, x1, y0, y1 }
+    }
+
     #[test]
     fn labels_of_neighbouring_boxes_do_not_overlap() {
-        // Five points 0.5 m apart, text 1 m high: the natural spots all collide.
-        let labels: Vec<Label> = (0..5)
+        let bounds = rect(0.0, 400.0, 0.0, 300.0);
+        // Twelve boxes 6 px apart in a row: their natural spots (above each) all collide.
+        let boxes: Vec<PxRect> = (0..12)
             .map(|i| {
-                Label::at(
-                    format!("pedestrian {i}"),
-                    (f64::from(i) * 0.5, 0.0),
-                    RGBColor(0, 0, 0),
-                )
+                let x = 150.0 + 6.0 * f64::from(i);
+                rect(x, x + 4.0, 150.0, 154.0)
             })
             .collect();
-        let bounds = (-50.0, 50.0, -50.0, 50.0);
-        let placed = place_labels(&labels, bounds, 1.0);
-        let rects: Vec<Rect> = placed
+        let requests: Vec<LabelRequest> = boxes
             .iter()
-            .map(|(l, (x, y))| (*x, x + l.text.len() as f64 * 0.6, *y, y + 1.05))
+            .map(|b| LabelRequest {
+                size: (80.0, 15.0),
+                target: *b,
+                steps: 6,
+                strict: true,
+            })
             .collect();
-        for i in 0..rects.len() {
-            assert!(inside(rects[i], bounds));
-            for j in 0..i {
-                assert!(!overlaps(rects[i], rects[j]), "{i} and {j}: {rects:?}");
+        let lines = Occupancy::new(bounds, 2.0, &[]);
+        let obstacles = Obstacles {
+            marks: Vec::new(),
+            boxes: boxes.clone(),
+        };
+        let placed = place_labels(&requests, bounds, &obstacles, &lines);
+        let rects: Vec<PxRect> = placed.iter().flatten().map(|p| p.rect).collect();
+        assert!(rects.len() >= 10, "{} of 12 placed", rects.len());
+        for (i, p) in placed.iter().flatten().enumerate() {
+            assert!(bounds.contains_rect(&p.rect));
+            assert!(boxes.iter().all(|b| !b.overlaps(&p.rect)), "covers a box");
+            for (j, q) in placed.iter().flatten().enumerate().take(i) {
+                assert!(!p.rect.overlaps(&q.rect), "{i} and {j}");
+            }
+            // A label away from its box has a leader line from its edge to the box's edge.
+            if let Some([a, b]) = p.leader {
+                let edge = |r: &PxRect, q: (f64, f64)| r.grown(0.01).contains(q);
+                assert!(edge(&p.rect, a) && edge(&requests[i].target, b));
             }
         }
-        // The first one takes the best spot: just above its target.
-        assert_eq!(placed[0].1, (0.0, 0.3));
+        // The first takes the best spot: just above its box, touching it.
+        let first = placed[0].unwrap();
+        assert_eq!(first.rect.y1, 148.0);
+        assert!(first.leader.is_none());
+    }
+
+    #[test]
+    fn a_label_with_no_room_is_left_out() {
+        let bounds = rect(0.0, 100.0, 0.0, 100.0);
+        let req = LabelRequest {
+            size: (150.0, 15.0),
+            target: rect(40.0, 60.0, 40.0, 60.0),
+            steps: 4,
+            strict: false,
+        };
+        let lines = Occupancy::new(bounds, 2.0, &[]);
+        let none = Obstacles::default();
+        assert_eq!(place_labels(&[req], bounds, &none, &lines), vec![None]);
+    }
+
+    #[test]
+    fn labels_prefer_empty_ground() {
+        let bounds = rect(0.0, 200.0, 0.0, 200.0);
+        // Lines fill the band above the box; below is empty.
+        let segments: Vec<[(f64, f64); 2]> = (0..20)
+            .map(|i| {
+                let y = 60.0 + 2.0 * f64::from(i);
+                [(0.0, y), (200.0, y)]
+            })
+            .collect();
+        let lines = Occupancy::new(bounds, 2.0, &segments);
+        assert!(lines.share(&rect(0.0, 200.0, 60.0, 98.0)) > 0.9);
+        assert_eq!(lines.share(&rect(0.0, 200.0, 120.0, 200.0)), 0.0);
+        let req = LabelRequest {
+            size: (40.0, 15.0),
+            target: rect(90.0, 110.0, 100.0, 110.0),
+            steps: 4,
+            strict: false,
+        };
+        let p = place_labels(&[req], bounds, &Obstacles::default(), &lines)[0].unwrap();
+        assert!(p.rect.y0 >= 110.0, "{p:?}");
     }
 }

@@ -4,12 +4,16 @@
 //! per-frame box lists and selects a class and a time window; [`plot`] draws them, with no I/O.
 
 pub mod labels;
+mod legend;
 pub mod plot;
+pub mod plot_layout;
 mod plot_panel;
+mod plot_scene;
 pub mod plot_types;
 #[cfg(feature = "rerun")]
 pub mod rrd;
 pub mod scene;
+pub mod text;
 pub mod truth_colors;
 pub mod window;
 

@@ -1,14 +1,17 @@
 //! Static bird's-eye-view pictures: one panel per layer side by side, every box of the chosen
 //! frames drawn in place as an oriented rectangle with a heading tick, a colour per id (grey for
-//! detections), each id's centre path, and the id's label beside its last box (labels placed so
-//! that they do not overlap). Track boxes can take the colour of the ground truth they match, so
-//! a track that follows one object keeps one colour and an identity switch shows as a colour
-//! change; the evaluation's errors can be marked. Axes are in metres with the same metres per
-//! pixel on x and y, and every panel shows the same region: that of the tracks and ground truth
-//! (detections far away do not zoom the scene out) unless given.
+//! detections), each id's centre path, and the id's label beside its last box (labels placed
+//! apart, [`super::labels`]), with a legend under the panels ([`super::legend`]). Track boxes can
+//! take the colour of the ground truth they match, so a track that follows one object keeps one
+//! colour and an identity switch shows as a colour change; the evaluation's errors can be
+//! marked. Axes are in metres with the same metres per pixel on x and y, and every panel shows
+//! the same region: the one given, else that of the marked switches and fragmentations (when
+//! asked), else that of the tracks and ground truth (detections far away do not zoom the scene
+//! out).
 //!
-//! Pure drawing: frames in, PNG bytes out. Text is drawn with a TTF embedded in the binary (Hack,
-//! from the `epaint_default_fonts` crate), so no system font is needed.
+//! Pure drawing: frames in, PNG bytes and the layout ([`super::plot_layout`]) out. Text is drawn
+//! with a TTF embedded in the binary (Hack, from the `epaint_default_fonts` crate), so no system
+//! font is needed ([`super::text`]).
 
 use std::sync::OnceLock;
 
@@ -16,12 +19,18 @@ use anyhow::{bail, Context, Result};
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-pub use super::plot_panel::bev_drawable;
+use super::legend;
+use super::plot_layout::{PictureLayout, PxRect, ViewRule};
 use super::plot_panel::draw_panel;
+pub use super::plot_scene::bev_drawable;
+use super::plot_scene::Sizes;
 use super::plot_types::{draw_err, rgb, FONT};
 pub use super::plot_types::{
     equal_aspect, EventMark, Extent, Panel, BACKGROUND, DETECTION_GREY, UNMATCHED,
 };
+use super::text::{check_font, GlyphBackend};
+use crate::eval::event_view::frame_points;
+use crate::msgs::eval_event::Kind;
 
 /// Size and title of the picture.
 #[derive(Debug, Clone)]
@@ -32,10 +41,14 @@ pub struct PlotOptions {
     pub height: u32,
     /// Title above all panels, if any.
     pub title: Option<String>,
-    /// Region shown; default [`world_extent`].
+    /// Region shown; default: see [`frame_events`](Self::frame_events), else [`world_extent`].
     pub extent: Option<Extent>,
     /// Evaluation events to mark.
     pub marks: Vec<EventMark>,
+    /// Without `extent`: show the region of the identity switches and fragmentations among
+    /// `marks` ([`frame_points`], the region `eval --events` suggests), when there are any.
+    /// `plot` sets it for a time window.
+    pub frame_events: bool,
 }
 
 impl Default for PlotOptions {
@@ -46,6 +59,7 @@ impl Default for PlotOptions {
             title: None,
             extent: None,
             marks: Vec::new(),
+            frame_events: false,
         }
     }
 }
@@ -99,8 +113,23 @@ pub fn world_extent(panels: &[Panel]) -> Option<Extent> {
     Some((cx - hx - m, cx + hx + m, cy - hy - m, cy + hy + m))
 }
 
-/// Renders the panels side by side into an RGB buffer of `width * height * 3` bytes.
-pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
+/// The region to show and why: `--extent`, else the events (when asked), else the boxes.
+fn choose_view(panels: &[Panel], opts: &PlotOptions) -> Option<(Extent, ViewRule)> {
+    if let Some(e) = opts.extent {
+        return Some((e, ViewRule::Extent));
+    }
+    let events = (opts.marks.iter())
+        .filter(|m| matches!(m.kind, Kind::Switch | Kind::Fragmentation))
+        .map(|m| (m.x, m.y));
+    match opts.frame_events.then(|| frame_points(events)).flatten() {
+        Some(e) => Some((e, ViewRule::Events)),
+        None => world_extent(panels).map(|e| (e, ViewRule::Boxes)),
+    }
+}
+
+/// Renders the panels side by side into an RGB buffer of `width * height * 3` bytes, with a
+/// legend under them; returns the buffer and where everything went.
+pub fn render(panels: &[Panel], opts: &PlotOptions) -> Result<(Vec<u8>, PictureLayout)> {
     if panels.is_empty() {
         bail!("nothing to plot: no panel");
     }
@@ -113,37 +142,76 @@ pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
             100 * panels.len()
         );
     }
-    let Some(ext) = opts.extent.or_else(|| world_extent(panels)) else {
+    let Some((ext, view_rule)) = choose_view(panels, opts) else {
         bail!("nothing to plot: no box in any panel");
     };
     register_fonts()?;
+    check_font()?;
     let (w, h) = (opts.width, opts.height);
     let mut buf = vec![0u8; w as usize * h as usize * 3];
-    {
-        let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-        root.fill(&rgb(BACKGROUND)).map_err(draw_err)?;
+    let layout = {
+        let backend = GlyphBackend(BitMapBackend::with_buffer(&mut buf, (w, h)));
+        let canvas = backend.into_drawing_area();
+        canvas.fill(&rgb(BACKGROUND)).map_err(draw_err)?;
         // Text sizes follow the picture's height (700 px: 1x).
         let k = (f64::from(h) / 700.0).clamp(0.7, 2.5);
-        let px = |s: f64| (s * k).round();
-        let root = match &opts.title {
-            Some(t) => root
-                .titled(t, (FONT, px(20.0)).into_font().color(&BLACK))
+        let sz = Sizes::new(k);
+        let body = match &opts.title {
+            Some(t) => canvas
+                .titled(t, (FONT, (20.0 * k).round()).into_font().color(&BLACK))
                 .map_err(draw_err)?,
-            None => root,
+            None => canvas.clone(),
         };
-        let areas = root.split_evenly((1, panels.len()));
-        for (area, panel) in areas.iter().zip(panels) {
-            draw_panel(area, panel, ext, k, &opts.marks)?;
+        let entries = legend::entries(panels, &opts.marks);
+        let body_h = body.dim_in_pixel().1;
+        let strip = legend::height(&entries, w, k).min(body_h / 3);
+        let (panels_area, legend_area) = body.split_vertically(body_h - strip);
+        let mut layouts = Vec::with_capacity(panels.len());
+        for (area, panel) in panels_area
+            .split_evenly((1, panels.len()))
+            .iter()
+            .zip(panels)
+        {
+            layouts.push(draw_panel(&canvas, area, panel, ext, sz, &opts.marks)?);
         }
-        root.present().map_err(draw_err)?;
-    }
-    Ok(buf)
+        let (xr, yr) = legend_area.get_pixel_range();
+        let strip_rect = PxRect {
+            x0: f64::from(xr.start),
+            x1: f64::from(xr.end),
+            y0: f64::from(yr.start),
+            y1: f64::from(yr.end),
+        };
+        let legend = legend::layout(&entries, strip_rect, k);
+        legend::draw(&canvas, &legend, k)?;
+        canvas.present().map_err(draw_err)?;
+        PictureLayout {
+            width: w,
+            height: h,
+            view_rule,
+            panels: layouts,
+            legend,
+        }
+    };
+    Ok((buf, layout))
+}
+
+/// Renders the panels side by side into an RGB buffer of `width * height * 3` bytes.
+pub fn render_rgb(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
+    render(panels, opts).map(|r| r.0)
 }
 
 /// Renders the panels side by side and encodes them as a PNG.
 pub fn render_png(panels: &[Panel], opts: &PlotOptions) -> Result<Vec<u8>> {
-    let rgb = render_rgb(panels, opts)?;
-    encode_png(&rgb, opts.width, opts.height)
+    render_png_with_layout(panels, opts).map(|r| r.0)
+}
+
+/// Renders the panels side by side and encodes them as a PNG; also returns the layout.
+pub fn render_png_with_layout(
+    panels: &[Panel],
+    opts: &PlotOptions,
+) -> Result<(Vec<u8>, PictureLayout)> {
+    let (rgb, layout) = render(panels, opts)?;
+    Ok((encode_png(&rgb, opts.width, opts.height)?, layout))
 }
 
 /// Encodes an RGB buffer as PNG bytes.

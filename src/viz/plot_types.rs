@@ -32,6 +32,12 @@ pub struct EventMark {
     pub y: f64,
     /// Text drawn beside switches and fragmentations.
     pub text: String,
+    /// The ground-truth object (0: none).
+    pub truth_id: u64,
+    /// The track (0: none).
+    pub track_id: u64,
+    /// The track before a switch or fragmentation (0: none).
+    pub previous_track_id: u64,
 }
 
 /// World region `(x0, x1, y0, y1)`, metres.

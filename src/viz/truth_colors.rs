@@ -73,6 +73,9 @@ pub fn marks(events: &[EvalEvents], keep_class: impl Fn(&str) -> bool) -> Vec<Ev
                 x: c.x,
                 y: c.y,
                 text: event_text(e),
+                truth_id: e.truth_id,
+                track_id: e.track_id,
+                previous_track_id: e.previous_track_id,
             });
         }
     }

@@ -20,6 +20,7 @@ mod kitti_eval;
 mod levers;
 mod nuscenes_io;
 mod plot;
+mod plot_layout;
 mod ray_track;
 mod rerun_scripts;
 mod robustness;

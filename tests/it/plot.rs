@@ -80,17 +80,51 @@ fn stderr(out: &std::process::Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// Checks the legend of the turning-car picture (its layout in `layout`, a `--layout` file): a
+/// strip under the panels with the entries of the three layers, whose samples show colours of
+/// ids and the grey of detections, and text. Returns its top row.
+fn check_legend(pic: &Picture, layout: &Path) -> usize {
+    let (w, h) = (pic.width, pic.height);
+    let layout: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(layout).unwrap()).unwrap();
+    let legend_top = layout["legend"]["rect"]["y0"].as_f64().unwrap() as usize;
+    assert!(
+        legend_top > h / 2 && legend_top < h - 20,
+        "legend at {legend_top}"
+    );
+    let texts: Vec<&str> = (layout["legend"]["entries"].as_array().unwrap().iter())
+        .map(|e| e["text"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        texts,
+        [
+            "detection (no id)",
+            "track: colour of the ground-truth object it matches",
+            "track matching no ground truth",
+            "ground truth: a colour per object id",
+            "bold: last box of an id, line: its path, tick: heading"
+        ]
+    );
+    let legend = pic.colours(0, w, legend_top, h);
+    assert!(legend.contains(&DETECTION_GREY) && legend.contains(&id_color(1)));
+    assert!(pic.dark_pixels(0, w, legend_top, h) > 200, "legend text");
+    legend_top
+}
+
 #[test]
 fn plot_draws_three_panels_with_colours_per_track_and_text() {
     let dir = tempfile::tempdir().unwrap();
     let tracked = tracked_turning_car(dir.path());
     let png = dir.path().join("bev.png");
+    let layout = dir.path().join("bev.json");
     let (w, h) = (1200usize, 500usize);
     let out = probmot_ok(&[
         "plot",
         tracked.to_str().unwrap(),
         "-o",
         png.to_str().unwrap(),
+        "--layout",
+        layout.to_str().unwrap(),
         "--class",
         "car",
         "--layers",
@@ -112,12 +146,13 @@ fn plot_draws_three_panels_with_colours_per_track_and_text() {
     let pic = Picture::read(&png);
     assert_eq!((pic.width, pic.height), (w, h), "size as requested");
 
-    // Panels split the width evenly: detections | tracks | ground truth.
+    // Panels split the width evenly: detections | tracks | ground truth; the legend under them.
+    let legend_top = check_legend(&pic, &layout);
     let third = w / 3;
     let palette: BTreeSet<(u8, u8, u8)> = PALETTE.iter().copied().collect();
-    let dets = pic.colours(0, third, 0, h);
-    let tracks = pic.colours(third, 2 * third, 0, h);
-    let truth = pic.colours(2 * third, w, 0, h);
+    let dets = pic.colours(0, third, 0, legend_top);
+    let tracks = pic.colours(third, 2 * third, 0, legend_top);
+    let truth = pic.colours(2 * third, w, 0, legend_top);
 
     let ids_in = |c: &BTreeSet<(u8, u8, u8)>| c.intersection(&palette).count();
     assert!(
@@ -157,9 +192,9 @@ fn plot_draws_three_panels_with_colours_per_track_and_text() {
             "caption of panel {p}"
         );
     }
-    // Axis labels at the bottom ("x (m)" and tick numbers).
+    // Axis labels at the bottom of the panels ("x (m)" and tick numbers).
     assert!(
-        pic.dark_pixels(third, 2 * third, h - 40, h) > 30,
+        pic.dark_pixels(third, 2 * third, legend_top - 40, legend_top) > 30,
         "x axis text"
     );
 }
@@ -399,15 +434,16 @@ fn plot_marks_events_and_gives_tracks_the_colour_of_their_ground_truth() {
     let (with, said) = plot("with.png", &["--events", events.to_str().unwrap()]);
     let (without, _) = plot("without.png", &[]);
     assert!(said.contains("events marked"), "{said}");
-    let all_with = with.colours(0, 800, 0, 600);
-    let all_without = without.colours(0, 800, 0, 600);
+    // Above the legend (which shows the marks' colours when there are marks).
+    let all_with = with.colours(0, 800, 0, 500);
+    let all_without = without.colours(0, 800, 0, 500);
     let switch = kind_rgb(Kind::Switch);
     assert!(all_with.contains(&switch), "switches are marked");
     assert!(!all_without.contains(&switch), "no marks without --events");
     // Track boxes take the colours of the ground-truth ids (1..=7 in the window) they follow,
     // with or without the evaluation's pairs.
     for pic in [&with, &without] {
-        let c = pic.colours(0, 800, 0, 600);
+        let c = pic.colours(0, 800, 0, 500);
         let gt_colours = (1..=7u64).filter(|id| c.contains(&id_color(*id))).count();
         assert!(
             gt_colours >= 5,
