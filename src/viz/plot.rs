@@ -1,7 +1,7 @@
 //! Static bird's-eye-view pictures: one panel per layer side by side, every box of the chosen
 //! frames drawn in place as an oriented rectangle with a heading tick, a colour per id (grey for
 //! detections), each id's centre path, and the id's label beside its last box (labels placed
-//! apart, [`super::labels`]), with a legend under the panels ([`super::legend`]). Track boxes can
+//! apart, [`super::labels`]), with a legend under the panels (the `legend` module). Track boxes can
 //! take the colour of the ground truth they match, so a track that follows one object keeps one
 //! colour and an identity switch shows as a colour change; the evaluation's errors can be
 //! marked. Axes are in metres with the same metres per pixel on x and y, and every panel shows
