@@ -1,8 +1,11 @@
 //! Every shell example of README.md and docs/*.md runs: each fenced ```sh block is run with bash
 //! (`set -euo pipefail`) against the binary under test, in a temporary directory per document
 //! (blocks of one document run in order there, so a later block may use an earlier one's
-//! output). The directory holds `sample_logs/` and `scripts/` of the repository and the files
-//! the examples name: `drive.mcap` (the city sample) and `logs/` (the three samples).
+//! output). The directory holds links to `sample_logs/` and `scripts/` of the repository, as a
+//! checkout's root does: the examples name real files, no placeholder. They write into `out/`
+//! (ignored by git), and the test fails when a document's examples leave anything else there or
+//! add a file to `sample_logs/` or `scripts/`, so running them from a checkout leaves no
+//! untracked file.
 //!
 //! A block that cannot run here (a Ray cluster, the `rerun` feature build, dataset files) has the
 //! line `<!-- not run in CI: REASON -->` right before its fence; the reason is required.
@@ -87,19 +90,53 @@ fn documents() -> Vec<PathBuf> {
     docs
 }
 
-/// A working directory with what the examples name.
+/// The repository's folders the examples read, linked into their directory.
+const LINKED: [&str; 2] = ["sample_logs", "scripts"];
+
+/// The folder the examples write into (`/out/` in `.gitignore`).
+const OUT: &str = "out";
+
+/// A working directory like a checkout's root, for what the examples read.
 fn workdir() -> tempfile::TempDir {
     let dir = tempfile::tempdir().unwrap();
-    let d = dir.path();
-    std::os::unix::fs::symlink(repo("sample_logs"), d.join("sample_logs")).unwrap();
-    std::os::unix::fs::symlink(repo("scripts"), d.join("scripts")).unwrap();
-    std::fs::copy(repo("sample_logs/city.mcap"), d.join("drive.mcap")).unwrap();
-    std::fs::create_dir(d.join("logs")).unwrap();
-    for s in ["city", "pedestrians", "turning-car"] {
-        let f = format!("{s}.mcap");
-        std::fs::copy(repo(&format!("sample_logs/{f}")), d.join("logs").join(&f)).unwrap();
+    for l in LINKED {
+        std::os::unix::fs::symlink(repo(l), dir.path().join(l)).unwrap();
     }
     dir
+}
+
+/// The names in a directory, sorted; Python's `__pycache__` (ignored by git) left out.
+fn names(dir: &Path) -> Vec<String> {
+    let mut n: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n != "__pycache__")
+        .collect();
+    n.sort();
+    n
+}
+
+/// The linked folders' listings, to see that no example wrote into the repository.
+fn linked_listings() -> Vec<Vec<String>> {
+    LINKED.iter().map(|l| names(&repo(l))).collect()
+}
+
+/// Panics when a document's examples left something outside `out/` (a file a user running them
+/// from the checkout would find untracked).
+fn assert_only_out(dir: &Path, name: &str, before: &[Vec<String>]) {
+    let stray: Vec<String> = names(dir)
+        .into_iter()
+        .filter(|n| n != OUT && !LINKED.contains(&n.as_str()))
+        .collect();
+    assert!(
+        stray.is_empty(),
+        "{name}: the examples wrote {stray:?} outside {OUT}/ (write into {OUT}/, which git ignores)"
+    );
+    assert_eq!(
+        linked_listings(),
+        before,
+        "{name}: the examples added or removed a file in {LINKED:?} of the repository"
+    );
 }
 
 /// Runs one example; `false` when it could not run because a Python package is missing (a skip:
@@ -147,6 +184,7 @@ fn every_shell_example_of_the_docs_runs() {
         let name = doc.strip_prefix(repo("")).unwrap().display().to_string();
         let text = std::fs::read_to_string(&doc).unwrap();
         let dir = workdir();
+        let before = linked_listings();
         for b in blocks(&text, &name) {
             match &b.skip {
                 Some(reason) => not_run.push(format!("{name}:{}: {reason}", b.line)),
@@ -159,6 +197,7 @@ fn every_shell_example_of_the_docs_runs() {
                 }
             }
         }
+        assert_only_out(dir.path(), &name, &before);
     }
     assert!(ran >= 8, "only {ran} examples ran");
     // Straight to stderr, past libtest's capture: which examples are documented as not run.
@@ -188,4 +227,16 @@ fn markers_and_blocks_are_parsed() {
     // The fence's own indentation (a block inside a list item) is removed.
     let listed = blocks("- item\n\n  ```sh\n  a\n    b\n  ```\n", "t");
     assert_eq!(listed[0].text, "a\n  b\n");
+}
+
+#[test]
+fn a_file_outside_out_is_caught() {
+    let dir = workdir();
+    let before = linked_listings();
+    std::fs::create_dir(dir.path().join(OUT)).unwrap();
+    std::fs::write(dir.path().join(OUT).join("a.mcap"), b"").unwrap();
+    assert_only_out(dir.path(), "t", &before);
+    std::fs::write(dir.path().join("stray.png"), b"").unwrap();
+    let caught = std::panic::catch_unwind(|| assert_only_out(dir.path(), "t", &before));
+    assert!(caught.is_err(), "a file beside out/ passed");
 }
