@@ -65,9 +65,9 @@ pub(crate) fn for_each_record(
             limit_hint(size)
         );
     }
-    let mut source = Source::new(&header.compression, data, size)?;
-    let result = split(&mut source, size, buf, &mut f);
     let crc = header.uncompressed_crc;
+    let mut source = Source::new(&header.compression, data, size, crc != 0)?;
+    let result = split(&mut source, size, buf, &mut f);
     if crc == 0 {
         return result;
     }
@@ -160,14 +160,15 @@ fn read_full(source: &mut impl Read, out: &mut [u8]) -> Result<usize> {
     Ok(n)
 }
 
-/// A chunk's records as a byte stream, cut at the declared size and hashed as read.
+/// A chunk's records as a byte stream, cut at the declared size and hashed as read (when the
+/// chunk has a CRC).
 struct Source<'a> {
     inner: std::io::Take<Box<dyn Read + 'a>>,
-    hasher: crc32fast::Hasher,
+    hasher: Option<crc32fast::Hasher>,
 }
 
 impl<'a> Source<'a> {
-    fn new(compression: &str, data: &'a [u8], size: u64) -> Result<Self> {
+    fn new(compression: &str, data: &'a [u8], size: u64, hash: bool) -> Result<Self> {
         let inner: Box<dyn Read + 'a> = match compression {
             "" => Box::new(data),
             "zstd" => Box::new(zstd::stream::read::Decoder::with_buffer(data).context("zstd")?),
@@ -178,20 +179,22 @@ impl<'a> Source<'a> {
         };
         Ok(Source {
             inner: inner.take(size),
-            hasher: crc32fast::Hasher::new(),
+            hasher: hash.then(crc32fast::Hasher::new),
         })
     }
 
     /// The CRC-32 of the bytes read so far.
     fn crc(&self) -> u32 {
-        self.hasher.clone().finalize()
+        self.hasher.clone().map_or(0, |h| h.finalize())
     }
 }
 
 impl Read for Source<'_> {
     fn read(&mut self, out: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(out)?;
-        self.hasher.update(&out[..n]);
+        if let Some(h) = &mut self.hasher {
+            h.update(&out[..n]);
+        }
         Ok(n)
     }
 }
