@@ -8,7 +8,7 @@
 //! gigabytes of zstd-compressed records, which would take time, not memory, to read. The same
 //! limit bounds every single record, inside a chunk or not.
 
-use std::io::Read;
+use std::io::{BufReader, Read};
 use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -131,8 +131,14 @@ fn split(
             );
         }
         buf.clear();
-        // Grows with the bytes really decompressed, not with the length claimed.
-        source.take(len).read_to_end(buf)?;
+        if len <= DECODED_BLOCK as u64 {
+            buf.resize(len as usize, 0);
+            let got = read_full(source, buf)?;
+            buf.truncate(got);
+        } else {
+            // Grows with the bytes really decompressed, not with the length claimed.
+            source.take(len).read_to_end(buf)?;
+        }
         if (buf.len() as u64) < len {
             at += 9 + buf.len() as u64;
             break;
@@ -160,6 +166,9 @@ fn read_full(source: &mut impl Read, out: &mut [u8]) -> Result<usize> {
     Ok(n)
 }
 
+/// Decompressed bytes buffered for the reads of record headers and small records.
+const DECODED_BLOCK: usize = 64 << 10;
+
 /// A chunk's records as a byte stream, cut at the declared size and hashed as read (when the
 /// chunk has a CRC).
 struct Source<'a> {
@@ -171,8 +180,15 @@ impl<'a> Source<'a> {
     fn new(compression: &str, data: &'a [u8], size: u64, hash: bool) -> Result<Self> {
         let inner: Box<dyn Read + 'a> = match compression {
             "" => Box::new(data),
-            "zstd" => Box::new(zstd::stream::read::Decoder::with_buffer(data).context("zstd")?),
-            "lz4" => Box::new(lz4::Decoder::new(data).context("lz4")?),
+            // Buffered: records are read a few bytes at a time.
+            "zstd" => Box::new(BufReader::with_capacity(
+                DECODED_BLOCK,
+                zstd::stream::read::Decoder::with_buffer(data).context("zstd")?,
+            )),
+            "lz4" => Box::new(BufReader::with_capacity(
+                DECODED_BLOCK,
+                lz4::Decoder::new(data).context("lz4")?,
+            )),
             other => {
                 bail!("unsupported chunk compression '{other}' (supported: zstd, lz4, none)")
             }

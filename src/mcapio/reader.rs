@@ -107,7 +107,9 @@ pub fn read_records(
                 let record = parse_record(opcode, data).with_context(malformed)?;
                 let Record::Chunk { header, data } = record else {
                     let here = || format!("byte {at}");
-                    validator.check(&record, here).map_err(|e| invalid(path, e))?;
+                    validator
+                        .check(&record, here)
+                        .map_err(|e| invalid(path, e))?;
                     f(record, stats)?;
                     continue;
                 };

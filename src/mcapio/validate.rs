@@ -72,7 +72,12 @@ impl Validator {
         }
     }
 
-    fn on_schema(&mut self, id: u16, content: SchemaContent, at: impl Fn() -> String) -> Result<()> {
+    fn on_schema(
+        &mut self,
+        id: u16,
+        content: SchemaContent,
+        at: impl Fn() -> String,
+    ) -> Result<()> {
         let Some(first) = self.schemas.get(&id) else {
             self.schemas.insert(id, Defined { content, at: at() });
             return Ok(());
@@ -84,9 +89,16 @@ impl Validator {
         let what = if old.name != content.name {
             format!("name '{}' instead of '{}'", content.name, old.name)
         } else if old.encoding != content.encoding {
-            format!("encoding '{}' instead of '{}'", content.encoding, old.encoding)
+            format!(
+                "encoding '{}' instead of '{}'",
+                content.encoding, old.encoding
+            )
         } else {
-            format!("{} bytes of data unlike the {} before", content.data.len(), old.data.len())
+            format!(
+                "{} bytes of data unlike the {} before",
+                content.data.len(),
+                old.data.len()
+            )
         };
         bail!(
             "the schema record at {} redefines schema {id} (first defined at {}) with {what}",
