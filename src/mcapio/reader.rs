@@ -13,7 +13,7 @@
 //! * chunks are decompressed and split into records as a stream by [`super::chunk_stream`], not
 //!   by the `LinearReader`, which does not check a record in an uncompressed chunk against the
 //!   chunk's end (overflow panic); a chunk or record above
-//!   [`size_limit`](super::chunk_stream::size_limit) is refused;
+//!   [`size_limit`] is refused;
 //! * `check_record` walks the length fields `mcap::parse_record` trusts.
 //!
 //! Every record is checked by the structural validation (`validate.rs`) before it is handed on.
