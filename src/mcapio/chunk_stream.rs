@@ -9,14 +9,10 @@
 //! limit bounds every single record, inside a chunk or not.
 
 use std::io::{BufReader, Read};
-use std::path::Path;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{bail, Context, Result};
-use mcap::records::{ChunkHeader, Record};
-
-use super::reader::{parse_record, ReadStats};
-use super::validate::Validator;
+use mcap::records::ChunkHeader;
 
 /// The default of [`size_limit`]: 512 MiB.
 pub const DEFAULT_SIZE_LIMIT: u64 = 512 << 20;
@@ -213,46 +209,4 @@ impl Read for Source<'_> {
         }
         Ok(n)
     }
-}
-
-/// Hands each record of the chunk at byte `at` of `path` to `f`, checked by `validator` first.
-/// An error of `f` or of the validation is returned as is (a CRC mismatch of the chunk takes
-/// its place); anything else wrong is reported as a malformed chunk at `at`.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn read_chunk(
-    path: &Path,
-    at: u64,
-    header: &ChunkHeader,
-    data: &[u8],
-    buf: &mut Vec<u8>,
-    validator: &mut Validator,
-    stats: ReadStats,
-    f: &mut impl FnMut(Record<'_>, ReadStats) -> Result<()>,
-) -> Result<()> {
-    let mut stopped = None;
-    let res = for_each_record(header, data, buf, |opcode, body, inner| {
-        let record = parse_record(opcode, body).with_context(|| {
-            format!("malformed record (opcode {opcode:#04x}) at byte {inner} of its records")
-        })?;
-        let step = (validator)
-            .check(&record, || {
-                format!("byte {inner} of the records of the chunk at byte {at}")
-            })
-            .map_err(|e| invalid(path, e))
-            .and_then(|()| f(record, stats));
-        step.map_err(|e| {
-            stopped = Some(e);
-            anyhow::anyhow!("stopped by the reader of the records")
-        })
-    });
-    match (res, stopped) {
-        (Ok(()), _) => Ok(()),
-        (Err(e), Some(caller)) if !e.is::<CrcMismatch>() => Err(caller),
-        (Err(e), _) => Err(e.context(format!("{}: malformed chunk at byte {at}", path.display()))),
-    }
-}
-
-/// A validation error of the file at `path`.
-pub(super) fn invalid(path: &Path, e: anyhow::Error) -> anyhow::Error {
-    e.context(format!("{}: not a valid MCAP file", path.display()))
 }

@@ -23,10 +23,10 @@ use std::io::Read;
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use mcap::records::{op, Record};
+use mcap::records::{op, ChunkHeader, Record};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
-use super::chunk_stream::{invalid, limit_hint, read_chunk, size_limit};
+use super::chunk_stream::{for_each_record, limit_hint, size_limit, CrcMismatch};
 use super::validate::Validator;
 
 /// Largest buffer given to the reader for one `read`. The reader asks for a whole record at once;
@@ -121,6 +121,48 @@ pub fn read_records(
     Ok(())
 }
 
+/// Hands each record of the chunk at byte `at` of `path` to `f`, checked by `validator` first.
+/// An error of `f` or of the validation is returned as is (a CRC mismatch of the chunk takes
+/// its place); anything else wrong is reported as a malformed chunk at `at`.
+#[allow(clippy::too_many_arguments)]
+fn read_chunk(
+    path: &Path,
+    at: u64,
+    header: &ChunkHeader,
+    data: &[u8],
+    buf: &mut Vec<u8>,
+    validator: &mut Validator,
+    stats: ReadStats,
+    f: &mut impl FnMut(Record<'_>, ReadStats) -> Result<()>,
+) -> Result<()> {
+    let mut stopped = None;
+    let res = for_each_record(header, data, buf, |opcode, body, inner| {
+        let record = parse_record(opcode, body).with_context(|| {
+            format!("malformed record (opcode {opcode:#04x}) at byte {inner} of its records")
+        })?;
+        let step = (validator)
+            .check(&record, || {
+                format!("byte {inner} of the records of the chunk at byte {at}")
+            })
+            .map_err(|e| invalid(path, e))
+            .and_then(|()| f(record, stats));
+        step.map_err(|e| {
+            stopped = Some(e);
+            anyhow::anyhow!("stopped by the reader of the records")
+        })
+    });
+    match (res, stopped) {
+        (Ok(()), _) => Ok(()),
+        (Err(e), Some(caller)) if !e.is::<CrcMismatch>() => Err(caller),
+        (Err(e), _) => Err(e.context(format!("{}: malformed chunk at byte {at}", path.display()))),
+    }
+}
+
+/// A validation error of the file at `path`.
+fn invalid(path: &Path, e: anyhow::Error) -> anyhow::Error {
+    e.context(format!("{}: not a valid MCAP file", path.display()))
+}
+
 /// Largest summary section read by [`read_summary_records`].
 const SUMMARY_LIMIT: u64 = 64 << 20;
 
@@ -204,7 +246,7 @@ pub fn read_summary_records(path: &Path) -> Option<(Record<'static>, Vec<Record<
 }
 
 /// [`check_record`], then `mcap::parse_record`.
-pub(super) fn parse_record(opcode: u8, body: &[u8]) -> Result<Record<'_>> {
+fn parse_record(opcode: u8, body: &[u8]) -> Result<Record<'_>> {
     check_record(opcode, body).map_err(anyhow::Error::msg)?;
     Ok(mcap::parse_record(opcode, body)?)
 }
