@@ -60,6 +60,38 @@ def main() -> None:
     files["uncompressed_chunk_record_past_end.mcap"] = (
         MAGIC + header + rec(0x06, chunk) + rec(0x0C, s(b"m") + s(b"")) + b"\0" * 100 + MAGIC
     )
+    # Issue #36: a zstd chunk declaring 2.5 GB of records (refused by the size limit before it
+    # is decompressed), and records that break the structure the MCAP specification requires.
+    end = rec(0x0F, struct.pack("<I", 0)) + rec(0x02, struct.pack("<QQI", 0, 0, 0)) + MAGIC
+
+    def channel(cid: int, schema_id: int, topic: bytes) -> bytes:
+        return rec(0x04, struct.pack("<HH", cid, schema_id) + s(topic) + s(b"json") + s(b""))
+
+    def schema(sid: int, data: bytes) -> bytes:
+        return rec(0x03, struct.pack("<H", sid) + s(b"a") + s(b"jsonschema") + s(data))
+
+    def message(cid: int) -> bytes:
+        return rec(0x05, struct.pack("<HIQQ", cid, 0, 1, 1) + b"{}")
+
+    inner = channel(1, 0, b"/a") + message(1)
+    comp = zstandard.ZstdCompressor().compress(inner)
+    chunk = (
+        struct.pack("<QQQI", 0, 0, 2_684_354_560, 0)
+        + s(b"zstd")
+        + struct.pack("<Q", len(comp))
+        + comp
+    )
+    files["chunk_declaring_2_5gb.mcap"] = MAGIC + header + rec(0x06, chunk) + end
+    files["message_on_undefined_channel.mcap"] = (
+        MAGIC + header + channel(1, 0, b"/a") + message(2) + end
+    )
+    files["channel_redefined.mcap"] = (
+        MAGIC + header + channel(1, 0, b"/a") + message(1) + channel(1, 0, b"/b") + end
+    )
+    files["channel_on_undefined_schema.mcap"] = MAGIC + header + channel(1, 3, b"/a") + end
+    files["schema_redefined.mcap"] = (
+        MAGIC + header + schema(1, b"{}") + schema(1, b'{"x":1}') + end
+    )
     for name, data in files.items():
         with open(os.path.join(out, name), "wb") as f:
             f.write(data)

@@ -36,6 +36,12 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Largest MCAP chunk (uncompressed) and largest record read, in MiB [default: 512]. A
+    /// guard against a small file that expands to gigabytes; memory grows with the largest
+    /// record, not with this limit.
+    #[arg(long, global = true, value_name = "MIB",
+          value_parser = clap::value_parser!(u64).range(1..=(1 << 40)))]
+    max_chunk_mib: Option<u64>,
 }
 
 impl Cli {
@@ -74,6 +80,9 @@ enum Command {
 
 /// Runs a parsed command line; the exit code on success.
 pub fn run(cli: Cli) -> Result<ExitCode> {
+    if let Some(mib) = cli.max_chunk_mib {
+        probmot::mcapio::chunk_stream::set_size_limit(mib << 20);
+    }
     match cli.command {
         Command::Track(a) => track_cmd::run(a),
         Command::Info(a) => info_cmd::run(a),

@@ -3,12 +3,14 @@
 //! ([`recording`]) and the one box type its readers hand on ([`LabelledBox`]).
 
 pub mod background;
+pub mod chunk_stream;
 pub mod destination;
 pub mod labelled_box;
 pub mod reader;
 pub mod recording;
 pub mod sink;
 pub mod topic;
+mod validate;
 pub mod writer;
 
 pub use labelled_box::LabelledBox;

@@ -10,32 +10,28 @@
 //! make it so (see the findings in `fuzz/README.md`):
 //! * the file is read in blocks of `READ_BLOCK`, so a record header claiming gigabytes in a
 //!   short file fails at end of file instead of first allocating what it claims;
-//! * chunks are split into records here (`split_chunk`), not by the `LinearReader`, which
-//!   allocates a compressed record's buffer at its claimed length before decompressing, and does
-//!   not check a record in an uncompressed chunk against the chunk's end (overflow panic);
+//! * chunks are decompressed and split into records as a stream by [`super::chunk_stream`], not
+//!   by the `LinearReader`, which does not check a record in an uncompressed chunk against the
+//!   chunk's end (overflow panic); a chunk or record above
+//!   [`size_limit`] is refused;
 //! * `check_record` walks the length fields `mcap::parse_record` trusts.
+//!
+//! Every record is checked by the structural validation (`validate.rs`) before it is handed on.
 
 use std::fs::File;
 use std::io::Read;
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use mcap::records::{op, ChunkHeader, Record};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
-/// Largest record, and largest decompressed chunk, accepted (protects against corrupted length
-/// fields; memory is used only as bytes are really read or decompressed).
-const RECORD_LENGTH_LIMIT: usize = 1 << 32;
+use super::chunk_stream::{for_each_record, limit_hint, size_limit, CrcMismatch};
+use super::validate::Validator;
 
 /// Largest buffer given to the reader for one `read`. The reader asks for a whole record at once;
 /// reading in blocks makes its buffer grow only with bytes that are really in the file.
 const READ_BLOCK: usize = 1 << 20;
-
-/// Largest chunk decompressed in one call (larger ones are streamed).
-const BULK_LIMIT: u64 = 256 << 20;
-
-/// Largest ratio of claimed uncompressed size to compressed size decompressed in one call.
-const BULK_RATIO: u64 = 64;
 
 /// Bytes consumed so far, for progress reporting.
 #[derive(Debug, Default, Clone, Copy)]
@@ -53,10 +49,13 @@ pub fn read_records(
     let mut file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let options = LinearReaderOptions::default()
         .with_emit_chunks(true)
-        .with_record_length_limit(RECORD_LENGTH_LIMIT);
+        .with_record_length_limit(usize::try_from(size_limit()).unwrap_or(usize::MAX));
     let mut reader = LinearReader::new_with_options(options);
     let mut stats = ReadStats::default();
     let mut chunk_buf = Vec::new();
+    let mut validator = Validator::default();
+    // Where the next record starts: after the magic.
+    let mut offset = mcap::MAGIC.len() as u64;
     while let Some(event) = reader.next_event() {
         let event = event.map_err(|e| {
             // A file cut short (a recorder that crashed or was killed) is common enough to say
@@ -72,6 +71,7 @@ pub fn read_records(
                      IN.mcap -o OUT.mcap` (the mcap CLI, https://mcap.dev) rebuilds the \
                      messages it holds"
                 }
+                mcap::McapError::RecordTooLarge { len, .. } => &format!("; {}", limit_hint(len)),
                 _ => "",
             };
             anyhow::Error::new(e).context(format!(
@@ -102,34 +102,65 @@ pub fn read_records(
                         stats.bytes_read
                     )
                 };
+                let at = offset;
+                offset += 9 + data.len() as u64;
                 let record = parse_record(opcode, data).with_context(malformed)?;
                 let Record::Chunk { header, data } = record else {
+                    let here = || format!("byte {at}");
+                    validator
+                        .check(&record, here)
+                        .map_err(|e| invalid(path, e))?;
                     f(record, stats)?;
                     continue;
                 };
-                let records = decompress_chunk(&header, &data, &mut chunk_buf)
-                    .and_then(split_chunk)
-                    .with_context(|| {
-                        format!(
-                            "{}: malformed chunk near byte {}",
-                            path.display(),
-                            stats.bytes_read
-                        )
-                    })?;
-                for (opcode, body) in records {
-                    let record = parse_record(opcode, body).with_context(|| {
-                        format!(
-                            "{}: malformed record (opcode {opcode:#04x}) in the chunk near byte {}",
-                            path.display(),
-                            stats.bytes_read
-                        )
-                    })?;
-                    f(record, stats)?;
-                }
+                let (buf, v) = (&mut chunk_buf, &mut validator);
+                read_chunk(path, at, &header, &data, buf, v, stats, &mut f)?;
             }
         }
     }
     Ok(())
+}
+
+/// Hands each record of the chunk at byte `at` of `path` to `f`, checked by `validator` first.
+/// An error of `f` or of the validation is returned as is (a CRC mismatch of the chunk takes
+/// its place); anything else wrong is reported as a malformed chunk at `at`.
+#[allow(clippy::too_many_arguments)]
+fn read_chunk(
+    path: &Path,
+    at: u64,
+    header: &ChunkHeader,
+    data: &[u8],
+    buf: &mut Vec<u8>,
+    validator: &mut Validator,
+    stats: ReadStats,
+    f: &mut impl FnMut(Record<'_>, ReadStats) -> Result<()>,
+) -> Result<()> {
+    let mut stopped = None;
+    let res = for_each_record(header, data, buf, |opcode, body, inner| {
+        let record = parse_record(opcode, body).with_context(|| {
+            format!("malformed record (opcode {opcode:#04x}) at byte {inner} of its records")
+        })?;
+        let step = (validator)
+            .check(&record, || {
+                format!("byte {inner} of the records of the chunk at byte {at}")
+            })
+            .map_err(|e| invalid(path, e))
+            .and_then(|()| f(record, stats));
+        step.map_err(|e| {
+            stopped = Some(e);
+            anyhow::anyhow!("stopped by the reader of the records")
+        })
+    });
+    match (res, stopped) {
+        (Ok(()), _) => Ok(()),
+        (Err(e), Some(caller)) if !e.is::<CrcMismatch>() => Err(caller),
+        (Err(e), _) => Err(e.context(format!("{}: malformed chunk at byte {at}", path.display()))),
+    }
+}
+
+/// A validation error of the file at `path`.
+fn invalid(path: &Path, e: anyhow::Error) -> anyhow::Error {
+    e.context(format!("{}: not a valid MCAP file", path.display()))
 }
 
 /// Largest summary section read by [`read_summary_records`].
@@ -218,99 +249,6 @@ pub fn read_summary_records(path: &Path) -> Option<(Record<'static>, Vec<Record<
 fn parse_record(opcode: u8, body: &[u8]) -> Result<Record<'_>> {
     check_record(opcode, body).map_err(anyhow::Error::msg)?;
     Ok(mcap::parse_record(opcode, body)?)
-}
-
-/// The records of a chunk, uncompressed: `data` itself, or `data` decompressed into `buf`. The
-/// output grows only as decompression produces bytes, up to the size the header declares, which
-/// it must then reach; a nonzero CRC is checked.
-/// Decompresses a whole zstd chunk of `size` bytes into `buf` in one call; false (and `buf`
-/// unspecified) if it fails or does not fill `size`.
-fn decompress_zstd_bulk(data: &[u8], size: usize, buf: &mut Vec<u8>) -> bool {
-    buf.clear();
-    buf.reserve(size);
-    let ok = zstd::bulk::Decompressor::new()
-        .and_then(|mut d| d.decompress_to_buffer(data, buf))
-        .is_ok_and(|n| n == size);
-    ok && buf.len() == size
-}
-
-fn decompress_chunk<'a>(
-    header: &ChunkHeader,
-    data: &'a [u8],
-    buf: &'a mut Vec<u8>,
-) -> Result<&'a [u8]> {
-    let size = header.uncompressed_size;
-    if size > RECORD_LENGTH_LIMIT as u64 {
-        bail!("chunk of {size} bytes uncompressed, more than the limit of {RECORD_LENGTH_LIMIT}");
-    }
-    buf.clear();
-    let records: &[u8] = match header.compression.as_str() {
-        "" => data,
-        // In one call when the claimed size is plausible for the compressed size (the buffer is
-        // allocated at the claimed size first), else streamed so that only real bytes cost memory.
-        // (A chunk that does not fit its claimed size is streamed too, as before.)
-        "zstd"
-            if size <= BULK_LIMIT
-                && size <= BULK_RATIO * data.len() as u64
-                && decompress_zstd_bulk(data, size as usize, buf) =>
-        {
-            buf
-        }
-        "zstd" => {
-            buf.clear();
-            zstd::stream::read::Decoder::with_buffer(data)?
-                .take(size)
-                .read_to_end(buf)
-                .context("zstd")?;
-            buf
-        }
-        "lz4" => {
-            lz4::Decoder::new(data)?
-                .take(size)
-                .read_to_end(buf)
-                .context("lz4")?;
-            buf
-        }
-        other => bail!("unsupported chunk compression '{other}' (supported: zstd, lz4, none)"),
-    };
-    if !header.compression.is_empty() && (records.len() as u64) < size {
-        bail!(
-            "chunk decompresses to {} bytes, its header says {size}",
-            records.len()
-        );
-    }
-    if header.uncompressed_crc != 0 {
-        let crc = crc32fast::hash(records);
-        if crc != header.uncompressed_crc {
-            bail!(
-                "chunk CRC mismatch: header {:#010x}, data {crc:#010x}",
-                header.uncompressed_crc
-            );
-        }
-    }
-    Ok(records)
-}
-
-/// Splits uncompressed chunk records into `(opcode, body)`; every record must end inside the
-/// chunk.
-fn split_chunk(mut records: &[u8]) -> Result<Vec<(u8, &[u8])>> {
-    let mut out = Vec::new();
-    while let Some((&opcode, rest)) = records.split_first() {
-        let Some((len, rest)) = rest.split_first_chunk::<8>() else {
-            bail!("the chunk ends inside a record header");
-        };
-        let len = u64::from_le_bytes(*len);
-        let Some(body) = usize::try_from(len).ok().and_then(|n| rest.get(..n)) else {
-            bail!(
-                "a record (opcode {opcode:#04x}) of {len} bytes runs past the end of its chunk \
-                 ({} bytes left)",
-                rest.len()
-            );
-        };
-        out.push((opcode, body));
-        records = &rest[body.len()..];
-    }
-    Ok(out)
 }
 
 /// Checks what `mcap::parse_record` takes on trust, so that a malformed record is an error rather

@@ -32,9 +32,6 @@ use prost::Message as _;
 /// differ from its log time by up to this much (probmot writes them equal).
 pub const SLACK_NS: u64 = 1_000_000_000;
 
-/// Largest chunk read (compressed), against corrupted indexes.
-const CHUNK_LIMIT: usize = 1 << 31;
-
 /// The summary section, if the file has one with chunk indexes.
 fn summary(file: &mut File) -> Option<Summary> {
     let mut reader = SummaryReader::new();
@@ -126,8 +123,11 @@ fn indexed(
     opts: IndexedReaderOptions,
     mut f: impl FnMut(&MessageHeader, &[u8]) -> Result<bool>,
 ) -> Result<()> {
+    // Chunks are decompressed whole here: the size limit of every read (`--max-chunk-mib`)
+    // bounds them, against corrupted indexes and files that expand to gigabytes.
+    let limit = usize::try_from(crate::mcapio::chunk_stream::size_limit()).unwrap_or(usize::MAX);
     let mut reader =
-        IndexedReader::new_with_options(summary, opts.with_record_length_limit(CHUNK_LIMIT))?;
+        IndexedReader::new_with_options(summary, opts.with_record_length_limit(limit))?;
     let mut buf = Vec::new();
     while let Some(event) = reader.next_event() {
         match event? {

@@ -110,8 +110,8 @@ fn compressed_chunk_record_length_past_the_chunk_is_an_error() {
 
 /// Found by `read_path`: a record in an uncompressed chunk running past the chunk's end made the
 /// MCAP reader's chunk bookkeeping underflow ("attempt to subtract with overflow" in
-/// `mcap::sans_io::linear_reader`, a panic with overflow checks, a misread without). The chunk's
-/// CRC is now checked before its records are split, so this one fails on the CRC.
+/// `mcap::sans_io::linear_reader`, a panic with overflow checks, a misread without). A chunk
+/// whose CRC does not match is reported as such in place of the error its records give.
 #[test]
 fn fuzz_read_path_crash_uncompressed_chunk_overflow() {
     assert_refused("read_path-crash-76e4c3d0.mcap", "malformed chunk");
@@ -123,6 +123,35 @@ fn uncompressed_chunk_record_past_the_chunk_is_an_error() {
         "uncompressed_chunk_record_past_end.mcap",
         "runs past the end of its chunk",
     );
+}
+
+/// Issue #36: a zstd chunk declaring 2.5 GB is refused by the size limit before it is read.
+#[test]
+fn chunk_declaring_gigabytes_is_refused_by_the_size_limit() {
+    assert_refused(
+        "chunk_declaring_2_5gb.mcap",
+        "the chunk declares 2684354560 bytes of records uncompressed; the limit is",
+    );
+}
+
+/// Issue #36: records that break the structure the MCAP specification requires.
+#[test]
+fn structurally_invalid_files_are_refused() {
+    for (name, expect) in [
+        (
+            "message_on_undefined_channel.mcap",
+            "is on channel 2, which no channel record",
+        ),
+        ("channel_redefined.mcap", "redefines channel 1"),
+        (
+            "channel_on_undefined_schema.mcap",
+            "refers to schema 3, which no schema record",
+        ),
+        ("schema_redefined.mcap", "redefines schema 1"),
+    ] {
+        assert_refused(name, expect);
+        assert_refused(name, "not a valid MCAP file");
+    }
 }
 
 /// An attachment record too short for its CRC made `mcap::parse_record` panic (slice index).
