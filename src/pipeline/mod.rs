@@ -11,6 +11,7 @@ pub mod overrides;
 pub mod per_class;
 pub mod progress;
 pub mod rosbag_dir;
+pub mod stamp_check;
 pub mod track;
 pub mod track_options;
 mod track_order;

@@ -31,6 +31,8 @@ pub struct Track {
     pub(crate) innovation: Option<Innovation>,
     /// Refined and mean score (see [`super::levers`]).
     pub conf: Confidence,
+    /// Whether its state or a variance has left [`super::bounds`]: it is then ended.
+    pub beyond_bounds: bool,
 }
 
 /// Whether a report is shown now or waits for later frames to decide (the offline options
