@@ -13,6 +13,7 @@ pub mod progress;
 pub mod rosbag_dir;
 pub mod stamp_check;
 pub mod track;
+pub mod track_input;
 pub mod track_options;
 mod track_order;
 pub mod track_outputs;

@@ -220,9 +220,7 @@ pub fn track_file(
     let started = Instant::now();
     check_output_path(Some(input), output)?;
     let file = input.display().to_string();
-    let size = std::fs::metadata(input)
-        .with_context(|| format!("cannot open {}", input.display()))?
-        .len();
+    let size = super::track_input::regular_input(input)?;
     if opts.no_track {
         progress(Progress::Length(size));
         return run_pass(

@@ -9,7 +9,9 @@ use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
 
-use super::detections::{convert, describe_unknown_labels, reject, InputCounters, Origin};
+use super::detections::{
+    convert, describe_first_skips, describe_unknown_labels, reject, InputCounters, Origin,
+};
 use super::ego::EgoMotion;
 use super::frame_schedule::Schedule;
 use super::progress::Progress;
@@ -353,6 +355,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
         summary.merged_messages = summary.detection_messages - summary.tracks_messages;
         if counters.total_skipped() > 0 {
             let mut warning = format!("{file}: skipped {}", describe_skips(&counters.skipped));
+            warning.push_str(&describe_first_skips(&counters));
             if !counters.unknown_labels.is_empty() {
                 let known: Vec<&str> = tracker
                     .config()

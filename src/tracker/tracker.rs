@@ -2,7 +2,6 @@
 
 use std::collections::HashMap;
 
-use super::bounds;
 use super::boxes::{Box3, ClassId, Detection};
 use super::confidence::Confidence;
 use super::config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
@@ -478,7 +477,7 @@ fn report_and_delete(
         if t.time_since_update >= max_age {
             continue;
         }
-        if !bounds::report_ok(&t.report(dt_nominal, c.cfg.origin, *m)) {
+        if !t.report(dt_nominal, c.cfg.origin, *m).within_bounds() {
             t.beyond_bounds = true;
             stats.beyond_bounds += 1;
             continue;
