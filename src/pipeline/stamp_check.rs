@@ -143,14 +143,17 @@ impl StampCheck {
 
     /// The warnings of what was found, naming the first message of each kind.
     pub fn warnings(&self, file: &str, out: &mut Vec<String>) {
-        if let Some(first) = &self.first_far {
+        // The messages are described with their file, which the warning names first.
+        let prefix = format!("{file}: ");
+        let short = |m: &String| m.strip_prefix(&prefix).unwrap_or(m).to_string();
+        if let Some(first) = self.first_far.as_ref().map(short) {
             out.push(format!(
                 "{file}: skipped {} detection messages whose stamp lies far (over 48 h) outside \
                  the log's time range; first: {first}",
                 self.far
             ));
         }
-        if let Some(first) = &self.first_shared {
+        if let Some(first) = self.first_shared.as_ref().map(short) {
             out.push(format!(
                 "{file}: {} detection messages have the same stamp as the message before them \
                  on their topic; their boxes were tracked as one frame; first: {first}",
@@ -190,6 +193,7 @@ mod tests {
         let w = StampWindow::of([t0].into_iter(), span(t0, t0));
         let mut c = StampCheck::new(w);
         let name = || "a.mcap: topic /d, message at log_time 5".to_string();
+        let first = "first: topic /d, message at log_time 5";
         assert!(c.keep(1, t0, t0, false, name).unwrap());
         assert!(!c.keep(1, u64::MAX, t0, false, name).unwrap());
         assert!(c.keep(1, t0, t0, false, name).unwrap());
