@@ -214,6 +214,11 @@ mod tests {
             w[1].contains("1 detection messages have the same stamp"),
             "{w:?}"
         );
+        assert!(
+            w.iter()
+                .all(|w| w.starts_with("a.mcap: ") && w.contains(first)),
+            "{w:?}"
+        );
         // The single pass: a stamp a day off its log_time needs two passes.
         let mut single = StampCheck::new(None);
         assert!(single.keep(1, t0, t0 + HOUR, false, name).unwrap());

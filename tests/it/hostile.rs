@@ -95,7 +95,8 @@ fn a_config_beyond_the_variance_ceiling_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let city = repo("sample_logs/city.mcap");
     let out = dir.path().join("out.mcap");
-    let cases: [(&str, fn(&mut probmot::tracker::ClassConfig)); 4] = [
+    type Edit = fn(&mut probmot::tracker::ClassConfig);
+    let cases: [(&str, Edit); 4] = [
         ("q[0] (x)", |c| c.q[0] = 1e308),
         ("q[7] (dx)", |c| c.q[7] = 1e200),
         ("r[1] (y)", |c| c.r[1] = 1e308),
