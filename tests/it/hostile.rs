@@ -386,3 +386,43 @@ fn a_track_beyond_the_bounds_is_ended() {
     assert_eq!((t.stats().beyond_bounds, t.live_tracks()), (1, 0));
     assert_eq!(t.deleted().len(), 1);
 }
+
+/// A truth or track box at x = 1e308 (which `track` used to write) is refused by `eval` under
+/// both protocols, naming the file, topic, stamp and box, as a non-finite one is.
+#[test]
+fn eval_refuses_a_box_beyond_the_bounds() {
+    let dir = tempfile::tempdir().unwrap();
+    let far = dir.path().join("far.mcap");
+    city_with_messages(&far, "/ground_truth", |i, data| {
+        let mut t = probmot::msgs::Tracks3D::decode(data).unwrap();
+        if i == 0 {
+            t.tracks[0].center.as_mut().unwrap().x = 1e308;
+        }
+        t.encode_to_vec()
+    });
+    let city = repo("sample_logs/city.mcap");
+    let (f, c) = (far.to_str().unwrap(), city.to_str().unwrap());
+    let gt = ["--tracks-topic", "/ground_truth"];
+    for protocol in ["nuscenes", "kitti"] {
+        for (truth, tracks) in [(f, c), (c, f)] {
+            let args = [
+                "eval",
+                "--protocol",
+                protocol,
+                "--truth",
+                truth,
+                "--tracks",
+                tracks,
+            ];
+            let r = probmot(&[&args[..], &gt].concat());
+            let err = stderr(&r);
+            assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+            assert!(
+                err.contains(&format!("{f}: topic /ground_truth, stamp "))
+                    && err.contains("box 0 (")
+                    && err.contains("lies beyond the physical bounds"),
+                "{err}"
+            );
+        }
+    }
+}
