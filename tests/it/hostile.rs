@@ -285,9 +285,7 @@ fn a_read_only_output_is_refused() {
 fn a_fifo_input_is_not_seekable() {
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("in.mcap");
-    let name = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
-    // SAFETY: mkfifo on a NUL-terminated path.
-    assert_eq!(unsafe { libc::mkfifo(name.as_ptr(), 0o600) }, 0);
+    mkfifo(&fifo);
     let out = dir.path().join("out.mcap");
     let r = track(&fifo, &out, &[]);
     assert_eq!(r.status.code(), Some(2));
