@@ -3,7 +3,9 @@
 
 read_path:        the sample logs of at most 64 KiB, plus small MCAP files made here (unchunked, lz4 chunks, a JSON
                   detections channel, stamps out of order, attachments and metadata).
-decode_protobuf:  /detections payloads of the sample logs, and a few hand-made messages.
+decode_protobuf:  /detections payloads of the sample logs, and a few hand-made messages (with the
+                  absurd values of issue #36: huge centres and sizes, NaN velocities, a label
+                  that is not UTF-8; read_path gets a log with a u64::MAX stamp and a shared one).
 decode_json:      the same messages in probmot's JSON form (serde, proto field names).
 decode_sources:   a selector byte (0: vision_msgs 4.x, 1: vision_msgs 2.x, 2: foxglove.SceneUpdate)
                   and a message of the ROS 2 and Foxglove test fixtures.
@@ -160,6 +162,35 @@ def source_and_transform_seeds() -> None:
         + framed("/frames", 20, many.SerializeToString()))
 
 
+def hostile_value_seeds(Detections3D, hand) -> list:
+    """The values of issue #36: a centre at 1e308 m, a 20 km box, NaN and 1e6 m/s velocities
+    (appended to `hand`), a label that is not UTF-8 (a protobuf payload, put here), and the
+    `(log_time, payload)` list of a log with a stamp of u64::MAX and two messages sharing a stamp."""
+    m = Detections3D(stamp=2_000_000_000, frame_id="map")
+    for x, length, vel in [(1e308, 4.5, None), (1.0, 2e4, None), (2.0, 4.5, float("nan")),
+                           (3.0, 4.5, 1e6)]:
+        d = m.detections.add(label="car", score=0.9)
+        d.center.x, d.size.length, d.size.width, d.size.height = x, length, 1.9, 1.6
+        if vel is not None:
+            d.velocity.x = vel
+    hand.append(m)
+    m = Detections3D(stamp=2_500_000_000, frame_id="map")
+    for label in ("car", "QQQQ"):
+        d = m.detections.add(label=label, score=0.9)
+        d.center.x = 1.0
+        d.size.length, d.size.width, d.size.height = 4.5, 1.9, 1.6
+    bad = m.SerializeToString().replace(b"QQQQ", b"\xc3\x28\xff\x72")
+    put("decode_protobuf", bad)
+    log = []
+    for i, stamp in enumerate([3, 4, 2**64 - 1, 5, 5, 6]):
+        msg = Detections3D(stamp=stamp * 500_000_000 if stamp < 2**63 else stamp)
+        d = msg.detections.add(label="car", score=0.9)
+        d.center.x, d.size.length, d.size.width, d.size.height = float(i), 4.5, 1.9, 1.6
+        log.append(((3 + i) * 500_000_000, msg.SerializeToString()))
+    log.append((9 * 500_000_000, bad))
+    return log
+
+
 def main() -> None:
     if CORPUS.exists():
         for t in TARGETS:
@@ -200,6 +231,8 @@ def main() -> None:
     d.size.length, d.size.width, d.size.height = 1.0, 0.0, 1.0  # non-positive size
     hand.append(m)
 
+    hostile = hostile_value_seeds(Detections3D, hand)
+
     for _, data in picked:
         put("decode_protobuf", data)
         put("decode_json", to_json(Detections3D.FromString(data)))
@@ -214,6 +247,7 @@ def main() -> None:
     put("read_path", small_mcap(descriptor, pb, compression=CompressionType.LZ4, extras=True))
     put("read_path", small_mcap(descriptor, list(reversed(pb)), compression=CompressionType.ZSTD))
     put("read_path", small_mcap(descriptor, js, encoding="json"))
+    put("read_path", small_mcap(descriptor, hostile, chunked=False))
     source_and_transform_seeds()
     for t in TARGETS:
         files = list((CORPUS / t).iterdir())

@@ -5,6 +5,8 @@
 //! The signals are received on a thread of their own (`signal-hook`'s iterator): the clean-up
 //! runs as ordinary code there, not in a signal handler, and it knows which signal arrived (which
 //! `ctrlc` does not tell), so the exit status can follow the convention shells use.
+//!
+//! SIGXFSZ (a file-size limit reached) is ignored, so that the write fails with an error instead.
 
 use std::path::PathBuf;
 
@@ -15,6 +17,13 @@ use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 /// Starts the thread that handles the three signals. Without it (a failure to register, which
 /// should not happen) the signals keep their default action and a warning says so.
 pub fn install() {
+    // A file-size limit (`ulimit -f`) sends SIGXFSZ, whose default action kills the process
+    // with the partial file left behind: ignored, the write fails with EFBIG instead, and the
+    // error (naming the output) removes the partial file like any other write error.
+    // SAFETY: setting a signal's disposition to SIG_IGN, before any other thread runs.
+    unsafe {
+        libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+    }
     {
         // A signal the parent set to be ignored stays ignored: `nohup` (SIGHUP) and background
         // jobs of a non-interactive shell (SIGINT) rely on it.

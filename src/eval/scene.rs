@@ -242,6 +242,35 @@ pub(super) fn check_finite(
             b.id
         );
     }
+    check_bounds(path, (topic, stamp), boxes, reads)
+}
+
+/// The first box beyond the physical bounds ([`crate::tracker::bounds`]: a centre coordinate
+/// over 1e7 m, a size over 1e4 m), as an error: no tracker output holds one, and scoring it
+/// would only hide that the input is broken.
+fn check_bounds(
+    path: &Path,
+    (topic, stamp): (&str, u64),
+    boxes: &[LabelledBox],
+    reads: Reads,
+) -> Result<()> {
+    use crate::tracker::bounds::{MAX_COORDINATE, MAX_SIZE};
+    let within = |b: &LabelledBox| match reads {
+        Reads::Box3d => {
+            b.center.iter().all(|v| v.abs() <= MAX_COORDINATE)
+                && b.size.iter().all(|v| v.abs() <= MAX_SIZE)
+        }
+        Reads::GroundCentre => b.center[..2].iter().all(|v| v.abs() <= MAX_COORDINATE),
+    };
+    if let Some((i, b)) = (boxes.iter().enumerate()).find(|(_, b)| !within(b)) {
+        bail!(
+            "{}: topic {topic}, stamp {stamp}: box {i} ({}, id {}) lies beyond the physical \
+             bounds (centre coordinates 1e7 m, sizes 1e4 m); the evaluation cannot score it",
+            path.display(),
+            b.label,
+            b.id
+        );
+    }
     Ok(())
 }
 

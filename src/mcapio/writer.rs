@@ -164,6 +164,7 @@ impl Partial {
             Destination::Stdout => return Ok((take_stdout()?, Partial::unnamed(given))),
         };
         let dest = dest.as_path();
+        refuse_read_only(given, dest)?;
         let path = partial_path(dest);
         let mut registry = partials();
         if registry.iter().any(|(p, _)| p == &path) {
@@ -276,6 +277,19 @@ impl Drop for Partial {
             (false, None) => self.forget_in_place(),
             _ => {}
         }
+    }
+}
+
+/// Refuses to replace an existing output file that has no write permission (mode 0444): the
+/// rename would replace it anyway, and the new file would come back writable.
+fn refuse_read_only(given: &Path, dest: &Path) -> Result<()> {
+    match std::fs::metadata(dest) {
+        Ok(m) if m.is_file() && m.permissions().readonly() => bail!(
+            "output {} exists and is read-only: probmot does not replace a read-only file \
+             (make it writable, or remove it, first)",
+            given.display()
+        ),
+        _ => Ok(()),
     }
 }
 

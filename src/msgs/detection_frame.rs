@@ -6,7 +6,7 @@
 use std::collections::BTreeMap;
 
 use super::{Detection3D, Detections3D, ImageBox};
-use crate::tracker::Box3;
+use crate::tracker::{bounds, Box3};
 
 /// Why a detection box was skipped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, serde::Serialize)]
@@ -23,6 +23,16 @@ pub enum SkipReason {
     ClassWithoutEntry,
     /// The centre or size field is missing.
     MissingField,
+    /// A centre coordinate lies beyond [`bounds::MAX_COORDINATE`].
+    CentreBeyondBound,
+    /// A size exceeds [`bounds::MAX_SIZE`].
+    SizeBeyondBound,
+    /// A velocity component is NaN or infinite.
+    NonFiniteVelocity,
+    /// A velocity component exceeds [`bounds::MAX_SPEED`].
+    VelocityBeyondBound,
+    /// The label is not valid UTF-8.
+    LabelNotUtf8,
 }
 
 impl SkipReason {
@@ -37,6 +47,11 @@ impl SkipReason {
                  config entry of its name"
             }
             SkipReason::MissingField => "missing centre or size",
+            SkipReason::CentreBeyondBound => "centre coordinate beyond 1e7 m",
+            SkipReason::SizeBeyondBound => "size beyond 1e4 m",
+            SkipReason::NonFiniteVelocity => "non-finite velocity",
+            SkipReason::VelocityBeyondBound => "velocity beyond 1e5 m/s",
+            SkipReason::LabelNotUtf8 => "label not valid UTF-8",
         }
     }
 }
@@ -107,7 +122,7 @@ pub fn stamp_or_log_time(stamp: Option<u64>, log_time: u64) -> u64 {
 }
 
 /// Checks one decoded box: `Err` names the first failed check (missing field, non-finite,
-/// non-positive size, in that order).
+/// non-positive size, centre and size beyond their bounds, velocity, in that order).
 pub fn check_box(d: &Detection3D) -> Result<Box3, SkipReason> {
     let (Some(c), Some(s)) = (&d.center, &d.size) else {
         return Err(SkipReason::MissingField);
@@ -125,6 +140,21 @@ pub fn check_box(d: &Detection3D) -> Result<Box3, SkipReason> {
     }
     if bbox.size.iter().any(|v| *v <= 0.0) {
         return Err(SkipReason::NonPositiveSize);
+    }
+    if bbox.center.iter().any(|v| v.abs() > bounds::MAX_COORDINATE) {
+        return Err(SkipReason::CentreBeyondBound);
+    }
+    if bbox.size.iter().any(|v| *v > bounds::MAX_SIZE) {
+        return Err(SkipReason::SizeBeyondBound);
+    }
+    if let Some(v) = &d.velocity {
+        let v = [v.x, v.y, v.z];
+        if !v.iter().all(|c| c.is_finite()) {
+            return Err(SkipReason::NonFiniteVelocity);
+        }
+        if v.iter().any(|c| c.abs() > bounds::MAX_SPEED) {
+            return Err(SkipReason::VelocityBeyondBound);
+        }
     }
     Ok(bbox)
 }
@@ -159,6 +189,21 @@ impl DetectionFrame {
             }
         }
         frame
+    }
+
+    /// Moves the boxes at `indices` (in message order) to the rejected ones, for `reason`.
+    pub fn reject_indices(&mut self, indices: &[u32], reason: SkipReason) {
+        let (gone, kept) = std::mem::take(&mut self.boxes)
+            .into_iter()
+            .partition(|b| indices.contains(&b.index));
+        self.boxes = kept;
+        let gone: Vec<DetectionBox> = gone;
+        self.rejected.extend(gone.into_iter().map(|b| Rejected {
+            index: b.index,
+            label: b.label,
+            reason,
+        }));
+        self.rejected.sort_by_key(|r| r.index);
     }
 
     /// Number of boxes in the message, valid or not.
@@ -211,13 +256,29 @@ mod tests {
                 det(Some([0.0, 0.0, 0.0]), [4.0, 0.0, 1.5], 0.9),
                 det(Some([0.0, 0.0, 0.0]), [4.0, 2.0, 1.5], f64::INFINITY),
                 det(Some([5.0, 6.0, 7.0]), [1.0, 1.0, 1.0], 1.7),
+                det(Some([1e308, 0.0, 0.0]), [4.0, 2.0, 1.5], 0.9),
+                det(Some([0.0, -2e7, 0.0]), [4.0, 2.0, 1.5], 0.9),
+                det(Some([0.0, 0.0, 0.0]), [4.0, 2e4, 1.5], 0.9),
+                Detection3D {
+                    velocity: Some(v3([f64::NAN, 0.0, 0.0])),
+                    ..det(Some([0.0, 0.0, 0.0]), [4.0, 2.0, 1.5], 0.9)
+                },
+                Detection3D {
+                    velocity: Some(v3([0.0, 0.0, -1e6])),
+                    ..det(Some([0.0, 0.0, 0.0]), [4.0, 2.0, 1.5], 0.9)
+                },
+                det(Some([6.3e6, -9e6, 1e3]), [1e4, 1.0, 1.0], 0.5),
             ],
         };
         let f = DetectionFrame::from_message(msg, 42);
         assert_eq!(f.stamp, 42, "no stamp: the log_time");
-        assert_eq!(f.len(), 6);
+        assert_eq!(f.len(), 12);
         let valid: Vec<u32> = f.boxes.iter().map(|b| b.index).collect();
-        assert_eq!(valid, [0, 5]);
+        assert_eq!(
+            valid,
+            [0, 5, 11],
+            "Earth-centred coordinates are within the bounds"
+        );
         assert_eq!(f.boxes[0].bbox.center, [1.0, 2.0, 3.0]);
         assert_eq!(f.boxes[0].bbox.size, [4.0, 2.0, 1.5]);
         assert_eq!(f.boxes[0].velocity, Some([1.0, 2.0, 0.0]));
@@ -231,6 +292,11 @@ mod tests {
                 (2, SkipReason::NonFinite),
                 (3, SkipReason::NonPositiveSize),
                 (4, SkipReason::NonFinite),
+                (6, SkipReason::CentreBeyondBound),
+                (7, SkipReason::CentreBeyondBound),
+                (8, SkipReason::SizeBeyondBound),
+                (9, SkipReason::NonFiniteVelocity),
+                (10, SkipReason::VelocityBeyondBound),
             ]
         );
     }

@@ -10,10 +10,10 @@
 //! | `foxglove.SceneUpdate` | `protobuf` | `protobuf` |
 //! | `autoware_perception_msgs/msg/DetectedObjects` (or `autoware_auto_perception_msgs`) | `ros2msg` or `ros2idl` | `cdr` |
 
-use super::detection_frame::DetectionFrame;
+use super::detection_frame::{DetectionFrame, SkipReason};
 use super::{
-    autoware, decode as decode_probmot, foxglove_scene, ros2_vision, DecodeError, Detections3D,
-    DetectionsEnvelope, Encoding, DETECTIONS_SCHEMA,
+    autoware, decode as decode_probmot, foxglove_scene, lenient_label, ros2_vision, DecodeError,
+    Detections3D, DetectionsEnvelope, Encoding, DETECTIONS_SCHEMA,
 };
 
 /// The supported detection inputs, for error messages and help texts.
@@ -194,8 +194,22 @@ impl DetectionSource {
 
     /// Decodes one message into a checked [`DetectionFrame`]; `log_time` is its stamp when the
     /// message carries none.
+    /// A probmot protobuf box whose label is not UTF-8 is rejected (the rest of the message is
+    /// kept; see [`lenient_label`]).
     pub fn decode_frame(&self, bytes: &[u8], log_time: u64) -> Result<DetectionFrame, DecodeError> {
-        let mut frame = DetectionFrame::from_message(self.decode(bytes)?, log_time);
+        let msg = match self.decode(bytes) {
+            Ok(msg) => msg,
+            Err(e) if *self == DetectionSource::Probmot(Encoding::Protobuf) => {
+                let Some((msg, bad)) = lenient_label::decode_with_bad_labels(bytes) else {
+                    return Err(e);
+                };
+                let mut frame = DetectionFrame::from_message(msg, log_time);
+                frame.reject_indices(&bad, SkipReason::LabelNotUtf8);
+                return Ok(frame);
+            }
+            Err(e) => return Err(e),
+        };
+        let mut frame = DetectionFrame::from_message(msg, log_time);
         if let DetectionSource::Autoware(_) = self {
             autoware::mark_classes_without_probmot_class(&mut frame);
         }

@@ -23,6 +23,10 @@ pub struct InputCounters {
     /// Boxes skipped because the config has no entry for their label, per label: what the
     /// warning names, so that a preset for other classes does not drop them unsaid.
     pub unknown_labels: BTreeMap<String, u64>,
+    /// Where the first box skipped for each bad value was (topic, message, box), for the
+    /// warning; labels the config lacks are named by [`describe_unknown_labels`] instead.
+    #[serde(skip)]
+    pub first_skipped: BTreeMap<SkipReason, String>,
 }
 
 impl InputCounters {
@@ -62,7 +66,29 @@ fn skip(
         );
     }
     *counters.skipped.entry(reason).or_default() += 1;
+    if !matches!(
+        reason,
+        SkipReason::UnknownLabel | SkipReason::ClassWithoutEntry
+    ) {
+        (counters.first_skipped.entry(reason)).or_insert_with(|| {
+            format!(
+                "topic {}, message at log_time {}, detection {index}",
+                origin.topic, origin.log_time
+            )
+        });
+    }
     Ok(())
+}
+
+/// `; first: <reason> at <where>, ...`: where the first box of each bad value was, or nothing.
+pub fn describe_first_skips(counters: &InputCounters) -> String {
+    let parts: Vec<String> = (counters.first_skipped.iter())
+        .map(|(r, at)| format!("{} at {at}", r.describe()))
+        .collect();
+    match parts.is_empty() {
+        true => String::new(),
+        false => format!("; first: {}", parts.join(", ")),
+    }
 }
 
 /// Counts (or with `strict` refuses) a box that failed the decode-time check.

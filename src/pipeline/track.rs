@@ -23,6 +23,7 @@ use super::detections::InputCounters;
 use super::ego::EgoMotion;
 use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
 use super::progress::Progress;
+use super::stamp_check::{LogSpan, StampCheck, StampWindow};
 use super::track_outputs::{ExtraOutputs, ExtraRequest};
 use super::track_session::{check_count, note_stamp, undecodable, FrameState, TrackSession};
 use super::tracks_format::TracksFormat;
@@ -60,6 +61,9 @@ struct Scan {
     left_out: Vec<String>,
     /// Channel of each entry of `entries`.
     entry_channels: Vec<u16>,
+    /// log_times of the detection messages, and the stamps they may carry (two passes).
+    log_span: LogSpan,
+    stamp_window: Option<StampWindow>,
     transforms: TransformCollector,
 }
 
@@ -185,6 +189,7 @@ fn scan(input: &Path, opts: &TrackOptions, progress: &dyn Fn(Progress<'_>)) -> R
                     );
                     s.entries.push((stamp, s.entries.len() as u64));
                     s.entry_channels.push(header.channel_id);
+                    s.log_span.note(header.log_time);
                 }
                 if s.entries.len().is_multiple_of(256) {
                     progress(Progress::Position(stats.bytes_read));
@@ -215,9 +220,7 @@ pub fn track_file(
     let started = Instant::now();
     check_output_path(Some(input), output)?;
     let file = input.display().to_string();
-    let size = std::fs::metadata(input)
-        .with_context(|| format!("cannot open {}", input.display()))?
-        .len();
+    let size = super::track_input::regular_input(input)?;
     if opts.no_track {
         progress(Progress::Length(size));
         return run_pass(
@@ -245,6 +248,9 @@ pub fn track_file(
     progress(Progress::Message("scanning"));
     let mut s = scan(input, opts, progress)?;
     s.entries.sort_unstable();
+    s.stamp_window = StampWindow::of(s.entries.iter().map(|e| e.0), s.log_span);
+    s.entries
+        .retain(|e| s.stamp_window.is_none_or(|w| w.contains(e.0)));
     // Frames in stamp order: (stamp, number of messages).
     let mut frames: Vec<(u64, u32)> = Vec::new();
     for &(stamp, _) in &s.entries {
@@ -486,6 +492,7 @@ fn run_pass(
         output: output.display().to_string(),
         ..Default::default()
     };
+    let stamps = StampCheck::new(plan.as_ref().and_then(|s| s.stamp_window));
     let PlannedChannels {
         profile,
         topics,
@@ -538,6 +545,7 @@ fn run_pass(
         counters: InputCounters::default(),
         schedule,
         last_stamp: HashMap::new(),
+        stamps,
         pending: BTreeMap::new(),
         next_frame: 0,
         intervals: super::track_warnings::FrameIntervals::default(),

@@ -9,14 +9,17 @@ use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
 
-use super::detections::{convert, describe_unknown_labels, reject, InputCounters, Origin};
+use super::detections::{
+    convert, describe_first_skips, describe_unknown_labels, reject, InputCounters, Origin,
+};
 use super::ego::EgoMotion;
 use super::frame_schedule::Schedule;
 use super::progress::Progress;
+use super::stamp_check::StampCheck;
 use super::track_options::{TrackOptions, TrackSummary};
 use super::track_order::LogTimeOrder;
 use super::track_outputs::ExtraOutputs;
-use super::track_warnings::{period_mismatch, unused_entries, FrameIntervals};
+use super::track_warnings::{beyond_bounds, period_mismatch, unused_entries, FrameIntervals};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
 use crate::msgs::detection_frame::{describe_skips, DetectionFrame};
@@ -113,6 +116,8 @@ pub struct TrackSession<'a, S: RecordSink> {
     pub(super) schedule: Schedule,
     /// Per detection channel, the stamp of its last message.
     pub(super) last_stamp: HashMap<u16, u64>,
+    /// Stamps far outside the log's range, and stamps shared on a channel.
+    pub(super) stamps: StampCheck,
     /// Decoded detection messages by stamp, waiting for their frame to be complete.
     pub(super) pending: BTreeMap<u64, Vec<Pending>>,
     pub(super) next_frame: usize,
@@ -168,6 +173,11 @@ impl<S: RecordSink> TrackSession<'_, S> {
                         .decode_frame(&data, header.log_time)
                         .with_context(|| undecodable(file, topic, &header, &source))?;
                     check_count(msg.len(), self.opts, file, topic, &header)?;
+                    let name = || describe_message(file, topic, &header);
+                    let (id, strict) = (header.channel_id, self.opts.strict);
+                    if !(self.stamps).keep(id, msg.stamp, header.log_time, strict, name)? {
+                        return Ok(());
+                    }
                     let stamp = msg.stamp;
                     self.schedule.on_message(header.channel_id, stamp)?;
                     // (With two passes, the first has counted them.)
@@ -328,6 +338,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
             mut summary,
             frame_state,
             mut intervals,
+            stamps,
             ..
         } = self;
         let st = tracker.stats();
@@ -344,6 +355,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
         summary.merged_messages = summary.detection_messages - summary.tracks_messages;
         if counters.total_skipped() > 0 {
             let mut warning = format!("{file}: skipped {}", describe_skips(&counters.skipped));
+            warning.push_str(&describe_first_skips(&counters));
             if !counters.unknown_labels.is_empty() {
                 let known: Vec<&str> = tracker
                     .config()
@@ -377,6 +389,8 @@ impl<S: RecordSink> TrackSession<'_, S> {
                  before them; frames were replayed in stamp order"
             ));
         }
+        stamps.warnings(file, &mut summary.warnings);
+        summary.warnings.extend(beyond_bounds(file, &st));
         summary.detections = counters;
         summary.ego = ego.finish(file, &mut summary.warnings);
         (out, summary)
@@ -687,6 +701,7 @@ mod tests {
             counters: InputCounters::default(),
             schedule: Schedule::Known(stamps.iter().map(|&s| (s, 1)).collect()),
             last_stamp: HashMap::new(),
+            stamps: StampCheck::default(),
             pending: BTreeMap::new(),
             next_frame: 0,
             intervals: FrameIntervals::default(),

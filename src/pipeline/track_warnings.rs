@@ -72,6 +72,17 @@ pub(super) fn period_mismatch(
     ))
 }
 
+/// A warning when tracks were ended because their state or a variance left the bounds of
+/// [`crate::tracker::bounds`] (a long coast, a huge gap between frames).
+pub(super) fn beyond_bounds(file: &str, stats: &crate::tracker::TrackerStats) -> Option<String> {
+    (stats.beyond_bounds > 0).then(|| {
+        format!(
+            "{file}: {} tracks were ended because their position, size, velocity or a variance              left the bounds (coordinates 1e7 m, sizes 1e4 m, speeds 1e5 m/s, variances 1e12)",
+            stats.beyond_bounds
+        )
+    })
+}
+
 /// Whether every class (and the default entry) of `a` has the noise of `b`'s.
 fn same_noise(a: &TrackerConfig, b: &TrackerConfig) -> bool {
     let noise = |c: &crate::tracker::ClassConfig| (c.q, c.r, c.p0);

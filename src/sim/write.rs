@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::Result;
+use anyhow::{Context, Result};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -47,68 +47,73 @@ pub fn write_simulation_progress(
     // The detector's random stream is separate from the scenario's.
     let mut rng = ChaCha8Rng::seed_from_u64(opts.seed ^ 0x5eed_0fde_7ec7);
     let mut output = AtomicOutput::create(out, &OutputOptions::default())?;
-    let w = &mut output.writer;
-    let schema_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
-    let schema_trk = w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
-    let mut meta = BTreeMap::new();
-    meta.insert(
-        "probmot.simulate.scenario".to_string(),
-        opts.scenario.name().to_string(),
-    );
-    let ch_det = w.add_channel(schema_det, "/detections", "protobuf", &meta)?;
-    let ch_gt = w.add_channel(schema_trk, "/ground_truth", "protobuf", &meta)?;
-    let ego_channels = if opts.ego_frame {
-        let schema_tf = w.add_schema(
-            FOXGLOVE_FRAME_TRANSFORM,
-            "protobuf",
-            &frame_transform_descriptor(),
-        )?;
-        let ch_tf = w.add_channel(schema_tf, "/tf", "protobuf", &meta)?;
-        let ch_gt_ego = w.add_channel(schema_trk, "/ground_truth/ego", "protobuf", &meta)?;
-        Some((ch_tf, ch_gt_ego))
-    } else {
-        None
-    };
-    let period_ns = (1e9 / opts.rate_hz).round() as u64;
-    let mut summary = SimSummary {
-        frames: opts.frames,
-        objects: objs.len(),
-        ..Default::default()
-    };
-    let mut buf = Vec::new();
-    for f in 0..opts.frames as usize {
-        let stamp = START_NS + f as u64 * period_ns;
-        let dets = detect(opts.scenario, &objs, f, &mut rng);
-        let mut msg = detections_msg(&dets, stamp);
-        summary.detections += dets.len() as u64;
-        let pose = ego_pose(f as f64 * opts.dt());
-        if let Some((ch_tf, _)) = ego_channels {
-            // The transforms up to and including this frame's stamp, then the detections.
-            let per = ego::TRANSFORMS_PER_FRAME as u64;
-            let first = if f == 0 { per - 1 } else { 0 };
-            for k in first..per {
-                let t_ns = stamp - (per - 1 - k) * period_ns / per;
-                let t = (t_ns - START_NS) as f64 * 1e-9;
-                let p = if k == per - 1 { pose } else { ego_pose(t) };
-                msgs::encode_into(&frame_transform(t_ns, &p), &mut buf);
-                let seq = (f as u64 * per + k) as usize;
-                w.write_to_known_channel(&header(ch_tf, seq, t_ns), &buf)?;
+    // Every write error names the output (a full disk, a file-size limit).
+    let summary = (|| -> Result<SimSummary> {
+        let w = &mut output.writer;
+        let schema_det = w.add_schema(msgs::DETECTIONS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
+        let schema_trk = w.add_schema(msgs::TRACKS_SCHEMA, "protobuf", msgs::DESCRIPTOR_SET)?;
+        let mut meta = BTreeMap::new();
+        meta.insert(
+            "probmot.simulate.scenario".to_string(),
+            opts.scenario.name().to_string(),
+        );
+        let ch_det = w.add_channel(schema_det, "/detections", "protobuf", &meta)?;
+        let ch_gt = w.add_channel(schema_trk, "/ground_truth", "protobuf", &meta)?;
+        let ego_channels = if opts.ego_frame {
+            let schema_tf = w.add_schema(
+                FOXGLOVE_FRAME_TRANSFORM,
+                "protobuf",
+                &frame_transform_descriptor(),
+            )?;
+            let ch_tf = w.add_channel(schema_tf, "/tf", "protobuf", &meta)?;
+            let ch_gt_ego = w.add_channel(schema_trk, "/ground_truth/ego", "protobuf", &meta)?;
+            Some((ch_tf, ch_gt_ego))
+        } else {
+            None
+        };
+        let period_ns = (1e9 / opts.rate_hz).round() as u64;
+        let mut summary = SimSummary {
+            frames: opts.frames,
+            objects: objs.len(),
+            ..Default::default()
+        };
+        let mut buf = Vec::new();
+        for f in 0..opts.frames as usize {
+            let stamp = START_NS + f as u64 * period_ns;
+            let dets = detect(opts.scenario, &objs, f, &mut rng);
+            let mut msg = detections_msg(&dets, stamp);
+            summary.detections += dets.len() as u64;
+            let pose = ego_pose(f as f64 * opts.dt());
+            if let Some((ch_tf, _)) = ego_channels {
+                // The transforms up to and including this frame's stamp, then the detections.
+                let per = ego::TRANSFORMS_PER_FRAME as u64;
+                let first = if f == 0 { per - 1 } else { 0 };
+                for k in first..per {
+                    let t_ns = stamp - (per - 1 - k) * period_ns / per;
+                    let t = (t_ns - START_NS) as f64 * 1e-9;
+                    let p = if k == per - 1 { pose } else { ego_pose(t) };
+                    msgs::encode_into(&frame_transform(t_ns, &p), &mut buf);
+                    let seq = (f as u64 * per + k) as usize;
+                    w.write_to_known_channel(&header(ch_tf, seq, t_ns), &buf)?;
+                }
+                detections_to_ego(&mut msg, &pose);
             }
-            detections_to_ego(&mut msg, &pose);
-        }
-        msgs::encode_into(&msg, &mut buf);
-        w.write_to_known_channel(&header(ch_det, f, stamp), &buf)?;
+            msgs::encode_into(&msg, &mut buf);
+            w.write_to_known_channel(&header(ch_det, f, stamp), &buf)?;
 
-        let gt = truth_msg(&objs, f, stamp);
-        summary.truth_boxes += gt.tracks.len() as u64;
-        msgs::encode_into(&gt, &mut buf);
-        w.write_to_known_channel(&header(ch_gt, f, stamp), &buf)?;
-        if let Some((_, ch_gt_ego)) = ego_channels {
-            msgs::encode_into(&truth_to_ego(gt, &pose), &mut buf);
-            w.write_to_known_channel(&header(ch_gt_ego, f, stamp), &buf)?;
+            let gt = truth_msg(&objs, f, stamp);
+            summary.truth_boxes += gt.tracks.len() as u64;
+            msgs::encode_into(&gt, &mut buf);
+            w.write_to_known_channel(&header(ch_gt, f, stamp), &buf)?;
+            if let Some((_, ch_gt_ego)) = ego_channels {
+                msgs::encode_into(&truth_to_ego(gt, &pose), &mut buf);
+                w.write_to_known_channel(&header(ch_gt_ego, f, stamp), &buf)?;
+            }
+            progress(1);
         }
-        progress(1);
-    }
+        Ok(summary)
+    })()
+    .with_context(|| format!("writing {}", out.display()))?;
     output.commit()?;
     Ok(summary)
 }

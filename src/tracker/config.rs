@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+use super::bounds::{magnitude_ok, variance_ok, MAX_MAGNITUDE, MAX_VARIANCE, MIN_VARIANCE};
 pub use super::error::ConfigError;
 pub use super::levers::{Levers, ScoreMode};
 
@@ -334,11 +335,13 @@ impl TrackerConfig {
         classes.any(|c| c.levers.holds_frames())
     }
 
-    /// Checks every value: positive noise where it must be, finite thresholds, `max_age >= 1`.
+    /// Checks every value: variances finite and within [`super::bounds`] (positive where they
+    /// must be), every other number finite and bounded, `max_age >= 1`. Errors name the class
+    /// and the field.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        if !(self.dt_nominal.is_finite() && self.dt_nominal > 0.0) {
+        if !(1e-9..=1e6).contains(&self.dt_nominal) {
             return Err(ConfigError(format!(
-                "dt_nominal must be a positive number of seconds, got {}",
+                "dt_nominal must be a number of seconds in [1e-9, 1e6], got {}",
                 self.dt_nominal
             )));
         }
@@ -361,26 +364,15 @@ impl ClassConfig {
         const STATE: [&str; 11] = [
             "x", "y", "z", "yaw", "l", "w", "h", "dx", "dy", "dz", "dyaw",
         ];
-        for (i, v) in self.r.iter().enumerate() {
-            if !(v.is_finite() && *v > 0.0) {
+        let variances = [("r", &self.r[..], false), ("p0", &self.p0[..], false)];
+        for (name, values, zero_ok) in variances.into_iter().chain([("q", &self.q[..], true)]) {
+            if let Some((i, v)) =
+                (values.iter().enumerate()).find(|(_, v)| !variance_ok(**v, zero_ok))
+            {
+                let range = format!("[{MIN_VARIANCE:e}, {MAX_VARIANCE:e}]");
+                let zero = if zero_ok { "0 or " } else { "" };
                 return Err(ConfigError(format!(
-                    "r[{i}] ({}) must be positive and finite, got {v}",
-                    STATE[i]
-                )));
-            }
-        }
-        for (i, v) in self.p0.iter().enumerate() {
-            if !(v.is_finite() && *v > 0.0) {
-                return Err(ConfigError(format!(
-                    "p0[{i}] ({}) must be positive and finite, got {v}",
-                    STATE[i]
-                )));
-            }
-        }
-        for (i, v) in self.q.iter().enumerate() {
-            if !(v.is_finite() && *v >= 0.0) {
-                return Err(ConfigError(format!(
-                    "q[{i}] ({}) must be non-negative and finite, got {v}",
+                    "{name}[{i}] ({}) must be {zero}a variance in {range}, got {v}",
                     STATE[i]
                 )));
             }
@@ -392,9 +384,9 @@ impl ClassConfig {
                     .into(),
             ));
         }
-        if !self.threshold.is_finite() {
+        if !magnitude_ok(self.threshold) {
             return Err(ConfigError(format!(
-                "threshold must be finite, got {}",
+                "threshold must be finite and within {MAX_MAGNITUDE:e}, got {}",
                 self.threshold
             )));
         }
@@ -416,8 +408,10 @@ impl ClassConfig {
             return Err(ConfigError("max_age must be at least 1".into()));
         }
         if let Some(f) = self.score_floor {
-            if !f.is_finite() {
-                return Err(ConfigError(format!("score_floor must be finite, got {f}")));
+            if !magnitude_ok(f) {
+                return Err(ConfigError(format!(
+                    "score_floor must be finite and within {MAX_MAGNITUDE:e}, got {f}"
+                )));
             }
         }
         if self.levers.motion == super::levers::Motion::Ctrv && !self.angular_velocity {
@@ -460,6 +454,33 @@ mod tests {
         let mut cfg = TrackerConfig::preset("ab3dmot-2019").unwrap();
         cfg.default.as_mut().unwrap().threshold = f64::NAN;
         assert!(cfg.validate().is_err());
+    }
+
+    /// Variances beyond the ceiling (issue #36: q = 1e308 made NaN tracks) and absurd other
+    /// numbers are refused, naming the class and the field.
+    #[test]
+    fn absurd_values_are_rejected() {
+        let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+        let refused = |f: &dyn Fn(&mut ClassConfig), want: &str| {
+            let mut cfg = base.clone();
+            f(cfg.classes.get_mut("car").unwrap());
+            let err = cfg.validate().unwrap_err().0;
+            assert!(err.contains("class 'car'") && err.contains(want), "{err}");
+        };
+        refused(&|c| c.q[0] = 1e308, "q[0] (x)");
+        refused(&|c| c.q[7] = 1e200, "q[7] (dx)");
+        refused(&|c| c.r[6] = 1e308, "r[6] (h)");
+        refused(&|c| c.p0[10] = 1e13, "p0[10] (dyaw)");
+        refused(&|c| c.p0[0] = 1e-300, "p0[0] (x)");
+        refused(&|c| c.threshold = 1e300, "threshold");
+        refused(&|c| c.score_floor = Some(-1e300), "score_floor");
+        refused(&|c| c.levers.two_point_speed = Some(1e9), "two_point_speed");
+        refused(&|c| c.levers.boost = 1e300, "levers.boost");
+        let mut cfg = base.clone();
+        cfg.classes.get_mut("car").unwrap().p0[0] = 1e12;
+        assert!(cfg.validate().is_ok(), "the ceiling itself is allowed");
+        cfg.dt_nominal = 1e300;
+        assert!(cfg.validate().unwrap_err().0.contains("dt_nominal"));
     }
 
     #[test]

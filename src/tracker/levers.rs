@@ -10,6 +10,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::bounds::{magnitude_ok, MAX_MAGNITUDE, MAX_SPEED};
 pub use super::ctrv::Motion;
 use super::error::ConfigError;
 
@@ -133,9 +134,9 @@ impl Levers {
             )));
         }
         for (name, v) in [("boost", self.boost), ("decay", self.decay)] {
-            if !(v.is_finite() && v >= 0.0) {
+            if !(magnitude_ok(v) && v >= 0.0) {
                 return Err(ConfigError(format!(
-                    "levers.{name} must be non-negative and finite, got {v}"
+                    "levers.{name} must be non-negative, finite and within {MAX_MAGNITUDE:e}, got {v}"
                 )));
             }
         }
@@ -143,9 +144,9 @@ impl Levers {
             ("birth_score", self.birth_score),
             ("keep_score", self.keep_score),
         ] {
-            if let Some(v) = v.filter(|v| !v.is_finite()) {
+            if let Some(v) = v.filter(|v| !magnitude_ok(*v)) {
                 return Err(ConfigError(format!(
-                    "levers.{name} must be finite, got {v}"
+                    "levers.{name} must be finite and within {MAX_MAGNITUDE:e}, got {v}"
                 )));
             }
         }
@@ -159,10 +160,10 @@ impl Levers {
         }
         if let Some(v) = self
             .two_point_speed
-            .filter(|v| !(v.is_finite() && *v > 0.0))
+            .filter(|v| !(v.is_finite() && *v > 0.0 && *v <= MAX_SPEED))
         {
             return Err(ConfigError(format!(
-                "levers.two_point_speed must be a positive speed in m/s, got {v}"
+                "levers.two_point_speed must be a positive speed in m/s up to {MAX_SPEED:e}, got {v}"
             )));
         }
         if self.keep_score.is_some() && self.decay <= 0.0 {

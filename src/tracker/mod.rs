@@ -7,6 +7,7 @@
 //! [`Lookback`].
 
 pub mod angle;
+pub mod bounds;
 pub mod boxes;
 pub mod confidence;
 pub mod config;

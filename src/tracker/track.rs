@@ -1,5 +1,6 @@
 //! One track: its filter, its life-cycle counters and what the tracker reports of it.
 
+use super::bounds::{MAX_COORDINATE, MAX_SIZE, MAX_SPEED, MAX_VARIANCE};
 use super::boxes::{Box3, ClassId};
 use super::confidence::Confidence;
 use super::config::BoxOrigin;
@@ -31,6 +32,8 @@ pub struct Track {
     pub(crate) innovation: Option<Innovation>,
     /// Refined and mean score (see [`super::levers`]).
     pub conf: Confidence,
+    /// Whether its state or a variance has left [`super::bounds`]: it is then ended.
+    pub beyond_bounds: bool,
 }
 
 /// Whether a report is shown now or waits for later frames to decide (the offline options
@@ -84,6 +87,25 @@ pub struct TrackReport {
     pub detection: Option<u32>,
     /// Shown now, or to be decided by later frames.
     pub status: ReportStatus,
+}
+
+impl TrackReport {
+    /// Whether every number is finite and within [`super::bounds`]: centre, size, velocity,
+    /// and every variance at most [`MAX_VARIANCE`].
+    pub fn within_bounds(&self) -> bool {
+        let b = &self.bbox;
+        let variances = (self.position_variance.iter())
+            .chain(&self.velocity_variance)
+            .chain([&self.yaw_variance, &self.yaw_rate_variance]);
+        b.center.iter().all(|v| v.abs() <= MAX_COORDINATE)
+            && b.size.iter().all(|v| v.abs() <= MAX_SIZE)
+            && self.velocity.iter().all(|v| v.abs() <= MAX_SPEED)
+            && b.yaw.is_finite()
+            && self.yaw_rate.is_finite()
+            && variances
+                .into_iter()
+                .all(|v| (0.0..=MAX_VARIANCE).contains(v))
+    }
 }
 
 impl Track {

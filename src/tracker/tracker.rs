@@ -60,6 +60,9 @@ pub struct TrackerStats {
     pub confirmed_reported_frames_of_dead: u64,
     /// Confirmed tracks that have died.
     pub confirmed_dead: u64,
+    /// Tracks ended because their state or a variance left [`super::bounds`] (a long coast,
+    /// a huge gap between frames).
+    pub beyond_bounds: u64,
 }
 
 struct ClassState {
@@ -441,6 +444,7 @@ fn birth(
             confirmed: false,
             innovation: None,
             conf: Confidence::born(det.score),
+            beyond_bounds: false,
         });
         s.track_match.push(Some(det_index));
         *next_id += 1;
@@ -473,6 +477,11 @@ fn report_and_delete(
         if t.time_since_update >= max_age {
             continue;
         }
+        if !t.report(dt_nominal, c.cfg.origin, *m).within_bounds() {
+            t.beyond_bounds = true;
+            stats.beyond_bounds += 1;
+            continue;
+        }
         let shown = t.hits >= min_hits || frame_count <= min_hits as u64;
         if let Some(status) = report_status(levers, shown, m.is_none()) {
             t.reported_frames += u32::from(status != ReportStatus::Hidden);
@@ -483,7 +492,8 @@ fn report_and_delete(
         }
     }
     c.tracks.retain(|t| {
-        let keep = t.time_since_update < max_age || t.conf.keeps_alive(levers);
+        let keep =
+            !t.beyond_bounds && (t.time_since_update < max_age || t.conf.keeps_alive(levers));
         if !keep {
             deleted.push(t.id);
             if t.confirmed {

@@ -209,9 +209,7 @@ fn sigint_while_writing_into_a_fifo_says_partly_written() {
     use std::io::Read;
     let dir = tempfile::tempdir().unwrap();
     let fifo = dir.path().join("out.mcap");
-    let c = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
-    // SAFETY: mkfifo(3) with a NUL-terminated path; the result is checked.
-    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+    common::mkfifo(&fifo);
     let mut cmd = bin();
     // SAFETY: as in start_track: only signal(2) between fork and exec.
     unsafe {

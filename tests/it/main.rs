@@ -14,6 +14,7 @@ mod eval_events;
 mod fit;
 mod foxglove_js_reader;
 mod fuzz_regressions;
+mod hostile;
 mod hostile_reader;
 mod hota;
 mod interrupts;

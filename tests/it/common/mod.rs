@@ -295,3 +295,11 @@ pub fn city_with_nan_truth(out: &Path) {
         t.encode_to_vec()
     });
 }
+
+/// Makes a FIFO at `path` (mode 0644).
+#[cfg(unix)]
+pub fn mkfifo(path: &Path) {
+    let c = std::ffi::CString::new(path.to_str().unwrap()).unwrap();
+    // SAFETY: mkfifo(3) with a NUL-terminated path; the result is checked.
+    assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o644) }, 0);
+}
