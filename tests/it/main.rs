@@ -11,6 +11,7 @@ mod doc_examples;
 mod ego_motion;
 mod eval_devkit;
 mod eval_events;
+mod eval_report;
 mod fit;
 mod foxglove_js_reader;
 mod fuzz_regressions;
