@@ -115,7 +115,10 @@ pub fn run(mut a: InfoArgs) -> Result<ExitCode> {
             let parts: Vec<String> = c
                 .per_label
                 .iter()
-                .map(|(l, n)| format!("{l} {n}"))
+                .map(|(l, n)| match l.is_empty() {
+                    true => format!("(no class) {n}"),
+                    false => format!("{l} {n}"),
+                })
                 .collect();
             println!("        boxes per class: {}", parts.join(", "));
         }

@@ -9,6 +9,7 @@ mod cli_papercuts;
 mod conformance;
 mod doc_examples;
 mod ego_motion;
+mod error_hints;
 mod eval_devkit;
 mod eval_events;
 mod eval_report;
