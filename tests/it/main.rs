@@ -37,3 +37,4 @@ mod track_e2e;
 mod track_log_order;
 mod tracker_core;
 mod tune;
+mod viewer_install;
