@@ -7,7 +7,7 @@
 //! readers) the tests say so on stderr and pass.
 
 #[path = "common/rrd.rs"]
-mod rrd;
+pub(crate) mod rrd;
 
 use std::path::{Path, PathBuf};
 

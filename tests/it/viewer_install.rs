@@ -10,6 +10,7 @@ use std::process::{Command, Output};
 
 use crate::common::{probmot_ok, repo, skip};
 use crate::rerun_scripts::json_copy;
+use crate::rerun_scripts::rrd::{ok, script};
 
 /// The viewer environment's python, if `PROBMOT_VIEW_PYTHON` names one.
 fn view_python(test: &str) -> Option<String> {
@@ -30,18 +31,7 @@ fn run(python: &str, args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("run the view python");
-    assert!(
-        out.status.success(),
-        "{python} {args:?} failed ({}):\n{}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr),
-        String::from_utf8_lossy(&out.stdout)
-    );
-    out
-}
-
-fn script(name: &str) -> String {
-    repo(&format!("scripts/{name}")).display().to_string()
+    ok(out, &format!("{python} {args:?}"))
 }
 
 fn s(p: &Path) -> &str {
@@ -102,4 +92,20 @@ fn the_viewer_environment_runs_the_viewer_scripts_on_every_input() {
     let out = run(&python, &["-m", "rerun", "rrd", "verify", s(&both)]);
     let said = String::from_utf8_lossy(&out.stderr) + String::from_utf8_lossy(&out.stdout);
     assert!(said.contains("verified without error"), "{said}");
+}
+
+/// Without the packages (`python3 -S`: no site-packages), each viewer script says which file
+/// installs them, and how big that install is.
+#[test]
+fn without_the_packages_the_scripts_point_at_the_viewer_requirements() {
+    for name in ["to_rerun.py", "compare_runs.py", "read_eval_events.py"] {
+        let out = Command::new("python3")
+            .args(["-S", &script(name), "in.mcap", "in.mcap", "-o", "out.rrd"])
+            .output()
+            .expect("run python3");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{name}: {err}");
+        let hint = "pip install -r scripts/requirements-view.txt` (the viewer only, about 770 MB)";
+        assert!(err.contains(hint), "{name}: {err}");
+    }
 }
