@@ -13,7 +13,7 @@ looking at the same region.
     rerun compare.rrd
 
 Exit status: 0 on success, 2 on a usage error, an unreadable file or a missing topic.
-Needs `python3 -m pip install -r scripts/requirements.txt` (rerun-sdk among them).
+Needs `python3 -m pip install -r scripts/requirements-view.txt` (the viewer only, about 770 MB).
 """
 
 from __future__ import annotations

@@ -19,7 +19,7 @@ try:
 except ImportError as e:  # depends on the environment
     sys.exit(
         f"{os.path.basename(sys.argv[0])}: error: {e}; install the packages with "
-        "`python3 -m pip install -r scripts/requirements.txt`"
+        "`python3 -m pip install -r scripts/requirements-view.txt` (the viewer only, about 770 MB)"
     )
 
 KINDS = {0: "tp", 1: "ids", 2: "frag", 3: "fp", 4: "fn"}

@@ -36,7 +36,7 @@ carries a blueprint with a top-down 3D view, made active on load.
     rerun drive.rrd
 
 Exit status: 0 on success, 2 on a usage error, an unreadable file or a missing topic.
-Needs `python3 -m pip install -r scripts/requirements.txt` (rerun-sdk among them).
+Needs `python3 -m pip install -r scripts/requirements-view.txt` (the viewer only, about 770 MB).
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ try:
 except ImportError as e:  # pragma: no cover - depends on the environment
     sys.stderr.write(
         f"{os.path.basename(sys.argv[0])}: error: {e}; install the packages with "
-        "`python3 -m pip install -r scripts/requirements.txt`\n"
+        "`python3 -m pip install -r scripts/requirements-view.txt` (the viewer only, about 770 MB)\n"
     )
     sys.exit(2)
 

@@ -9,6 +9,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 
 use super::means_arg::MeansArg;
 use super::show_progress;
+use probmot::eval::legend::{Section, SECTIONS};
 use probmot::eval::range::RangeFilter;
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 
@@ -41,13 +42,17 @@ pub enum Protocol {
 ///   probmot eval --protocol kitti --means once --truth new/ --baseline old/ --max-drop 1
 ///   probmot eval --truth gt/ --tracks tracked/ --json        # many logs, paired by file name
 ///   probmot eval --devkit --truth val/                        # the official nuScenes number
+///   probmot eval --explain                                    # what each column means
 #[derive(Debug, Args)]
-#[command(verbatim_doc_comment)]
+#[command(verbatim_doc_comment, after_long_help = probmot::eval::legend::text(&SECTIONS))]
 pub struct EvalArgs {
     /// Files with the ground-truth channel: files, directories (their *.mcap) or glob patterns.
     /// Several logs are scored together, each log one scene, as the devkit does across scenes.
-    #[arg(long, value_name = "GT", num_args = 1.., required = true)]
+    #[arg(long, value_name = "GT", num_args = 1.., required_unless_present_any = ["explain", "stray"])]
     pub(super) truth: Vec<PathBuf>,
+    /// Files given without an option: refused with the hint to name them with --truth.
+    #[arg(hide = true, value_name = "FILE")]
+    pub(super) stray: Vec<PathBuf>,
     /// Files with the tracks channel (default: the truth files), paired with the truth files by
     /// file name (or taken as is when both sides are one file).
     #[arg(long, value_name = "TRACKED", num_args = 1..)]
@@ -137,6 +142,11 @@ pub struct EvalArgs {
     /// Example: probmot eval --truth drive.tracked.mcap --events drive.events.mcap
     #[arg(long, value_name = "OUT.mcap")]
     pub(super) events: Option<PathBuf>,
+    /// Explain the tables: each column's meaning, unit and which way is better. Alone it prints
+    /// the legend of every table; with --truth the report ends with the legend of its tables.
+    /// Example: probmot eval --explain
+    #[arg(long)]
+    pub(super) explain: bool,
     /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
     #[arg(long, short)]
     pub(super) quiet: bool,
@@ -210,12 +220,63 @@ pub(super) fn gate_failures<'a>(
     failures
 }
 
+/// Refuses files given without an option (`probmot eval drive.tracked.mcap`), with the command
+/// that names them.
+pub(super) fn refuse_stray(a: &EvalArgs) -> anyhow::Result<()> {
+    let Some(first) = a.stray.first() else {
+        return Ok(());
+    };
+    let files: Vec<String> = a.stray.iter().map(|p| p.display().to_string()).collect();
+    anyhow::bail!(
+        "unexpected argument {}: `probmot eval` takes its files by option: --truth FILE (the \
+         ground truth, and the tracks when one file holds both), --tracks FILE (a separate \
+         tracked file); e.g. `probmot eval --truth {}`",
+        files.join(" "),
+        first.display()
+    )
+}
+
 /// "file" or "N logs" for the report's header.
 pub(super) fn describe(pairs: &[(PathBuf, PathBuf)], tracks: bool) -> String {
     match pairs {
         [(t, r)] => if tracks { r } else { t }.display().to_string(),
         _ => format!("{} logs", pairs.len()),
     }
+}
+
+/// The report's header: its title, then the tracks and truth files with their topics, one
+/// labelled line each.
+pub(super) fn header(title: &str, pairs: &[(PathBuf, PathBuf)], a: &EvalArgs) -> String {
+    format!(
+        "{title}\n  tracks: {} (topic {})\n  truth:  {} (topic {})",
+        describe(pairs, true),
+        a.tracks_topic,
+        describe(pairs, false),
+        a.truth_topic
+    )
+}
+
+/// The end of a text report: with --explain the legend of `tables`, else a line saying where
+/// it is.
+pub(super) fn footer(a: &EvalArgs, tables: &[Section]) -> String {
+    match a.explain {
+        true => format!("\n{}", probmot::eval::legend::text(tables)),
+        false => "\n`probmot eval --explain` says what each column means, its unit and which way \
+                  is better.\n"
+            .to_string(),
+    }
+}
+
+/// The change table (`this - baseline`) with its row `better`: the sign of an improvement per
+/// column.
+pub(super) fn change_table(
+    table: &Section,
+    columns: &[&str],
+    delta: &[(String, Vec<f64>)],
+) -> String {
+    let signs = table.signs(columns);
+    let t = probmot::eval::report::table_with_row(columns, ("better", &signs), delta);
+    format!("\nchange (this - baseline; row `better`: + higher is better, - lower is better):\n{t}")
 }
 
 pub(super) fn paths(pairs: &[(PathBuf, PathBuf)]) -> serde_json::Value {

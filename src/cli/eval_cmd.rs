@@ -12,13 +12,14 @@ use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, Fil
 use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 
+use probmot::eval::legend;
 use probmot::eval::nuscenes::{
     evaluate_columns, evaluate_columns_recording, NuscenesParams, NuscenesResult,
 };
 use probmot::eval::range::{
     apply_range_filter, read_ego_positions, EgoPositions, RangeFilter, RangeRemoved,
 };
-use probmot::eval::report::{fmt_value, table};
+use probmot::eval::report::table;
 use probmot::eval::scene::Scene;
 use probmot::mcapio::LabelledBox;
 use probmot::pipeline::kitti_io::is_kitti_import;
@@ -26,8 +27,8 @@ use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
 use super::eval_args::{
-    describe, gate_exit, gate_failures, paths, reading_bar, scoring_spinner, EvalArgs, LogPairs,
-    Protocol,
+    change_table, describe, footer, gate_exit, gate_failures, header, paths, reading_bar,
+    scoring_spinner, EvalArgs, LogPairs, Protocol,
 };
 use super::eval_events;
 use probmot::eval::events::Protocol as EventsProtocol;
@@ -180,6 +181,11 @@ fn load_columns_logs(
 }
 
 pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
+    super::eval_args::refuse_stray(&a)?;
+    if a.explain && a.truth.is_empty() {
+        print!("{}", legend::text(&legend::SECTIONS));
+        return Ok(ExitCode::SUCCESS);
+    }
     let nuscenes_filters = a.max_range.is_some() || a.min_points.is_some() || a.bike_racks;
     if a.devkit {
         a.max_range.get_or_insert_with(RangeFilter::nuscenes);
@@ -385,13 +391,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
-        println!(
-            "nuScenes tracking metrics: {} vs {} ({} / {})",
-            describe(&pairs, true),
-            describe(&pairs, false),
-            a.tracks_topic,
-            a.truth_topic
-        );
+        println!("{}", header("nuScenes tracking metrics", &pairs, &a));
         print!("{}", table(&COLUMNS, &rows(&result)));
         println!(
             "\nHOTA (TrackEval's definition; similarity max(0, 1 - BEV centre distance / 2 m)):"
@@ -400,12 +400,11 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         if let Some(base) = &baseline {
             println!("\nbaseline {}:", describe(&base_pairs, true));
             print!("{}", table(&COLUMNS, &rows(base)));
-            println!("\nchange (this - baseline):");
             let mut delta = Vec::new();
             for ((name, new), (_, old)) in rows(&result).into_iter().zip(rows(base)) {
                 delta.push((name, new.iter().zip(&old).map(|(n, o)| n - o).collect()));
             }
-            print!("{}", table(&COLUMNS, &delta));
+            print!("{}", change_table(&legend::NUSCENES, &COLUMNS, &delta));
         }
         for line in filter_notes(&removed, a.min_points) {
             println!("note: {line}");
@@ -414,7 +413,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             println!("note: {n}");
         }
         print!("{}", events.as_ref().map(|e| e.text()).unwrap_or_default());
-        let _ = fmt_value;
+        print!("{}", footer(&a, &[legend::NUSCENES, legend::HOTA]));
     }
     Ok(gate_exit(&failures))
 }

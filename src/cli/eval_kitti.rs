@@ -9,13 +9,15 @@ use anyhow::{bail, Result};
 use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
 use probmot::eval::hota::{hota_rows, Hota, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiBox, KittiMetrics, KittiParams, KittiResult, MeanScores};
+use probmot::eval::legend;
 use probmot::eval::report::table;
 use probmot::eval::scene::{load_kitti_scene, Scene};
 use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
 use super::eval_args::{
-    describe, gate_exit, gate_failures, paths, reading_bar, scoring_spinner, EvalArgs, LogPairs,
+    change_table, describe, footer, gate_exit, gate_failures, header, paths, reading_bar,
+    scoring_spinner, EvalArgs, LogPairs,
 };
 use super::eval_events::{self, EventsReport};
 use super::means_arg::MeansArg;
@@ -204,8 +206,8 @@ fn print_kitti(
     baseline: Option<(&[(PathBuf, PathBuf)], &KittiResult)>,
     events: Option<&EventsReport>,
 ) {
-    println!(
-        "KITTI 3D MOT metrics (AB3DMOT evaluation{}, 3D IoU >= {}): {} vs {} ({} / {})",
+    let title = format!(
+        "KITTI 3D MOT metrics (AB3DMOT evaluation{}, 3D IoU >= {})",
         match params.means {
             MeanScores::EveryPass => "",
             MeanScores::EveryPassCompensated =>
@@ -213,11 +215,8 @@ fn print_kitti(
             MeanScores::Once => " with each track's mean computed once, not official",
         },
         params.min_overlap,
-        describe(pairs, true),
-        describe(pairs, false),
-        a.tracks_topic,
-        a.truth_topic
     );
+    println!("{}", header(&title, pairs, a));
     print!(
         "{}",
         table(&KITTI_COLUMNS, &kitti_rows(result, &params.classes))
@@ -237,7 +236,6 @@ fn print_kitti(
             "{}",
             table(&KITTI_COLUMNS, &kitti_rows(base, &params.classes))
         );
-        println!("\nchange (this - baseline):");
         let mut delta = Vec::new();
         for (name, new) in kitti_rows(result, &params.classes) {
             if let Some((_, old)) = kitti_rows(base, &params.classes)
@@ -247,10 +245,11 @@ fn print_kitti(
                 delta.push((name, new.iter().zip(&old).map(|(n, o)| n - o).collect()));
             }
         }
-        print!("{}", table(&KITTI_COLUMNS, &delta));
+        print!("{}", change_table(&legend::KITTI, &KITTI_COLUMNS, &delta));
     }
     for n in result.notes.iter().chain(hota_notes) {
         println!("note: {n}");
     }
     print!("{}", events.map(|e| e.text()).unwrap_or_default());
+    print!("{}", footer(a, &[legend::KITTI, legend::HOTA]));
 }

@@ -36,6 +36,14 @@ pub struct InfoArgs {
     quiet: bool,
 }
 
+/// `class count` for the boxes-per-class line; boxes without a class as `(no class) count`.
+fn class_count((label, n): (&String, &u64)) -> String {
+    match label.is_empty() {
+        true => format!("(no class) {n}"),
+        false => format!("{label} {n}"),
+    }
+}
+
 /// A time as ISO 8601 UTC and, in parentheses, seconds since the epoch (as `mcap info`).
 fn time(ns: u64) -> String {
     format!(
@@ -112,11 +120,7 @@ pub fn run(mut a: InfoArgs) -> Result<ExitCode> {
             },
         );
         if !c.per_label.is_empty() {
-            let parts: Vec<String> = c
-                .per_label
-                .iter()
-                .map(|(l, n)| format!("{l} {n}"))
-                .collect();
+            let parts: Vec<String> = c.per_label.iter().map(class_count).collect();
             println!("        boxes per class: {}", parts.join(", "));
         }
         if c.role == "detections" {

@@ -310,6 +310,10 @@ pub fn run(mut a: TuneArgs) -> Result<ExitCode> {
         check_search_means(&a, false)?;
     }
     tune::space::check_names(&a.search).map_err(anyhow::Error::msg)?;
+    // A misspelt log is named as such, before the fold count that it would otherwise fail.
+    for p in &a.inputs {
+        std::fs::File::open(p).with_context(|| format!("cannot open {}", p.display()))?;
+    }
     // Checked before the logs are read (a long log takes a while).
     ensure!(
         a.folds < 2 || a.inputs.len() >= a.folds,

@@ -59,7 +59,8 @@ pub struct VizArgs {
 pub const NEEDS_FEATURE: &str = "this probmot was built without the `rerun` cargo feature; \
      rebuild with `cargo build --release --features rerun` (or `cargo install --path . \
      --features rerun`), or convert a tracked file with `python3 scripts/to_rerun.py \
-     TRACKED.mcap -o OUT.rrd` (needs `python3 -m pip install -r scripts/requirements.txt`)";
+     TRACKED.mcap -o OUT.rrd` (needs `python3 -m pip install -r scripts/requirements-view.txt`, \
+     the viewer only, about 770 MB)";
 
 /// Checks the output path of a recording before any work.
 pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {

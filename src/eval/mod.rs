@@ -10,6 +10,7 @@ pub mod filters;
 pub mod hota;
 pub mod kitti;
 pub mod kitti_box;
+pub mod legend;
 pub mod mot_accumulator;
 pub mod numpy_compat;
 pub mod nuscenes;

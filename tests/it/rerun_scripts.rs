@@ -7,7 +7,7 @@
 //! readers) the tests say so on stderr and pass.
 
 #[path = "common/rrd.rs"]
-mod rrd;
+pub(crate) mod rrd;
 
 use std::path::{Path, PathBuf};
 
@@ -224,7 +224,7 @@ fn assert_boxes(got: &Value, want: &[(u64, Vec<WantBox>)], what: &str) {
 }
 
 /// A copy of `input` with its probmot.Detections3D messages as JSON (message encoding `json`).
-fn json_copy(input: &Path, out: &Path) {
+pub(crate) fn json_copy(input: &Path, out: &Path) {
     let file = std::fs::File::create(out).unwrap();
     let mut w = mcap::Writer::new(std::io::BufWriter::new(file)).unwrap();
     let s = w

@@ -509,12 +509,14 @@ pub const HOTA_COLUMNS: [&str; 8] = [
     "hota", "deta", "assa", "loca", "detre", "detpr", "assre", "asspr",
 ];
 
-/// Rows `(class + suffix, values of HOTA_COLUMNS)` for the text report.
+/// Rows `(class + suffix, values of HOTA_COLUMNS)` for the text report, then (when there is a
+/// class) the row `overall + suffix`: the mean of each column over the classes shown
+/// (TrackEval's class-averaged combination, `cls_comb_cls_av`).
 pub fn hota_rows(
     classes: &std::collections::BTreeMap<String, Hota>,
     suffix: &str,
 ) -> Vec<(String, Vec<f64>)> {
-    classes
+    let mut rows: Vec<(String, Vec<f64>)> = classes
         .iter()
         .map(|(c, h)| {
             let v = [
@@ -522,5 +524,13 @@ pub fn hota_rows(
             ];
             (format!("{c}{suffix}"), v.to_vec())
         })
-        .collect()
+        .collect();
+    if !rows.is_empty() {
+        let n = rows.len() as f64;
+        let mean = (0..HOTA_COLUMNS.len())
+            .map(|k| rows.iter().map(|r| r.1[k]).sum::<f64>() / n)
+            .collect();
+        rows.push((format!("overall{suffix}"), mean));
+    }
+    rows
 }

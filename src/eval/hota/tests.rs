@@ -90,3 +90,19 @@ fn sequences_combine_weighted_by_true_positives() {
     assert!(close(c.ass_a[0], 4.0 / 5.0));
     assert_eq!(c.tp[0], 5.0);
 }
+
+#[test]
+fn the_overall_row_is_the_class_mean_of_each_column() {
+    let perfect = Hota::from_counts(&eval_sequence(&vec![frame(&[0], &[0], &[1.0]); 3], 1, 1));
+    let missed = Hota::from_counts(&eval_sequence(&[frame(&[0], &[], &[])], 1, 0));
+    let classes = std::collections::BTreeMap::from([
+        ("car".to_string(), perfect.clone()),
+        ("truck".to_string(), missed.clone()),
+    ]);
+    let rows = hota_rows(&classes, " 3d");
+    let names: Vec<&str> = rows.iter().map(|r| r.0.as_str()).collect();
+    assert_eq!(names, ["car 3d", "truck 3d", "overall 3d"]);
+    assert!(close(rows[2].1[0], (perfect.hota + missed.hota) / 2.0));
+    assert!(close(rows[2].1[3], (perfect.loca + missed.loca) / 2.0));
+    assert!(hota_rows(&Default::default(), "").is_empty());
+}
