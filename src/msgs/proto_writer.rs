@@ -67,6 +67,18 @@ impl<'a> ProtoWriter<'a> {
         }
     }
 
+    /// A `string` made of `parts` one after the other, left out when empty.
+    pub fn string_parts(&mut self, field: u32, parts: &[&[u8]]) {
+        let len: usize = parts.iter().map(|p| p.len()).sum();
+        if len > 0 {
+            self.key(field, LEN);
+            self.varint(len as u64);
+            for p in parts {
+                self.buf.extend_from_slice(p);
+            }
+        }
+    }
+
     /// A `string` formatted in place (no heap string), left out when empty.
     pub fn string_fmt(&mut self, field: u32, args: fmt::Arguments<'_>) {
         let start = self.buf.len();
@@ -96,6 +108,20 @@ impl<'a> ProtoWriter<'a> {
         for b in &mut self.buf[at..at + n] {
             *b = (v as u8 & 0x7f) | if v >= 0x80 { 0x80 } else { 0 };
             v >>= 7;
+        }
+    }
+}
+
+/// The decimal digits of `v`, as `{v}` formats them, in `digits` (no heap, no `fmt`).
+pub fn decimal(v: u64, digits: &mut [u8; 20]) -> &[u8] {
+    let mut i = digits.len();
+    let mut v = v;
+    loop {
+        i -= 1;
+        digits[i] = b'0' + (v % 10) as u8;
+        v /= 10;
+        if v == 0 {
+            return &digits[i..];
         }
     }
 }
@@ -159,6 +185,19 @@ mod tests {
             p.encode(&mut want).unwrap();
             proptest::prop_assert_eq!(buf, want);
         }
+    }
+
+    #[test]
+    fn decimal_is_display() {
+        for v in [0, 7, 10, 99, 12_345, u64::MAX] {
+            assert_eq!(decimal(v, &mut [0; 20]), v.to_string().as_bytes());
+        }
+        let mut buf = Vec::new();
+        ProtoWriter::new(&mut buf).string_parts(1, &[b"ab", b"", b"c"]);
+        assert_eq!(buf, [10, 3, b'a', b'b', b'c']);
+        buf.clear();
+        ProtoWriter::new(&mut buf).string_parts(1, &[b""]);
+        assert!(buf.is_empty());
     }
 
     #[test]

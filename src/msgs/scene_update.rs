@@ -21,7 +21,7 @@ use foxglove::schemas::{
 
 use super::colors::id_color;
 pub use super::detection_source::OUTPUT_METADATA_KEY;
-use super::proto_writer::ProtoWriter;
+use super::proto_writer::{decimal, ProtoWriter};
 use super::{Track3D, Tracks3D};
 
 /// Schema name of the output channel.
@@ -245,22 +245,26 @@ const DELETION_ID: u32 = 3;
 /// one frame are written straight into the reused buffer.
 fn write_update(w: &mut ProtoWriter<'_>, tracks: &Tracks3D, deleted: &[u64]) {
     let ts = timestamp(tracks.stamp);
+    let mut digits = [0; 20];
     for &id in deleted {
         w.message(UPDATE_DELETIONS, |w| {
             w.message(DELETION_TIMESTAMP, |w| write_timestamp(w, ts));
             // type MATCHING_ID is 0, the default: not written.
-            w.string_fmt(DELETION_ID, format_args!("track/{id}"));
+            w.string_parts(DELETION_ID, &[b"track/", decimal(id, &mut digits)]);
         });
     }
     for t in &tracks.tracks {
+        let id = decimal(t.id, &mut digits);
         w.message(UPDATE_ENTITIES, |w| {
             w.message(ENTITY_TIMESTAMP, |w| write_timestamp(w, ts));
             w.string(ENTITY_FRAME_ID, &tracks.frame_id);
-            w.string_fmt(ENTITY_ID, format_args!("track/{}", t.id));
-            write_metadata(w, "label", format_args!("{}", t.label));
-            write_metadata(w, "score", format_args!("{}", t.score));
-            write_metadata(w, "track_id", format_args!("{}", t.id));
-            write_primitives(w, t);
+            w.string_parts(ENTITY_ID, &[b"track/", id]);
+            write_metadata(w, b"label", |w| w.string(2, &t.label));
+            write_metadata(w, b"score", |w| {
+                w.string_fmt(2, format_args!("{}", t.score))
+            });
+            write_metadata(w, b"track_id", |w| w.string_parts(2, &[id]));
+            write_primitives(w, t, id);
         });
     }
 }
@@ -270,10 +274,11 @@ fn write_timestamp(w: &mut ProtoWriter<'_>, ts: Timestamp) {
     w.uint(2, ts.nsec().into());
 }
 
-fn write_metadata(w: &mut ProtoWriter<'_>, key: &str, value: std::fmt::Arguments<'_>) {
+/// A `KeyValuePair` of the entity's metadata; `value` writes field 2.
+fn write_metadata(w: &mut ProtoWriter<'_>, key: &[u8], value: impl FnOnce(&mut ProtoWriter<'_>)) {
     w.message(ENTITY_METADATA, |w| {
-        w.string(1, key);
-        w.string_fmt(2, value);
+        w.string_parts(1, &[key]);
+        value(w);
     });
 }
 
@@ -308,7 +313,7 @@ fn write_color(w: &mut ProtoWriter<'_>, field: u32, id: u64, alpha: f64) {
 }
 
 /// The arrow, cube and text of a track's entity (in field order), as [`scene_update`] makes them.
-fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D) {
+fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
     let c = t.center.unwrap_or_default();
     let s = t.size.unwrap_or_default();
     let center = [c.x, c.y, c.z];
@@ -336,7 +341,7 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D) {
         w.double(3, TEXT_FONT_SIZE);
         w.bool(4, true);
         write_color(w, 5, t.id, 1.0);
-        w.string_fmt(6, format_args!("{} {}", t.id, t.label));
+        w.string_parts(6, &[id, b" ", t.label.as_bytes()]);
     });
 }
 
