@@ -1,9 +1,13 @@
 #!/usr/bin/env bash
 # Whole-program measurements that a criterion bench cannot make: peak memory against log length,
-# the speed-up of `track --jobs 2` over `--jobs 1` on 8 logs, and `track` against the plain copy
-# (`--no-track`) of the dense log of benches/pipeline.rs run alternately (on a machine whose speed
-# drifts, alternating keeps the drift out of the ratio). Prints the figures that go into
-# BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary directory)
+# the speed-up of `track --jobs 2` over `--jobs 1` on 8 logs, and `track` (default outputs: tracks
+# and the Foxglove SceneUpdate) and `track --no-scene` against the plain copy (`--no-track`) of the
+# dense log of benches/pipeline.rs run alternately (on a machine whose speed drifts, alternating
+# keeps the drift out of the ratio), with each output's size against the input's. Prints the
+# figures that go into BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary
+# directory); `scripts/bench.sh copy [WORKDIR]` runs only the comparison with the copy.
+# BENCH_DENSE="FRAMES OBJECTS" changes the dense log (default "600 200"; the size of the
+# log of issue #39 is "20000 200"), BENCH_DENSE_REPS the rounds (default 15).
 #
 # `scripts/bench.sh long [WORKDIR]` measures instead every command that reads a whole log
 # (track, eval, eval --protocol kitti, info, fit, plot, export kitti) on long dense logs, side by
@@ -18,6 +22,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 mode=all
 if [ "${1:-}" = long ]; then mode=long; shift; fi
+if [ "${1:-}" = copy ]; then mode=copy; shift; fi
 work="${1:-$(mktemp -d)}"
 mkdir -p "$work"
 cargo build --release --quiet
@@ -84,6 +89,7 @@ if [ "$mode" = long ]; then
 fi
 
 # --- peak memory: a log 10x as long must not need more than 1.2x the memory
+if [ "$mode" = all ]; then
 "$bin" simulate --scenario city --frames 1000 --objects 100 --rate 10 --seed 5 -o "$work/short.mcap" >/dev/null
 "$bin" simulate --scenario city --frames 10000 --objects 100 --rate 10 --seed 5 -o "$work/long.mcap" >/dev/null
 for f in short long; do
@@ -111,11 +117,14 @@ for j in 1 2; do
   echo "8 logs with --jobs $j: $(cat "$work/jobs$j.s") s (median of 5, alternating)"
 done
 echo "speed-up --jobs 2 over --jobs 1: $(div "$(cat "$work/jobs1.s")" "$(cat "$work/jobs2.s")")x"
+fi
 
 # --- track vs the plain copy, alternating, 15 runs each (the dense log of benches/pipeline.rs).
 # Each run prints its wall time and its CPU time (user + system, all threads); the runs with
-# `--compression none` separate compressing the output from everything else.
-"$bin" simulate --scenario city --frames 600 --objects 200 --rate 2 --seed 3 -o "$work/dense.mcap" >/dev/null
+# `--compression none` separate compressing the output from everything else. Three outputs:
+# the copy (`--no-track`), `--no-scene` (the tracks channel only) and the default outputs.
+read -r dense_frames dense_objects <<< "${BENCH_DENSE:-600 200}"
+"$bin" simulate --scenario city --frames "$dense_frames" --objects "$dense_objects" --rate 2 --seed 3 -o "$work/dense.mcap" >/dev/null
 run() { # run NAME ARGS...: appends "wall cpu" (seconds) of one run to $work/NAME.s
   local name=$1; shift
   python3 - "$@" >> "$work/$name.s" <<'PY'
@@ -130,16 +139,26 @@ print(f"{wall:.4f} {cpu:.4f}")
 PY
 }
 col() { awk -v c="$1" '{print $c}' "$work/$2.s" | median; }
-for c in zstd none; do : > "$work/copy-$c.s"; : > "$work/track-$c.s"; done
-for i in $(seq 15); do
+outputs=(copy noscene track)
+declare -A flags=([copy]=--no-track [noscene]=--no-scene [track]=)
+for c in zstd none; do for o in "${outputs[@]}"; do : > "$work/$o-$c.s"; done; done
+for i in $(seq "${BENCH_DENSE_REPS:-15}"); do
   for c in zstd none; do
-    run "copy-$c" "$bin" track "$work/dense.mcap" -o "$work/dense.copy.mcap" --no-track --quiet --compression "$c"
-    run "track-$c" "$bin" track "$work/dense.mcap" -o "$work/dense.track.mcap" --quiet --compression "$c"
+    for o in "${outputs[@]}"; do
+      # shellcheck disable=SC2086 # an empty flag is no argument
+      run "$o-$c" "$bin" track "$work/dense.mcap" -o "$work/dense.$o.$c.mcap" ${flags[$o]} --quiet --compression "$c"
+    done
   done
 done
-echo "dense log ($(du -h "$work/dense.mcap" | cut -f1)), medians of 15 alternating runs (wall s / cpu s):"
+size() { stat -c %s "$1"; }
+echo "dense log ($dense_frames frames x $dense_objects objects, $(size "$work/dense.mcap") bytes), medians of ${BENCH_DENSE_REPS:-15} alternating runs (wall s / cpu s):"
 for c in zstd none; do
-  echo "  --compression $c: copy (--no-track) $(col 1 "copy-$c") / $(col 2 "copy-$c"), track $(col 1 "track-$c") / $(col 2 "track-$c")"
+  echo "  --compression $c: copy (--no-track) $(col 1 "copy-$c") / $(col 2 "copy-$c"), --no-scene $(col 1 "noscene-$c") / $(col 2 "noscene-$c"), track $(col 1 "track-$c") / $(col 2 "track-$c")"
 done
-echo "ratio track / copy (wall): $(div "$(col 1 track-zstd)" "$(col 1 copy-zstd)")x"
-echo "ratio track / copy (cpu):  $(div "$(col 2 track-zstd)" "$(col 2 copy-zstd)")x"
+for o in track noscene; do
+  name=$([ "$o" = track ] && echo "track (default outputs)" || echo "track --no-scene")
+  echo "$name:"
+  echo "  ratio to copy (wall): $(div "$(col 1 "$o-zstd")" "$(col 1 copy-zstd)")x"
+  echo "  ratio to copy (cpu):  $(div "$(col 2 "$o-zstd")" "$(col 2 copy-zstd)")x"
+  echo "  output / input size:  $(div "$(size "$work/dense.$o.zstd.mcap")" "$(size "$work/dense.mcap")")x ($(size "$work/dense.$o.zstd.mcap") bytes)"
+done

@@ -19,6 +19,7 @@ pub mod detection_source;
 pub mod eval_events;
 pub mod foxglove_scene;
 pub mod lenient_label;
+pub mod proto_writer;
 pub mod ros2_common;
 pub mod ros2_schema;
 pub mod ros2_tf;

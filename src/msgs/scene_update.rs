@@ -21,7 +21,8 @@ use foxglove::schemas::{
 
 use super::colors::id_color;
 pub use super::detection_source::OUTPUT_METADATA_KEY;
-use super::Tracks3D;
+use super::proto_writer::{decimal, ProtoWriter};
+use super::{Track3D, Tracks3D};
 
 /// Schema name of the output channel.
 pub const SCENE_UPDATE_SCHEMA: &str = "foxglove.SceneUpdate";
@@ -31,6 +32,25 @@ pub const MIN_ARROW_SPEED: f64 = 0.2;
 
 /// Alpha of the cubes (the box stays see-through).
 const CUBE_ALPHA: f64 = 0.45;
+
+const TEXT_FONT_SIZE: f64 = 14.0;
+const ARROW_SHAFT_DIAMETER: f64 = 0.15;
+const ARROW_HEAD_DIAMETER: f64 = 0.4;
+
+/// Head length of the velocity arrow of a track moving at `speed`.
+fn arrow_head(speed: f64) -> f64 {
+    (0.3 * speed).clamp(0.3, 1.5)
+}
+
+/// Shaft length of that arrow: shaft + head = 1 s of travel.
+fn arrow_shaft(speed: f64, head: f64) -> f64 {
+    (speed - head).max(0.1)
+}
+
+/// Height of the label: half a metre above the box.
+fn text_z(z: f64, height: f64) -> f64 {
+    z + height / 2.0 + 0.5
+}
 
 /// The `FileDescriptorSet` of `foxglove.SceneUpdate`, as stored in the output's schema record.
 pub fn scene_update_descriptor() -> Vec<u8> {
@@ -110,13 +130,13 @@ pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
             let text = TextPrimitive {
                 pose: Some(Pose {
                     position: Some(Vector3 {
-                        z: c.z + s.height / 2.0 + 0.5,
+                        z: text_z(c.z, s.height),
                         ..center
                     }),
                     orientation: Some(yaw_quaternion(0.0)),
                 }),
                 billboard: true,
-                font_size: 14.0,
+                font_size: TEXT_FONT_SIZE,
                 scale_invariant: true,
                 color: Some(track_color(t.id, 1.0)),
                 text: format!("{} {}", t.id, t.label),
@@ -124,16 +144,16 @@ pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
             let v = t.velocity.unwrap_or_default();
             let speed = v.x.hypot(v.y);
             let arrows = if speed > MIN_ARROW_SPEED {
-                let head = (0.3 * speed).clamp(0.3, 1.5);
+                let head = arrow_head(speed);
                 vec![ArrowPrimitive {
                     pose: Some(Pose {
                         position: Some(center),
                         orientation: Some(yaw_quaternion(v.y.atan2(v.x))),
                     }),
-                    shaft_length: (speed - head).max(0.1),
-                    shaft_diameter: 0.15,
+                    shaft_length: arrow_shaft(speed, head),
+                    shaft_diameter: ARROW_SHAFT_DIAMETER,
                     head_length: head,
-                    head_diameter: 0.4,
+                    head_diameter: ARROW_HEAD_DIAMETER,
                     color: Some(track_color(t.id, 1.0)),
                 }]
             } else {
@@ -203,14 +223,133 @@ impl SceneEncoder {
             }
         }
         std::mem::swap(&mut self.shown, &mut self.now);
-        super::encode_into(&scene_update(tracks, &self.gone), buf);
+        buf.clear();
+        write_update(&mut ProtoWriter::new(buf), tracks, &self.gone);
     }
+}
+
+// Field numbers of the foxglove schemas written below.
+const UPDATE_DELETIONS: u32 = 1;
+const UPDATE_ENTITIES: u32 = 2;
+const ENTITY_TIMESTAMP: u32 = 1;
+const ENTITY_FRAME_ID: u32 = 2;
+const ENTITY_ID: u32 = 3;
+const ENTITY_METADATA: u32 = 6;
+const ENTITY_ARROWS: u32 = 7;
+const ENTITY_CUBES: u32 = 8;
+const ENTITY_TEXTS: u32 = 13;
+const DELETION_TIMESTAMP: u32 = 1;
+const DELETION_ID: u32 = 3;
+
+/// Writes [`scene_update`]`(tracks, deleted)` as prost would, without building it: the bytes of
+/// one frame are written straight into the reused buffer.
+fn write_update(w: &mut ProtoWriter<'_>, tracks: &Tracks3D, deleted: &[u64]) {
+    let ts = timestamp(tracks.stamp);
+    let mut digits = [0; 20];
+    for &id in deleted {
+        w.message(UPDATE_DELETIONS, |w| {
+            w.message(DELETION_TIMESTAMP, |w| write_timestamp(w, ts));
+            // type MATCHING_ID is 0, the default: not written.
+            w.string_parts(DELETION_ID, &[b"track/", decimal(id, &mut digits)]);
+        });
+    }
+    for t in &tracks.tracks {
+        let id = decimal(t.id, &mut digits);
+        w.message(UPDATE_ENTITIES, |w| {
+            w.message(ENTITY_TIMESTAMP, |w| write_timestamp(w, ts));
+            w.string(ENTITY_FRAME_ID, &tracks.frame_id);
+            w.string_parts(ENTITY_ID, &[b"track/", id]);
+            write_metadata(w, b"label", |w| w.string(2, &t.label));
+            write_metadata(w, b"score", |w| {
+                w.string_fmt(2, format_args!("{}", t.score))
+            });
+            write_metadata(w, b"track_id", |w| w.string_parts(2, &[id]));
+            write_primitives(w, t, id);
+        });
+    }
+}
+
+fn write_timestamp(w: &mut ProtoWriter<'_>, ts: Timestamp) {
+    w.uint(1, ts.sec().into());
+    w.uint(2, ts.nsec().into());
+}
+
+/// A `KeyValuePair` of the entity's metadata; `value` writes field 2.
+fn write_metadata(w: &mut ProtoWriter<'_>, key: &[u8], value: impl FnOnce(&mut ProtoWriter<'_>)) {
+    w.message(ENTITY_METADATA, |w| {
+        w.string_parts(1, &[key]);
+        value(w);
+    });
+}
+
+fn write_vector3(w: &mut ProtoWriter<'_>, field: u32, v: [f64; 3]) {
+    w.message(field, |w| {
+        for (k, x) in (1..).zip(v) {
+            w.double(k, x);
+        }
+    });
+}
+
+/// A `Pose` at `p`, rotated by `yaw` about +z.
+fn write_pose(w: &mut ProtoWriter<'_>, field: u32, p: [f64; 3], yaw: f64) {
+    let q = yaw_quaternion(yaw);
+    w.message(field, |w| {
+        write_vector3(w, 1, p);
+        w.message(2, |w| {
+            for (k, x) in (1..).zip([q.x, q.y, q.z, q.w]) {
+                w.double(k, x);
+            }
+        });
+    });
+}
+
+fn write_color(w: &mut ProtoWriter<'_>, field: u32, id: u64, alpha: f64) {
+    let c = track_color(id, alpha);
+    w.message(field, |w| {
+        for (k, x) in (1..).zip([c.r, c.g, c.b, c.a]) {
+            w.double(k, x);
+        }
+    });
+}
+
+/// The arrow, cube and text of a track's entity (in field order), as [`scene_update`] makes them.
+fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
+    let c = t.center.unwrap_or_default();
+    let s = t.size.unwrap_or_default();
+    let center = [c.x, c.y, c.z];
+    let v = t.velocity.unwrap_or_default();
+    let speed = v.x.hypot(v.y);
+    if speed > MIN_ARROW_SPEED {
+        let head = arrow_head(speed);
+        w.message(ENTITY_ARROWS, |w| {
+            write_pose(w, 1, center, v.y.atan2(v.x));
+            w.double(2, arrow_shaft(speed, head));
+            w.double(3, ARROW_SHAFT_DIAMETER);
+            w.double(4, head);
+            w.double(5, ARROW_HEAD_DIAMETER);
+            write_color(w, 6, t.id, 1.0);
+        });
+    }
+    w.message(ENTITY_CUBES, |w| {
+        write_pose(w, 1, center, t.yaw);
+        write_vector3(w, 2, [s.length, s.width, s.height]);
+        write_color(w, 3, t.id, CUBE_ALPHA);
+    });
+    w.message(ENTITY_TEXTS, |w| {
+        write_pose(w, 1, [c.x, c.y, text_z(c.z, s.height)], 0.0);
+        w.bool(2, true);
+        w.double(3, TEXT_FONT_SIZE);
+        w.bool(4, true);
+        write_color(w, 5, t.id, 1.0);
+        w.string_parts(6, &[id, b" ", t.label.as_bytes()]);
+    });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::msgs::{v3, Size3, Track3D};
+    use proptest::prelude::any;
 
     #[test]
     fn one_entity_per_track_with_deletions_and_arrows_for_movers() {
@@ -259,7 +398,65 @@ mod tests {
         assert_eq!(e.cubes[0].color, Some(track_color(7, CUBE_ALPHA)));
     }
 
+    fn track() -> impl proptest::strategy::Strategy<Value = Track3D> {
+        use proptest::prelude::*;
+        let x = || {
+            prop_oneof![
+                Just(0.0),
+                Just(-0.0),
+                Just(f64::NAN),
+                -1e4..1e4f64,
+                any::<f64>()
+            ]
+        };
+        let v = move || proptest::option::of([x(), x(), x()].prop_map(v3));
+        let size = proptest::option::of([x(), x(), x()]).prop_map(|s| {
+            s.map(|[length, width, height]| Size3 {
+                length,
+                width,
+                height,
+            })
+        });
+        let id = prop_oneof![0u64..300, any::<u64>()];
+        let label = prop_oneof![Just(String::new()), "[a-z_]{1,12}", ".{100,140}"];
+        (id, label, v(), size, x(), v(), x()).prop_map(
+            |(id, label, center, size, yaw, velocity, score)| Track3D {
+                id,
+                label,
+                center,
+                size,
+                yaw,
+                velocity,
+                score,
+                ..Default::default()
+            },
+        )
+    }
+
     proptest::proptest! {
+        /// The encoder writes the bytes prost writes for [`scene_update`]: the hand-written
+        /// encoding is the same message.
+        #[test]
+        fn encoded_frames_are_the_prost_encoding_of_scene_update(
+            frames in proptest::collection::vec(
+                (any::<u64>(), "[a-z_/]{0,8}", proptest::collection::vec(track(), 0..6)), 1..4)
+        ) {
+            let mut enc = SceneEncoder::default();
+            let mut shown: Vec<u64> = Vec::new();
+            let mut buf = vec![1, 2, 3];
+            for (stamp, frame_id, tracks) in frames {
+                let tracks = Tracks3D { stamp, frame_id, tracks };
+                let mut now: Vec<u64> = tracks.tracks.iter().map(|t| t.id).collect();
+                now.sort_unstable();
+                let gone: Vec<u64> = shown.iter().copied().filter(|id| !now.contains(id)).collect();
+                enc.encode_frame(&tracks, &mut buf);
+                let mut want = Vec::new();
+                crate::msgs::encode_into(&scene_update(&tracks, &gone), &mut want);
+                proptest::prop_assert_eq!(&buf, &want);
+                shown = now;
+            }
+        }
+
         /// Each frame deletes exactly the ids shown in the previous frame and missing now,
         /// whatever the order of the tracks.
         #[test]
