@@ -9,6 +9,7 @@ mod cli_papercuts;
 mod conformance;
 mod doc_examples;
 mod ego_motion;
+mod eval_bootstrap;
 mod eval_devkit;
 mod eval_events;
 mod fit;
