@@ -63,8 +63,15 @@ pub struct KittiCurve {
 /// Names of the KITTI metrics [`kitti_class`] computes, in order.
 pub const KITTI_METRICS: [&str; 3] = ["sAMOTA", "AMOTA", "MOTA"];
 
+/// The recall of the pass keeping every track: the highest the curve can reach.
+fn max_recall(s: &UnitCounts) -> f64 {
+    s.tp / (s.tp + s.fn_)
+}
+
 /// sAMOTA, AMOTA and MOTA of one KITTI class under weights `w`; `None` without ground truth
-/// that counts.
+/// that counts. The recall points a resample reaches move with its highest recall (one more or
+/// fewer per 1/40 of recall than all the data reach; a point beyond them takes the last
+/// pass's counts): how far the curve reaches is most of AMOTA's noise.
 pub fn kitti_class(c: &KittiCurve, w: &[u32]) -> Option<[f64; 3]> {
     let all = weighted(&c.all_tracks, w);
     if all.gt <= 0.0 {
@@ -73,7 +80,17 @@ pub fn kitti_class(c: &KittiCurve, w: &[u32]) -> Option<[f64; 3]> {
     let mota_of = |s: &UnitCounts| 1.0 - (s.fn_ + s.fp + s.ids) / s.gt;
     let (mut smota, mut mota, mut best) = (0.0, 0.0, 0.0f64);
     let mut any = false;
-    for (r, units) in &c.passes {
+    let k = c.recall_points as f64;
+    let ones = vec![1; w.len()];
+    let full = weighted(&c.all_tracks, &ones);
+    let shift = (max_recall(&all) - max_recall(&full)) * k;
+    let reached = (c.passes.len() as f64 + shift.round()).clamp(0.0, k) as usize;
+    for i in 0..reached {
+        let Some(last) = c.passes.len().checked_sub(1) else {
+            break;
+        };
+        let (r, units) = &c.passes[i.min(last)];
+        let r = if i > last { (i + 1) as f64 / k } else { *r };
         let s = weighted(units, w);
         let m = mota_of(&s);
         let errors = s.fn_ + s.fp + s.ids;
@@ -83,7 +100,6 @@ pub fn kitti_class(c: &KittiCurve, w: &[u32]) -> Option<[f64; 3]> {
             (best, any) = (m, true);
         }
     }
-    let k = c.recall_points as f64;
     Some([smota / k, mota / k, if any { best } else { mota_of(&all) }])
 }
 
@@ -120,22 +136,44 @@ pub struct NuscenesCurve {
     pub levels: Vec<Option<Vec<UnitCounts>>>,
     /// Ground-truth boxes per unit.
     pub gt: Vec<f64>,
+    /// Matched boxes per unit when every track is kept (what the highest recall counts).
+    pub matched: Vec<f64>,
+    /// The lowest recall level (0.1).
+    pub min_recall: f64,
 }
 
 /// Names of the nuScenes metrics [`nuscenes_class`] computes, in order.
 pub const NUSCENES_METRICS: [&str; 4] = ["amota", "amotp", "mota", "ids"];
 
+/// `Σ w·v`.
+fn dot(v: &[f64], w: &[u32]) -> f64 {
+    v.iter().zip(w).map(|(v, &k)| v * f64::from(k)).sum()
+}
+
 /// AMOTA, AMOTP, MOTA and IDS of one nuScenes class under weights `w`; `None` without ground
-/// truth.
+/// truth. The recall levels a resample reaches move with its highest recall (one more or fewer
+/// per level step than all the data reach; a level beyond them takes the counts of the
+/// highest level all the data reach): how far the curve reaches is most of AMOTA's noise.
 pub fn nuscenes_class(c: &NuscenesCurve, w: &[u32]) -> Option<[f64; 4]> {
-    let gt: f64 = c.gt.iter().zip(w).map(|(g, &k)| g * f64::from(k)).sum();
+    let gt = dot(&c.gt, w);
     if gt <= 0.0 {
         return None;
     }
+    let n = c.levels.len();
+    let ones = vec![1; w.len()];
+    let full_reached = c.levels.iter().filter(|l| l.is_some()).count();
+    let step = (1.0 - c.min_recall) / (n.max(2) - 1) as f64;
+    let shift = (dot(&c.matched, w) / gt - dot(&c.matched, &ones) / dot(&c.gt, &ones)) / step;
+    let reached = match full_reached {
+        0 => 0,
+        r => (r as f64 + shift.round()).clamp(0.0, n as f64) as usize,
+    };
     let (mut motar_sum, mut motp_sum) = (0.0, 0.0);
     let mut best: Option<(f64, f64)> = None;
-    for level in &c.levels {
-        let Some(units) = level else {
+    for j in 0..n {
+        // Devkit order: the highest recall level first.
+        let level = (j >= n - reached).then(|| &c.levels[j.max(n - full_reached)]);
+        let Some(Some(units)) = level else {
             motp_sum += 2.0;
             continue;
         };

@@ -26,6 +26,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::Serialize;
 
+#[cfg(test)]
+mod coverage;
 pub mod curve;
 
 /// Fewer logs than this are resampled by time blocks within them.

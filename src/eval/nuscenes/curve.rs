@@ -4,7 +4,7 @@
 
 use rayon::prelude::*;
 
-use super::pass::{recall_thresholds, run_pass, run_pass_units};
+use super::pass::{recall_thresholds, run_pass_units};
 use super::prepare::{class_view, prepare, ClassScene, Prepared};
 use super::NuscenesParams;
 use crate::eval::bootstrap::curve::NuscenesCurve;
@@ -37,12 +37,18 @@ fn class_curve(scenes: &[ClassScene], p: &NuscenesParams, units: &Units) -> Nusc
     }
     let gt_boxes: f64 = gt.iter().sum();
     if gt_boxes == 0.0 {
+        let matched = gt.clone();
+        let min_recall = p.min_recall;
         return NuscenesCurve {
             levels: Vec::new(),
             gt,
+            matched,
+            min_recall,
         };
     }
-    let scores = run_pass(scenes, None, p).match_scores;
+    let all = run_pass_units(scenes, None, p, None, Some(units));
+    let matched = all.units.iter().map(|u| u.tp + u.ids).collect();
+    let scores = all.match_scores;
     let thresholds = recall_thresholds(scores, gt_boxes as u64, p);
     let mut distinct: Vec<f64> = Vec::new();
     for &t in thresholds.iter().filter(|t| !t.is_nan()) {
@@ -56,5 +62,10 @@ fn class_curve(scenes: &[ClassScene], p: &NuscenesParams, units: &Units) -> Nusc
     let levels = (thresholds.iter())
         .map(|t| (distinct.iter().position(|d| d == t)).map(|k| passes[k].clone()))
         .collect();
-    NuscenesCurve { levels, gt }
+    NuscenesCurve {
+        levels,
+        gt,
+        matched,
+        min_recall: p.min_recall,
+    }
 }
