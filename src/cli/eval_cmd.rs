@@ -418,10 +418,12 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
                 "removed_truth_boxes": r.truth, "removed_track_boxes": r.tracks})
             }),
             "filters": filters_json(&a, &removed),
-            "bootstrap": boot.as_ref().map(Bootstrap::json),
         });
         if let Some(e) = &events {
             v["events"] = e.json();
+        }
+        if let Some(b) = &boot {
+            v["bootstrap"] = b.json();
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {

@@ -178,10 +178,12 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             "baseline": baseline.as_ref().map(|b| serde_json::json!({"logs": paths(&base_pairs), "result": b})),
             "gate_failures": failures,
             "hota": {"image_2d": hota_2d, "iou_3d": hota_3d, "notes": hota_notes},
-            "bootstrap": boot.as_ref().map(Bootstrap::json),
         });
         if let Some(e) = &events {
             v["events"] = e.json();
+        }
+        if let Some(b) = &boot {
+            v["bootstrap"] = b.json();
         }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
