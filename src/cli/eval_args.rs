@@ -13,6 +13,15 @@ use probmot::eval::legend::{Section, SECTIONS};
 use probmot::eval::range::RangeFilter;
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 
+/// The rule of the regression gate (--max-drop).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum Gate {
+    /// The fall is larger than --max-drop and its paired 95 % interval lies below 0.
+    Interval,
+    /// The fall is larger than --max-drop.
+    Point,
+}
+
 /// Evaluation protocols.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum Protocol {
@@ -37,6 +46,7 @@ pub enum Protocol {
 ///   probmot eval --truth drive.tracked.mcap
 ///   probmot eval --truth drive.mcap --tracks drive.tracked.mcap --json
 ///   probmot eval --truth gt.mcap --tracks new.mcap --baseline old.mcap --max-drop 1
+///   probmot eval --truth gt/ --tracks new/ --baseline old/ --bootstrap 1000 --max-drop 1
 ///   probmot eval --protocol kitti --truth 0000.tracked.mcap
 ///   probmot eval --protocol kitti --iou 0.5 --classes car --truth 0000.tracked.mcap
 ///   probmot eval --protocol kitti --means once --truth new/ --baseline old/ --max-drop 1
@@ -85,13 +95,36 @@ pub struct EvalArgs {
     /// --tracks).
     #[arg(long, value_name = "OTHER", num_args = 1..)]
     pub(super) baseline: Vec<PathBuf>,
-    /// With --baseline: exit 3 if the overall main metric (AMOTA for nuscenes, sAMOTA for kitti)
-    /// falls by more than this many percentage points.
+    /// With --baseline: the regression gate on the overall main metric (AMOTA for nuscenes,
+    /// sAMOTA for kitti). With --gate interval (the default) exit 3 when the metric falls by
+    /// more than POINTS percentage points AND the upper end of the paired 95 % bootstrap
+    /// interval of its change is below 0 (the fall is not noise); the bootstrap runs with
+    /// --bootstrap N resamples, 1000 when not given. With --gate point: exit 3 when it falls by
+    /// more than POINTS, whatever the noise.
     #[arg(long, value_name = "POINTS")]
     pub(super) max_drop: Option<f64>,
-    /// With --max-drop: also fail when any single class falls by more than that.
+    /// With --max-drop: also fail when any single class falls (by the same rule).
     #[arg(long, requires = "max_drop")]
     pub(super) per_class: bool,
+    /// The rule of --max-drop: `interval` (the fall must also lie outside the noise: the whole
+    /// 95 % interval of the change below 0) or `point` (the fall alone). Example: --gate point
+    #[arg(long, value_enum, default_value_t = Gate::Interval, requires = "max_drop")]
+    pub(super) gate: Gate,
+    /// Bootstrap with N resamples: each compared metric (nuscenes AMOTA, AMOTP, MOTA, IDS; kitti
+    /// sAMOTA, AMOTA, MOTA) per class and overall with its 95 % interval; with --baseline the
+    /// change this - baseline with a paired interval (both runs resampled alike). Resampled are
+    /// whole logs when there are 20 or more, else time blocks within them (--block).
+    /// Example: --bootstrap 1000
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    pub(super) bootstrap: Option<u64>,
+    /// Seed of the bootstrap's draws: the same seed gives the same intervals, whatever the
+    /// number of threads. Example: --seed 7
+    #[arg(long, value_name = "S", default_value_t = 0)]
+    pub(super) seed: u64,
+    /// Resample time blocks of this many seconds within the logs [default: whole logs with 20
+    /// logs or more, else 10-second blocks]. Example: --block 20
+    #[arg(long, value_name = "SECONDS")]
+    pub(super) block: Option<f64>,
     /// nuScenes only: remove boxes of ground truth and tracks farther from the ego vehicle than
     /// their class's range, before the mean track score and the interpolation, as the devkit does.
     /// SPEC: `nuscenes` (the devkit's table: 40 m bicycle, motorcycle, pedestrian; 50 m bus, car,

@@ -27,11 +27,15 @@ use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
 use super::eval_args::{
-    change_table, describe, footer, gate_exit, gate_failures, header, paths, reading_bar,
-    scoring_spinner, EvalArgs, LogPairs, Protocol,
+    change_table, describe, footer, gate_exit, header, paths, reading_bar, scoring_spinner,
+    EvalArgs, LogPairs, Protocol,
 };
+use super::eval_bootstrap::{self, Bootstrap};
 use super::eval_events;
+use probmot::eval::bootstrap::curve::{nuscenes_metrics, NUSCENES_METRICS};
+use probmot::eval::bootstrap::Options;
 use probmot::eval::events::Protocol as EventsProtocol;
+use probmot::eval::nuscenes::curve::unit_curves;
 
 const COLUMNS: [&str; 14] = [
     "amota", "amotp", "recall", "mota", "motp", "ids", "frag", "fp", "fn", "mt", "ml", "faf",
@@ -195,6 +199,9 @@ pub fn run(mut a: EvalArgs) -> Result<ExitCode> {
     if a.max_drop.is_some() && a.baseline.is_empty() {
         bail!("--max-drop needs --baseline");
     }
+    if let Some(b) = a.block.filter(|b| !(*b > 0.0 && b.is_finite())) {
+        bail!("--block must be a positive number of seconds, got {b}");
+    }
     if let Some(d) = a.max_drop.filter(|d| !(*d >= 0.0 && d.is_finite())) {
         bail!("--max-drop must be a number of points >= 0, got {d}");
     }
@@ -295,17 +302,45 @@ fn unevaluated_labels(
     (!parts.is_empty()).then(|| parts.join("; "))
 }
 
-/// The `--baseline` logs scored with the nuScenes protocol (none without `--baseline`).
+/// The `--baseline` logs scored with the nuScenes protocol (none without `--baseline`), and
+/// their scenes when `keep`.
 fn nuscenes_baseline(
     a: &EvalArgs,
     params: &NuscenesParams,
-) -> Result<(LogPairs, Option<NuscenesResult>)> {
+    keep: bool,
+) -> Result<(LogPairs, Option<NuscenesResult>, Option<Vec<ColumnScene>>)> {
     if a.baseline.is_empty() {
-        return Ok((Vec::new(), None));
+        return Ok((Vec::new(), None, None));
     }
     let pairs = log_pairs(&a.truth, &a.baseline)?;
     let (scenes, _) = load_columns_logs(a, &pairs, false)?;
-    Ok((pairs, Some(evaluate_columns(&scenes, params))))
+    let result = evaluate_columns(&scenes, params);
+    Ok((pairs, Some(result), keep.then_some(scenes)))
+}
+
+/// The bootstrap of the nuScenes metrics over `scenes` (and the change from `base`).
+fn nuscenes_bootstrap(
+    scenes: &[ColumnScene],
+    base: Option<&[ColumnScene]>,
+    params: &NuscenesParams,
+    a: &EvalArgs,
+    o: Options,
+) -> Bootstrap {
+    let stamps =
+        |s: &[ColumnScene]| -> Vec<Vec<u64>> { s.iter().map(|s| s.stamps.clone()).collect() };
+    let runs: Vec<Vec<Vec<u64>>> = std::iter::once(scenes).chain(base).map(stamps).collect();
+    let units = eval_bootstrap::paired_units(&runs, a.block);
+    let this = unit_curves(scenes, params, &units[0]);
+    let base = base.map(|b| unit_curves(b, params, &units[units.len() - 1]));
+    let (rows, this, base) = eval_bootstrap::aligned(this, base);
+    let names = (&NUSCENES_METRICS[..], rows);
+    eval_bootstrap::run(
+        names,
+        (&this, base.as_deref()),
+        nuscenes_metrics,
+        &units[0],
+        o,
+    )
 }
 
 /// The result, refused when no evaluated class had ground truth, with the note on the labels
@@ -353,21 +388,26 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;
-    let (base_pairs, baseline) = nuscenes_baseline(&a, &params)?;
+    let boot_options = eval_bootstrap::options(&a);
+    let (base_pairs, baseline, base_scenes) =
+        nuscenes_baseline(&a, &params, boot_options.is_some())?;
+    let boot =
+        boot_options.map(|o| nuscenes_bootstrap(&scenes, base_scenes.as_deref(), &params, &a, o));
 
     // The gate, on AMOTA.
-    let failures = match (&baseline, a.max_drop) {
-        (Some(base), Some(max_drop)) => gate_failures(
+    let failures = match &baseline {
+        Some(base) => eval_bootstrap::gate(
+            &a,
             "AMOTA",
-            (base.overall.amota, result.overall.amota),
-            result
-                .classes
-                .iter()
-                .filter_map(|(c, m)| base.classes.get(c).map(|o| (c.as_str(), o.amota, m.amota))),
-            max_drop,
-            a.per_class,
+            (
+                (base.overall.amota, result.overall.amota),
+                (result.classes.iter()).filter_map(|(c, m)| {
+                    base.classes.get(c).map(|o| (c.as_str(), o.amota, m.amota))
+                }),
+            ),
+            boot.as_ref(),
         ),
-        _ => Vec::new(),
+        None => Vec::new(),
     };
 
     if a.json {
@@ -389,6 +429,9 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
         if let Some(e) = &events {
             v["events"] = e.json();
         }
+        if let Some(b) = &boot {
+            v["bootstrap"] = b.json();
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!("{}", header("nuScenes tracking metrics", &pairs, &a));
@@ -406,6 +449,7 @@ fn run_nuscenes(a: EvalArgs) -> Result<ExitCode> {
             }
             print!("{}", change_table(&legend::NUSCENES, &COLUMNS, &delta));
         }
+        print!("{}", boot.as_ref().map(Bootstrap::text).unwrap_or_default());
         for line in filter_notes(&removed, a.min_points) {
             println!("note: {line}");
         }

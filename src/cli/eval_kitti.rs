@@ -16,12 +16,16 @@ use probmot::pipeline::log_pairs::log_pairs;
 use rayon::prelude::*;
 
 use super::eval_args::{
-    change_table, describe, footer, gate_exit, gate_failures, header, paths, reading_bar,
-    scoring_spinner, EvalArgs, LogPairs,
+    change_table, describe, footer, gate_exit, header, paths, reading_bar, scoring_spinner,
+    EvalArgs, LogPairs,
 };
+use super::eval_bootstrap::{self, Bootstrap};
 use super::eval_events::{self, EventsReport};
 use super::means_arg::MeansArg;
+use probmot::eval::bootstrap::curve::{kitti_metrics, KITTI_METRICS};
+use probmot::eval::bootstrap::Options;
 use probmot::eval::events::Protocol as EventsProtocol;
+use probmot::eval::kitti::curve::unit_curves;
 
 /// Loads every log (in parallel) for the KITTI protocol, each box as the KITTI evaluation
 /// reads it ([`load_kitti_scene`]): ground-truth boxes without id (DontCare) are allowed. The
@@ -144,25 +148,30 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             eval_events::write(out, logs, &pairs, &scenes[..], &a.truth_topic)
         })
         .transpose()?;
-    // The logs are scored: the baseline's need not be held beside them.
-    drop(scenes);
+    let boot_options = eval_bootstrap::options(&a);
+    // The logs are scored: without a bootstrap the baseline's need not be held beside them.
+    let scenes = boot_options.map(|_| scenes);
     let (base_pairs, base_scenes) = load_baseline(&a)?;
-    let baseline = base_scenes.map(|scenes| kitti::evaluate(&scenes, &params));
+    let baseline = (base_scenes.as_ref()).map(|scenes| kitti::evaluate(scenes, &params));
+    let boot = match (boot_options, &scenes) {
+        (Some(o), Some(s)) => Some(kitti_bootstrap(s, base_scenes.as_deref(), &params, &a, o)),
+        _ => None,
+    };
 
     // The gate, on sAMOTA.
-    let failures = match (&baseline, a.max_drop) {
-        (Some(base), Some(max_drop)) => gate_failures(
+    let failures = match &baseline {
+        Some(base) => eval_bootstrap::gate(
+            &a,
             "sAMOTA",
-            (base.overall.samota, result.overall.samota),
-            result.classes.iter().filter_map(|(c, m)| {
-                base.classes
-                    .get(c)
-                    .map(|o| (c.as_str(), o.samota, m.samota))
-            }),
-            max_drop,
-            a.per_class,
+            (
+                (base.overall.samota, result.overall.samota),
+                result.classes.iter().filter_map(|(c, m)| {
+                    (base.classes.get(c)).map(|o| (c.as_str(), o.samota, m.samota))
+                }),
+            ),
+            boot.as_ref(),
         ),
-        _ => Vec::new(),
+        None => Vec::new(),
     };
 
     if a.json {
@@ -175,6 +184,9 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
         if let Some(e) = &events {
             v["events"] = e.json();
         }
+        if let Some(b) = &boot {
+            v["bootstrap"] = b.json();
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         let hota = (&hota_2d, &hota_3d, &hota_notes[..]);
@@ -186,6 +198,7 @@ pub fn run_kitti(a: EvalArgs) -> Result<ExitCode> {
             base,
             events.as_ref(),
         );
+        print!("{}", boot.as_ref().map(Bootstrap::text).unwrap_or_default());
     }
     Ok(gate_exit(&failures))
 }
@@ -252,4 +265,26 @@ fn print_kitti(
     }
     print!("{}", events.map(|e| e.text()).unwrap_or_default());
     print!("{}", footer(a, &[legend::KITTI, legend::HOTA]));
+}
+
+/// The bootstrap of the KITTI metrics over `scenes` (and the change from `base`).
+fn kitti_bootstrap(
+    scenes: &[Scene<KittiBox>],
+    base: Option<&[Scene<KittiBox>]>,
+    params: &KittiParams,
+    a: &EvalArgs,
+    o: Options,
+) -> Bootstrap {
+    let stamps = |s: &[Scene<KittiBox>]| -> Vec<Vec<u64>> {
+        (s.iter())
+            .map(|s| s.frames.iter().map(|f| f.0).collect())
+            .collect()
+    };
+    let runs: Vec<Vec<Vec<u64>>> = std::iter::once(scenes).chain(base).map(stamps).collect();
+    let units = eval_bootstrap::paired_units(&runs, a.block);
+    let this = unit_curves(scenes, params, &units[0]);
+    let base = base.map(|b| unit_curves(b, params, &units[units.len() - 1]));
+    let (rows, this, base) = eval_bootstrap::aligned(this, base);
+    let names = (&KITTI_METRICS[..], rows);
+    eval_bootstrap::run(names, (&this, base.as_deref()), kitti_metrics, &units[0], o)
 }

@@ -2,6 +2,7 @@
 
 mod config_cmd;
 mod eval_args;
+mod eval_bootstrap;
 mod eval_cmd;
 mod eval_events;
 mod eval_kitti;

@@ -287,6 +287,30 @@ fn table(cv: &CvReport, o: &TuneOptions) -> String {
              reference does: not the official number (see `probmot eval --means`)"
         );
     }
+    s.push_str(&gains_table(cv, metric));
+    s
+}
+
+/// The held-out gains with their paired intervals; a gain whose interval holds 0 is within the
+/// noise, and said so.
+fn gains_table(cv: &CvReport, metric: &str) -> String {
+    let mut s = format!(
+        "held-out gain of {metric} (tuned - base, x100), all held-out logs together, with its \
+         paired 95 % bootstrap interval ({} resamples):\n",
+        tune::gains::RESAMPLES
+    );
+    for (c, g) in &cv.gains {
+        let (lo, hi) = (g.ci95[0] * 100.0, g.ci95[1] * 100.0);
+        let verdict = if g.ci95[0] > 0.0 {
+            "a gain beyond the noise"
+        } else if g.ci95[1] < 0.0 {
+            "a loss beyond the noise"
+        } else {
+            "within the noise"
+        };
+        let d = g.delta * 100.0;
+        let _ = writeln!(s, "  {c:<12} {d:>+7.2} [{lo:+.2}, {hi:+.2}]  {verdict}");
+    }
     s
 }
 

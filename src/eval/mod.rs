@@ -1,6 +1,7 @@
 //! Evaluation: the nuScenes tracking metrics (as the official devkit computes them) and the
 //! KITTI-style 3D MOT metrics, on probmot's `Tracks3D` channels.
 
+pub mod bootstrap;
 pub mod columns;
 pub mod event_boxes;
 pub mod event_view;

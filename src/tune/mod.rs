@@ -5,6 +5,7 @@
 
 pub mod cache;
 pub mod data;
+pub mod gains;
 pub mod score;
 pub mod search;
 pub mod shared;
@@ -298,6 +299,9 @@ pub struct CvReport {
     /// KITTI: `tuned` with each track's mean score computed once.
     #[serde(skip_serializing_if = "BTreeMap::is_empty")]
     pub tuned_means_once: BTreeMap<String, f64>,
+    /// All held-out logs together: per class and `overall`, the gain `tuned - base` of the
+    /// headline metric with its paired 95 % bootstrap interval ([`gains::gains`]).
+    pub gains: BTreeMap<String, crate::eval::bootstrap::Change>,
     /// The configs tuned per fold (for re-scoring with `probmot track` and `probmot eval`).
     #[serde(skip)]
     pub fold_configs: Vec<TrackerConfig>,
@@ -401,7 +405,9 @@ pub fn cross_validate(
     }
     let (base, base_means_once) = o.scoring.evaluate_with_once(&base_scenes, &classes);
     let (tuned, tuned_means_once) = o.scoring.evaluate_with_once(&tuned_scenes, &classes);
+    let gains = gains::gains(&o.scoring, (&base_scenes, &tuned_scenes), &classes);
     Ok(CvReport {
+        gains,
         folds: reports,
         base,
         tuned,
@@ -465,6 +471,7 @@ mod tests {
             tuned: BTreeMap::new(),
             base_means_once: BTreeMap::new(),
             tuned_means_once: BTreeMap::new(),
+            gains: BTreeMap::new(),
             fold_configs: vec![],
         };
         let l = cv.losses(0.005);

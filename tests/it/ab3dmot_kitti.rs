@@ -293,6 +293,8 @@ fn ab3dmot_kitti_preset_gives_ab3dmots_tracks_and_scores() {
         s(&theirs_dir.join("0000.mcap")),
         "--max-drop",
         "0",
+        "--gate",
+        "point",
     ]);
     assert_eq!(
         gate.status.code(),

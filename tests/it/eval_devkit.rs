@@ -89,6 +89,8 @@ fn gate_fails_a_worse_configuration() {
         truth,
         "--max-drop",
         "1",
+        "--gate",
+        "point",
     ]);
     assert_eq!(
         r.status.code(),

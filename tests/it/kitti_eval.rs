@@ -276,6 +276,8 @@ fn kitti_eval_table_and_gate() {
             s(baseline),
             "--max-drop",
             "0",
+            "--gate",
+            "point",
         ])
         .status
         .code()
@@ -298,7 +300,7 @@ fn kitti_eval_table_and_gate() {
         ];
         let mut args = args.to_vec();
         args.extend(["--tracks", s(tracks), "--baseline", s(baseline)]);
-        args.extend(["--max-drop", "0", "--json"]);
+        args.extend(["--max-drop", "0", "--gate", "point", "--json"]);
         let out = common::probmot(&args);
         let v: Value = serde_json::from_slice(&out.stdout).unwrap();
         let score = |r: &Value| r["overall"]["sAMOTA"].as_f64().unwrap();

@@ -10,6 +10,7 @@ mod conformance;
 mod doc_examples;
 mod ego_motion;
 mod error_hints;
+mod eval_bootstrap;
 mod eval_devkit;
 mod eval_events;
 mod eval_report;

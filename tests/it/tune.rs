@@ -358,6 +358,17 @@ fn cross_validation_scores_held_out_logs() {
     assert_eq!(cv.folds[1].held_out, vec!["synthetic_3", "synthetic_4"]);
     // The duplicates are systematic, so what is learnt on one fold carries to the other.
     assert!(overall(&cv.tuned) > overall(&cv.base));
+    // Each held-out gain carries its paired interval; its values are the table's.
+    let g = &cv.gains["overall"];
+    assert!(
+        (g.delta - (overall(&cv.tuned) - overall(&cv.base))).abs() < 1e-9,
+        "{g:?}"
+    );
+    assert!(g.ci95[0] <= g.ci95[1], "{g:?}");
+    for (c, gain) in cv.gains.iter().filter(|(c, _)| *c != "overall") {
+        assert!((gain.this - cv.tuned[c]).abs() < 1e-9, "{c}: {gain:?}");
+        assert!((gain.baseline - cv.base[c]).abs() < 1e-9, "{c}: {gain:?}");
+    }
     assert!(cross_validate(&base, &logs[..1], 2, &options(5), &ProgressBar::hidden()).is_err());
 }
 
@@ -478,6 +489,14 @@ fn cli_tune_writes_a_config_that_track_accepts() {
     let text = common::probmot_ok(&args[..args.len() - 1]);
     let text = String::from_utf8_lossy(&text.stdout);
     assert!(text.contains("training trajectories"), "{text}");
+    assert!(text.contains("paired 95 % bootstrap interval"), "{text}");
+    let overall_gain =
+        (text.lines()).find(|l| l.trim_start().starts_with("overall") && l.contains('['));
+    let verdicts = ["beyond the noise", "within the noise"];
+    assert!(
+        overall_gain.is_some_and(|l| verdicts.iter().any(|v| l.contains(v))),
+        "{text}"
+    );
     let fold_rows = text
         .lines()
         .filter(|l| l.starts_with("fold ") && !l.contains("overall"));

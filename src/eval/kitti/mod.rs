@@ -63,6 +63,7 @@ pub use prepare::ClassTruth;
 use tracks::SeqTracks;
 pub use tracks::{row_kind, scene_rows, RowKind, Skip, TrackRow};
 
+pub mod curve;
 mod munkres;
 mod pass;
 mod prepare;

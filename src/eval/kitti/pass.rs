@@ -19,6 +19,8 @@ use super::munkres::Munkres;
 use super::prepare::{ClassTruth, GtObj, TruthSeq};
 use super::tracks::{Edge, SeqTracks, TrObj};
 use super::{MeanScores, MAX_COST};
+use crate::eval::bootstrap::curve::UnitCounts;
+use crate::eval::bootstrap::Units;
 use crate::eval::events::{Collector, MarkKind};
 
 /// Counts and derived metrics of one pass over the data at one threshold.
@@ -101,6 +103,16 @@ impl FrameMemo {
         }
         t.modp_sum += self.modp;
     }
+
+    /// Adds the frame's counts to its resampling unit's.
+    fn apply_unit(&self, u: &mut UnitCounts) {
+        let c = &self.counts;
+        u.gt += c[0] as f64;
+        u.tp += c[4] as f64;
+        u.fp += c[6] as f64;
+        u.fn_ += c[7] as f64;
+        u.sim += self.ious.iter().sum::<f64>();
+    }
 }
 
 /// "Not kept" in [`Scratch::col_of`].
@@ -129,6 +141,8 @@ struct Scratch {
     /// Along one trajectory: matched track ids and ignore flags.
     traj_ids: Vec<i64>,
     traj_ignored: Vec<bool>,
+    /// The frames of a scene's identity switches, in counting order.
+    switch_frames: Vec<u32>,
 }
 
 /// One class's tracks against its truth, and the state the reference carries from one
@@ -138,6 +152,8 @@ pub(super) struct ClassEval<'a> {
     pub seqs: Vec<SeqTracks>,
     /// Where the decisions of a pass are recorded (`eval --events`), when set.
     pub log: Option<Collector>,
+    /// With resampling units (`eval --bootstrap`): each unit's counts of the last pass.
+    pub units: Option<(&'a Units, Vec<UnitCounts>)>,
     /// Per scene, per frame: its share of the last pass.
     memos: Vec<Vec<FrameMemo>>,
     scratch: Scratch,
@@ -161,6 +177,7 @@ impl<'a> ClassEval<'a> {
             truth,
             seqs,
             log: None,
+            units: None,
             memos: memos.collect(),
             scratch: Scratch::default(),
             means,
@@ -179,6 +196,9 @@ impl<'a> ClassEval<'a> {
     pub(super) fn pass(&mut self, threshold: f64, recall_point: f64, scores: bool) -> Pass {
         let mut r = Pass::default();
         let mut t = Tally::default();
+        if let Some((_, tally)) = self.units.as_mut() {
+            tally.iter_mut().for_each(|u| *u = UnitCounts::default());
+        }
         let s = &mut self.scratch;
         let first_pass = !self.averaged;
         self.averaged = true;
@@ -208,12 +228,21 @@ impl<'a> ClassEval<'a> {
                     match_frame((&f.gt, &mut *rows, edges), s, memo, scores);
                 }
                 memo.apply(&mut r, &mut t);
+                if let Some((units, tally)) = self.units.as_mut() {
+                    memo.apply_unit(&mut tally[units.unit(si, fi)]);
+                }
                 if let Some(log) = self.log.as_mut() {
                     record_frame(log, (si, fi), &f.gt, rows, s);
                 }
             }
             let log = self.log.as_mut().map(|l| (l, si));
+            s.switch_frames.clear();
             count_trajectories(truth, memos, s, (&mut r, &mut t), log);
+            if let Some((units, tally)) = self.units.as_mut() {
+                for &fi in &s.switch_frames {
+                    tally[units.unit(si, fi as usize)].ids += 1.0;
+                }
+            }
         }
         finish(r, &t, self.truth.n_gt_trajectories, recall_point)
     }
@@ -451,6 +480,7 @@ fn count_trajectories(
     mut log: Option<(&mut Collector, usize)>,
 ) {
     let (g, ign) = (&mut s.traj_ids, &mut s.traj_ignored);
+    let switches = &mut s.switch_frames;
     for rows in &seq.trajectories {
         let mut mark = |kind, f: usize, track: i64, previous: i64| {
             if let Some((log, si)) = log.as_mut() {
@@ -483,6 +513,7 @@ fn count_trajectories(
             }
             if last_id != g[f] && last_id != -1 && g[f] != -1 && g[f - 1] != -1 {
                 r.ids += 1;
+                switches.push(rows[f].0);
                 mark(MarkKind::Switch, f, g[f], last_id);
             }
             if f < n - 1 && g[f - 1] != g[f] && last_id != -1 && g[f] != -1 && g[f + 1] != -1 {

@@ -18,6 +18,7 @@ use crate::tracker::config::NUSCENES_CLASSES;
 use pass::{metrics_of, recall_thresholds, run_pass, run_pass_with, worst_metrics};
 use prepare::{class_view, prepare, ClassScene, Prepared};
 
+pub mod curve;
 mod pass;
 mod prepare;
 

@@ -6,6 +6,8 @@ use std::collections::{HashMap, HashSet};
 
 use super::prepare::ClassScene;
 use super::{Metrics, NuscenesParams};
+use crate::eval::bootstrap::curve::UnitCounts;
+use crate::eval::bootstrap::Units;
 use crate::eval::events::Collector;
 use crate::eval::mot_accumulator::{EventKind, MotAccumulator};
 use crate::eval::numpy_compat::{linspace_round12, np_interp, np_sum};
@@ -23,6 +25,8 @@ pub(super) struct Pass {
     objects: Vec<Vec<(u64, bool)>>,
     /// Scores of matched predictions (only collected without threshold).
     pub(super) match_scores: Vec<f64>,
+    /// Per resampling unit, its counts (with units only).
+    pub(super) units: Vec<UnitCounts>,
 }
 
 /// `sklearn.metrics.pairwise.euclidean_distances` for 2-d points (dot-product expansion).
@@ -43,9 +47,23 @@ pub(super) fn run_pass_with(
     scenes: &[ClassScene],
     threshold: Option<f64>,
     p: &NuscenesParams,
+    log: Option<&mut Collector>,
+) -> Pass {
+    run_pass_units(scenes, threshold, p, log, None)
+}
+
+/// [`run_pass_with`], also counting per resampling unit when `units` are given.
+pub(super) fn run_pass_units(
+    scenes: &[ClassScene],
+    threshold: Option<f64>,
+    p: &NuscenesParams,
     mut log: Option<&mut Collector>,
+    units: Option<&Units>,
 ) -> Pass {
     let mut pass = Pass::default();
+    if let Some(u) = units {
+        pass.units = vec![UnitCounts::default(); u.count];
+    }
     let mut events = Vec::new();
     let mut dist = Vec::new();
     let mut oids: Vec<u64> = Vec::new();
@@ -81,7 +99,11 @@ pub(super) fn run_pass_with(
             let frame = pass.frames;
             pass.frames += 1;
             matched_hids.clear();
+            let unit = units.map(|u| u.unit(si, fi));
             for e in &events {
+                if let Some(u) = unit {
+                    count_unit(&mut pass.units[u], e.kind, e.distance);
+                }
                 if let Some(log) = log.as_deref_mut() {
                     let truth = e.object.map(|i| g[i]);
                     let track = e.hypothesis.map(|j| (hids[j], hpos[j]));
@@ -127,6 +149,16 @@ pub(super) fn run_pass_with(
         }
     }
     pass
+}
+
+/// Adds one event of the accumulator to its unit's counts.
+fn count_unit(u: &mut UnitCounts, kind: EventKind, distance: f64) {
+    match kind {
+        EventKind::Match => (u.tp, u.sim) = (u.tp + 1.0, u.sim + distance),
+        EventKind::Switch => (u.ids, u.sim) = (u.ids + 1.0, u.sim + distance),
+        EventKind::Miss => u.fn_ += 1.0,
+        EventKind::FalsePositive => u.fp += 1.0,
+    }
 }
 
 pub(super) fn metrics_of(pass: &Pass, p: &NuscenesParams) -> Metrics {
