@@ -15,6 +15,7 @@ pub mod track;
 pub mod track_options;
 mod track_order;
 pub mod track_outputs;
+mod track_plan;
 pub mod track_session;
 mod track_warnings;
 pub mod tracks_format;

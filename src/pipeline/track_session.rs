@@ -5,13 +5,14 @@
 //! channels of [`ExtraOutputs`]). [`super::track::track_file`] is the file adapter around it.
 
 use std::collections::{BTreeMap, HashMap, HashSet, VecDeque};
+use std::ops::ControlFlow;
 
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
 
 use super::detections::{convert, describe_unknown_labels, reject, InputCounters, Origin};
 use super::ego::EgoMotion;
-use super::frame_schedule::Schedule;
+use super::frame_schedule::{Replan, Schedule};
 use super::progress::Progress;
 use super::track_options::{TrackOptions, TrackSummary};
 use super::track_order::LogTimeOrder;
@@ -129,19 +130,26 @@ pub struct TrackSession<'a, S: RecordSink> {
 
 impl<S: RecordSink> TrackSession<'_, S> {
     /// Takes the next record of the input (in file order); `bytes_read` is how far the reader
-    /// is, for the progress callback.
-    pub fn on_record(&mut self, rec: Record<'_>, bytes_read: u64) -> Result<()> {
+    /// is, for the progress callback. A [`Replan`] says the single pass cannot go on: the
+    /// caller restarts the output and tracks in two passes.
+    pub fn on_record(&mut self, rec: Record<'_>, bytes_read: u64) -> Result<ControlFlow<Replan>> {
         let file = self.file;
         match rec {
             Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
             Record::Schema { header, data } if header.id != 0 => {
-                self.schedule.on_schema(header.id)?;
+                if let replan @ ControlFlow::Break(_) = self.schedule.on_schema(header.id) {
+                    return Ok(replan);
+                }
                 self.out
                     .add_schema_with_id(header.id, &header.name, &header.encoding, &data)
                     .with_context(|| format!("{file}: copying schema {}", header.id))?;
             }
             Record::Channel(c) => {
-                self.schedule.on_channel(c.id, &c.topic, c.schema_id)?;
+                if let replan @ ControlFlow::Break(_) =
+                    self.schedule.on_channel(c.id, &c.topic, c.schema_id)
+                {
+                    return Ok(replan);
+                }
                 self.out
                     .add_channel_with_id(
                         c.id,
@@ -169,7 +177,11 @@ impl<S: RecordSink> TrackSession<'_, S> {
                         .with_context(|| undecodable(file, topic, &header, &source))?;
                     check_count(msg.len(), self.opts, file, topic, &header)?;
                     let stamp = msg.stamp;
-                    self.schedule.on_message(header.channel_id, stamp)?;
+                    if let replan @ ControlFlow::Break(_) =
+                        self.schedule.on_message(header.channel_id, stamp)
+                    {
+                        return Ok(replan);
+                    }
                     // (With two passes, the first has counted them.)
                     if self.schedule.is_streaming() {
                         let backwards = &mut self.summary.stamps_backwards;
@@ -218,7 +230,7 @@ impl<S: RecordSink> TrackSession<'_, S> {
             }
             _ => {}
         }
-        Ok(())
+        Ok(ControlFlow::Continue(()))
     }
 
     /// Called after the last record: tracks the frames still pending (streaming), or checks
