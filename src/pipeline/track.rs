@@ -20,13 +20,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
-use super::detections::InputCounters;
 use super::ego::EgoMotion;
 use super::frame_schedule::{Replan, Schedule};
 use super::progress::Progress;
 use super::track_outputs::{ExtraOutputs, ExtraRequest};
 use super::track_plan::{scan, PassPlan, Scan};
-use super::track_session::{FrameState, TrackSession};
+use super::track_records::RecordSession;
+use super::track_session::{SessionOptions, TrackSession};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::background::BackgroundOutput;
 use crate::mcapio::reader::{read_records_while, McapInput};
@@ -34,7 +34,6 @@ use crate::mcapio::sink::RecordSink;
 use crate::mcapio::writer::{check_output_path, OutputOptions};
 use crate::msgs::detection_source::{self, DetectionSource};
 pub use crate::msgs::track_encode::{fill_track3d, to_track3d};
-use crate::tracker::Tracker;
 use crate::transforms::TransformCollector;
 
 pub use super::track_options::{
@@ -345,24 +344,26 @@ fn run_pass<R: Read + Seek, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     let mut out = out.start(profile)?;
     add_tracks_channels(&mut out, opts, ids, format, &extra)?;
 
-    let mut session = TrackSession {
+    let options = SessionOptions {
+        name: file.clone(),
+        strict: opts.strict,
+    };
+    let mut tracking = TrackSession::new(opts.config.clone(), options)?;
+    tracking.topics = topics;
+    let mut session = RecordSession {
         opts,
         file: &file,
-        topics,
         det_channels,
         ids,
         format,
         out,
         extra,
         ego,
-        tracker: Tracker::new(opts.config.clone())?,
-        counters: InputCounters::default(),
+        session: tracking,
         schedule,
         last_stamp: HashMap::new(),
         pending: BTreeMap::new(),
         next_frame: 0,
-        intervals: super::track_warnings::FrameIntervals::default(),
-        frame_state: FrameState::new(&opts.config),
         order: Default::default(),
         summary,
         progress,

@@ -14,7 +14,7 @@ use mcap::records::Record;
 use super::frame_schedule::{Schedule, Streaming};
 use super::progress::Progress;
 use super::track_options::TrackOptions;
-use super::track_session::{check_count, note_stamp, undecodable};
+use super::track_records::{check_count, note_stamp, undecodable};
 use crate::mcapio::reader::{read_records_from, read_summary_records_from, McapInput};
 use crate::msgs;
 use crate::msgs::detection_frame::stamp_or_log_time;
