@@ -5,38 +5,7 @@
 //! the same session from the records of an MCAP file (its adapter adds the reading, the
 //! reordering of messages by stamp, ego motion and the output channels).
 //!
-//! ```
-//! use probmot::msgs::detection_frame::{DetectionBox, DetectionFrame};
-//! use probmot::pipeline::track_session::{SessionOptions, TrackSession};
-//! use probmot::tracker::{Box3, TrackerConfig};
-//!
-//! let config = TrackerConfig::preset("nuscenes-chiu2019")?;
-//! let mut session = TrackSession::new(config, SessionOptions::default())?;
-//! let mut ids = std::collections::BTreeSet::new();
-//! for i in 0..10u32 {
-//!     // One car driving along x at 10 m/s, seen every 0.1 s.
-//!     let car = DetectionBox {
-//!         index: 0,
-//!         bbox: Box3 { center: [f64::from(i), 0.0, 0.0], yaw: 0.0, size: [4.0, 2.0, 1.5] },
-//!         label: "car".into(),
-//!         score: 0.9,
-//!         velocity: None,
-//!         image_box: None,
-//!         attributes: Default::default(),
-//!         needs_own_entry: false,
-//!     };
-//!     let stamp = 1_000_000_000 + u64::from(i) * 100_000_000;
-//!     let frame = DetectionFrame { stamp, frame_id: "map".into(), boxes: vec![car], rejected: vec![] };
-//!     session.track(frame)?;
-//!     while let Some(tracks) = session.next_frame() {
-//!         ids.extend(tracks.tracks.iter().map(|t| t.id));
-//!     }
-//! }
-//! let summary = session.finish();
-//! assert_eq!(summary.frames, 10);
-//! assert_eq!(ids.len(), 1, "one car, one track: {ids:?}");
-//! # Ok::<(), anyhow::Error>(())
-//! ```
+//! The crate documentation ([`crate`]) and `examples/track_in_code.rs` show it in use.
 
 use anyhow::Result;
 
