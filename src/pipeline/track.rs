@@ -45,9 +45,9 @@ pub use super::track_options::{
 ///
 /// A file is read once when its summary section lists its schemas and channels (and, with
 /// several detection channels, their message counts), it has no transform channels, and its
-/// detection stamps never go back to a frame already tracked: a frame is then complete once
-/// every detection channel has moved past its stamp. Otherwise, or as soon as such a stamp
-/// turns up, the file is read twice (the first pass learns every frame's stamp and message
+/// detection stamps never go back to a frame already tracked (nor lie over a day from their
+/// message's log_time): a frame is then complete once every detection channel has moved past
+/// its stamp. Otherwise, or as soon as such a stamp turns up, the file is read twice (the first pass learns every frame's stamp and message
 /// count). Both give the same tracks.
 pub fn track_file(
     input: &Path,

@@ -2,8 +2,8 @@
 //! when the summary section lists every schema and channel (and, with several detection
 //! channels, their message counts) and there is no transform channel; else twice, a first pass
 //! ([`scan`]) learning every frame's stamp and message count. What the plan cannot know (a stamp
-//! going back to a frame already tracked) is a [`super::frame_schedule::Replan`] of the single
-//! pass, not an error.
+//! going back to a frame already tracked, or over a day from its log_time) is a
+//! [`super::frame_schedule::Replan`] of the single pass, not an error.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::io::{Read, Seek};

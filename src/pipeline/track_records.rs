@@ -158,47 +158,10 @@ impl<S: RecordSink> RecordSession<'_, S> {
                     })?;
                 self.summary.messages_copied += 1;
                 if let Some(&(source, topic_idx)) = self.det_channels.get(&header.channel_id) {
-                    let topic = &self.session.topics[topic_idx];
-                    let mut msg = source
-                        .decode_frame(&data, header.log_time)
-                        .with_context(|| undecodable(file, topic, &header, &source))?;
-                    check_count(msg.len(), self.opts, file, topic, &header)?;
-                    let name = || describe_message(file, topic, &header);
-                    let (id, strict) = (header.channel_id, self.opts.strict);
-                    match (self.stamps).keep(id, msg.stamp, header.log_time, strict, name)? {
-                        ControlFlow::Continue(true) => {}
-                        ControlFlow::Continue(false) => return Ok(ControlFlow::Continue(())),
-                        ControlFlow::Break(replan) => return Ok(ControlFlow::Break(replan)),
-                    }
-                    let stamp = msg.stamp;
-                    if let replan @ ControlFlow::Break(_) =
-                        self.schedule.on_message(header.channel_id, stamp)
-                    {
+                    let step = self.on_detection(&header, &data, source, topic_idx)?;
+                    if let replan @ ControlFlow::Break(_) = step {
                         return Ok(replan);
                     }
-                    // (With two passes, the first has counted them.)
-                    if self.schedule.is_streaming() {
-                        let backwards = &mut self.summary.stamps_backwards;
-                        note_stamp(&mut self.last_stamp, &header, stamp, topic, backwards);
-                    }
-                    self.ego
-                        .to_fixed(&mut msg, || describe_message(file, topic, &header))?;
-                    let frame = self.pending.entry(stamp).or_default();
-                    let old = frame.iter().map(|p| p.log_time).max();
-                    let new = old.map_or(header.log_time, |t| t.max(header.log_time));
-                    frame.push(Pending {
-                        ordinal: self.summary.detection_messages,
-                        log_time: header.log_time,
-                        topic_idx,
-                        msg,
-                    });
-                    self.order.frame_time(old, new);
-                    self.summary.detection_messages += 1;
-                    while let Some(stamp) = self.schedule.ready(&self.pending, self.next_frame) {
-                        self.track_frame(stamp, self.schedule.frames())?;
-                        self.schedule.tracked(stamp);
-                    }
-                    self.order.release(&mut self.out)?;
                 }
                 if self.summary.messages_copied.is_multiple_of(256) {
                     (self.progress)(Progress::Position(self.base + bytes_read));
@@ -224,6 +187,58 @@ impl<S: RecordSink> RecordSession<'_, S> {
             }
             _ => {}
         }
+        Ok(ControlFlow::Continue(()))
+    }
+
+    /// A detection message of `source` on the topic `topic_idx`: decoded, checked, moved into
+    /// the fixed frame and held until its frame is complete; the frames it completes are tracked.
+    fn on_detection(
+        &mut self,
+        header: &MessageHeader,
+        data: &[u8],
+        source: DetectionSource,
+        topic_idx: usize,
+    ) -> Result<ControlFlow<Replan>> {
+        let file = self.file;
+        let topic = &self.session.topics[topic_idx];
+        let mut msg = source
+            .decode_frame(data, header.log_time)
+            .with_context(|| undecodable(file, topic, header, &source))?;
+        check_count(msg.len(), self.opts, file, topic, header)?;
+        let name = || describe_message(file, topic, header);
+        let (id, strict) = (header.channel_id, self.opts.strict);
+        match (self.stamps).keep(id, msg.stamp, header.log_time, strict, name)? {
+            ControlFlow::Continue(true) => {}
+            ControlFlow::Continue(false) => return Ok(ControlFlow::Continue(())),
+            ControlFlow::Break(replan) => return Ok(ControlFlow::Break(replan)),
+        }
+        let stamp = msg.stamp;
+        if let replan @ ControlFlow::Break(_) = self.schedule.on_message(header.channel_id, stamp) {
+            return Ok(replan);
+        }
+        // (With two passes, the first has counted them.)
+        if self.schedule.is_streaming() {
+            let backwards = &mut self.summary.stamps_backwards;
+            note_stamp(&mut self.last_stamp, header, stamp, topic, backwards);
+        }
+        self.ego
+            .to_fixed(&mut msg, || describe_message(file, topic, header))?;
+        let frame = self.pending.entry(stamp).or_default();
+        let old = frame.iter().map(|p| p.log_time).max();
+        let new = old.map_or(header.log_time, |t| t.max(header.log_time));
+        frame.push(Pending {
+            ordinal: self.summary.detection_messages,
+            log_time: header.log_time,
+            topic_idx,
+            msg,
+        });
+        self.order.frame_time(old, new);
+        self.summary.detection_messages += 1;
+        while let Some(stamp) = self.schedule.ready(&self.pending, self.next_frame) {
+            self.track_frame(stamp, self.schedule.frames())?;
+            self.schedule.tracked(stamp);
+        }
+        self.order.release(&mut self.out)?;
         Ok(ControlFlow::Continue(()))
     }
 
