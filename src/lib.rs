@@ -42,6 +42,44 @@
 //! assert_eq!(ids.len(), 6, "{ids:?}");
 //! # Ok::<(), anyhow::Error>(())
 //! ```
+//!
+//! Embedding the tracking in a program of your own (a ROS node, a test harness), with no MCAP
+//! file: a [`pipeline::track_session::TrackSession`] takes frames of detections made in code and
+//! hands out each frame's tracks (`cargo run --example track_in_code` is a longer example):
+//!
+//! ```
+//! use probmot::msgs::detection_frame::{DetectionBox, DetectionFrame};
+//! use probmot::pipeline::track_session::{SessionOptions, TrackSession};
+//! use probmot::tracker::{Box3, TrackerConfig};
+//!
+//! let config = TrackerConfig::preset("nuscenes-chiu2019")?;
+//! let mut session = TrackSession::new(config, SessionOptions::default())?;
+//! let mut ids = std::collections::BTreeSet::new();
+//! for i in 0..10u32 {
+//!     // One car driving along x at 4 m/s, seen every 0.5 s (the preset's frame rate).
+//!     let car = DetectionBox {
+//!         index: 0,
+//!         bbox: Box3 { center: [2.0 * f64::from(i), 0.0, 0.0], yaw: 0.0, size: [4.0, 2.0, 1.5] },
+//!         label: "car".into(),
+//!         score: 0.9,
+//!         velocity: None,
+//!         image_box: None,
+//!         attributes: Default::default(),
+//!         needs_own_entry: false,
+//!     };
+//!     let stamp = 1_000_000_000 + u64::from(i) * 500_000_000;
+//!     let frame = DetectionFrame { stamp, frame_id: "map".into(), boxes: vec![car], rejected: vec![] };
+//!     session.track(frame)?;
+//!     while let Some(tracks) = session.next_frame() {
+//!         ids.extend(tracks.tracks.iter().map(|t| t.id));
+//!     }
+//! }
+//! let summary = session.finish();
+//! assert_eq!((summary.frames, summary.tracks_confirmed), (10, 1));
+//! assert_eq!(ids.len(), 1, "one car, one track: {ids:?}");
+//! assert!(summary.warnings.is_empty(), "{:?}", summary.warnings);
+//! # Ok::<(), anyhow::Error>(())
+//! ```
 
 #![warn(missing_docs)]
 

@@ -1,5 +1,7 @@
 //! Shared harness code of the fuzz targets (see `fuzz/README.md`).
 
+pub mod read_path;
+
 use std::collections::BTreeMap;
 
 use mcap::records::{Channel, MessageHeader};

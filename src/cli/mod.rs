@@ -114,3 +114,15 @@ pub fn show_progress(quiet: bool) -> bool {
     use std::io::IsTerminal;
     !quiet && std::io::stderr().is_terminal()
 }
+
+/// Shows a progress event of the library on an indicatif bar.
+pub fn show_on_bar(bar: &indicatif::ProgressBar, e: probmot::pipeline::progress::Progress<'_>) {
+    use probmot::pipeline::progress::Progress;
+    match e {
+        Progress::Length(n) => bar.set_length(n),
+        Progress::Position(n) => bar.set_position(n),
+        Progress::Advance(n) => bar.inc(n),
+        Progress::Message(m) => bar.set_message(m.to_string()),
+        Progress::Done => bar.set_position(bar.length().unwrap_or(0)),
+    }
+}

@@ -10,7 +10,6 @@ use probmot::mcapio::destination::{destination, Destination};
 use probmot::mcapio::writer::{check_output_path, OutputCompression};
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::many::{out_dir_outputs, track_many};
-use probmot::pipeline::progress::Progress;
 use probmot::pipeline::rosbag_dir;
 use probmot::pipeline::track::{
     track_file, SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS,
@@ -302,7 +301,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
                 Some(mcap) => (mcap.clone(), rosbag_dir::prepare_output(out, mcap)?),
                 None => (a.inputs[0].clone(), out.clone()),
             };
-            let s = track_file(&input, &out, &opts, &|e| show(&bar, e));
+            let s = track_file(&input, &out, &opts, &|e| super::show_on_bar(&bar, e));
             if let (Err(_), Some(dir)) = (&s, out.parent().filter(|_| bag.is_some())) {
                 // Leave no empty bag directory behind (fails harmlessly when not empty).
                 let _ = std::fs::remove_dir(dir);
@@ -419,14 +418,4 @@ fn run_many(
     } else {
         ExitCode::SUCCESS
     })
-}
-
-/// Shows a progress event of the library on the bar.
-fn show(bar: &ProgressBar, e: Progress<'_>) {
-    match e {
-        Progress::Length(n) => bar.set_length(n),
-        Progress::Position(n) => bar.set_position(n),
-        Progress::Message(m) => bar.set_message(m.to_string()),
-        Progress::Done => bar.set_position(bar.length().unwrap_or(0)),
-    }
 }

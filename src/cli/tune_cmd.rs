@@ -487,7 +487,9 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     };
     let cv = if cv_folds >= 2 {
         pb.set_message("cross-validating");
-        Some(cross_validate(base, &logs, cv_folds, &o, &pb)?)
+        Some(cross_validate(base, &logs, cv_folds, &o, &|e| {
+            super::show_on_bar(&pb, e)
+        })?)
     } else {
         None
     };
@@ -497,7 +499,7 @@ fn run_in_pool(a: &TuneArgs, base: &TrackerConfig) -> Result<ExitCode> {
     if a.keep_base_on_loss {
         final_options.keep_base = losses.iter().flatten().map(|l| l.label.clone()).collect();
     }
-    let t = tune::tune(base, &all, &final_options, &pb)?;
+    let t = tune::tune(base, &all, &final_options, &|e| super::show_on_bar(&pb, e))?;
     pb.finish_and_clear();
     let mut cfg = t.tuned.clone();
     cfg.name = format!(

@@ -79,6 +79,9 @@ impl Batch {
 /// [`BackgroundOutput::commit`]. Dropped without a commit, it leaves no file.
 pub struct BackgroundOutput {
     mode: Mode,
+    /// What it was made with, to start again ([`BackgroundOutput::restart`]): the destination,
+    /// the options and whether it has a writer thread.
+    made_with: (PathBuf, OutputOptions, bool),
     /// The batch being filled (unused inline).
     batch: Batch,
     /// Ids added so far, to refuse unknown ones at the call.
@@ -111,6 +114,7 @@ impl BackgroundOutput {
     /// writer thread, which also compresses the chunks.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
         let out = AtomicOutput::create(dest, opts)?;
+        let made_with = (dest.to_path_buf(), opts.clone(), true);
         let dest: PathBuf = dest.to_path_buf();
         let (tx, rx) = mpsc::sync_channel::<Option<Batch>>(BATCHES);
         let (free_tx, free) = mpsc::sync_channel::<Batch>(BATCHES);
@@ -118,12 +122,13 @@ impl BackgroundOutput {
             .name("probmot-writer".into())
             .spawn(move || write_batches(out, rx, free_tx, &dest))
             .context("cannot start the output writer thread")?;
-        Ok(Self::with_mode(Mode::Thread {
+        let mode = Mode::Thread {
             tx: Some(tx),
             free,
             batches: 1,
             thread: Some(thread),
-        }))
+        };
+        Ok(Self::with_mode(mode, made_with))
     }
 
     /// The same interface without the thread: every call is written on the caller's thread, as
@@ -131,15 +136,20 @@ impl BackgroundOutput {
     /// each core already has a file of its own.
     pub fn create_inline(dest: &Path, opts: &OutputOptions) -> Result<Self> {
         let out = AtomicOutput::create(dest, opts)?;
-        Ok(Self::with_mode(Mode::Inline {
+        let mode = Mode::Inline {
             out: Box::new(out),
             dest: dest.to_path_buf(),
-        }))
+        };
+        Ok(Self::with_mode(
+            mode,
+            (dest.to_path_buf(), opts.clone(), false),
+        ))
     }
 
-    fn with_mode(mode: Mode) -> Self {
+    fn with_mode(mode: Mode, made_with: (PathBuf, OutputOptions, bool)) -> Self {
         BackgroundOutput {
             mode,
+            made_with,
             batch: Batch::default(),
             schemas: HashSet::new(),
             channels: HashSet::new(),
@@ -214,6 +224,28 @@ impl BackgroundOutput {
     /// Like `mcap::Writer::write_metadata`.
     pub fn write_metadata(&mut self, m: &Metadata) -> Result<()> {
         self.push(&[], |_| Op::Metadata(m.clone()))
+    }
+
+    /// Drops what was written (the partial file goes, as on a drop) and starts the output again,
+    /// empty, with the same destination and options.
+    pub fn restart(&mut self) -> Result<()> {
+        self.abandon();
+        let (dest, opts, threaded) = self.made_with.clone();
+        *self = if threaded {
+            Self::create(&dest, &opts)?
+        } else {
+            Self::create_inline(&dest, &opts)?
+        };
+        Ok(())
+    }
+
+    /// Stops writing without a commit: hangs up and waits for the writer thread; the partial
+    /// file is deleted with the writer.
+    fn abandon(&mut self) {
+        if let Mode::Thread { tx, thread, .. } = std::mem::replace(&mut self.mode, Mode::Done) {
+            drop(tx);
+            let _ = join(thread);
+        }
     }
 
     /// Writes what is left, finishes the MCAP (summary, footer), syncs it and renames it over
@@ -301,11 +333,7 @@ fn join(thread: Option<JoinHandle<Result<()>>>) -> Result<()> {
 
 impl Drop for BackgroundOutput {
     fn drop(&mut self) {
-        // Without a commit: hang up and wait; the temporary file is deleted with the writer.
-        if let Mode::Thread { tx, thread, .. } = std::mem::replace(&mut self.mode, Mode::Done) {
-            drop(tx);
-            let _ = join(thread);
-        }
+        self.abandon();
     }
 }
 

@@ -14,5 +14,5 @@ mod validate;
 pub mod writer;
 
 pub use labelled_box::LabelledBox;
-pub use reader::{read_records, ReadStats};
+pub use reader::{read_records, read_records_from, McapInput, ReadStats};
 pub use writer::{AtomicOutput, OutputOptions};

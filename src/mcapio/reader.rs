@@ -1,5 +1,6 @@
 //! Streams every record of an MCAP file in file order with bounded memory: the sans-I/O
-//! `mcap::sans_io::LinearReader` fed from a plain `File`, decompressing one chunk at a time.
+//! `mcap::sans_io::LinearReader` fed from any byte source ([`McapInput`]: a file, bytes in
+//! memory), decompressing one chunk at a time. The functions taking a path are thin adapters.
 //!
 //! A linear read is used for every file because it is the one read that is correct for all valid
 //! files: files without chunks, without a summary, or whose summary omits schema and channel
@@ -19,7 +20,8 @@
 //! Every record is checked by the structural validation (`validate.rs`) before it is handed on.
 
 use std::fs::File;
-use std::io::Read;
+use std::io::{Cursor, Read, Seek, SeekFrom};
+use std::ops::ControlFlow;
 use std::path::Path;
 
 use anyhow::{Context, Result};
@@ -40,13 +42,67 @@ pub struct ReadStats {
     pub bytes_read: u64,
 }
 
+/// An MCAP input: any byte source (a file, bytes in memory, a socket buffered into a cursor)
+/// with the name its errors give it.
+pub struct McapInput<R> {
+    /// Named in errors, e.g. the path of the file.
+    pub name: String,
+    /// The bytes of the MCAP file.
+    pub source: R,
+}
+
+impl McapInput<File> {
+    /// Opens the file at `path`, named by its path.
+    pub fn open(path: &Path) -> Result<Self> {
+        let source = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+        Ok(McapInput {
+            name: path.display().to_string(),
+            source,
+        })
+    }
+}
+
+impl<'a> McapInput<Cursor<&'a [u8]>> {
+    /// The MCAP file held in `bytes`, named `name` in errors.
+    pub fn from_bytes(name: impl Into<String>, bytes: &'a [u8]) -> Self {
+        McapInput {
+            name: name.into(),
+            source: Cursor::new(bytes),
+        }
+    }
+}
+
+impl<R: Read + Seek> McapInput<R> {
+    /// Goes back to the start of the input, for another pass.
+    pub fn rewind(&mut self) -> Result<()> {
+        (self.source.rewind())
+            .with_context(|| format!("cannot go back to the start of {}", self.name))
+    }
+}
+
 /// Calls `f` for each record of `path` in file order (records inside chunks are yielded
 /// individually). Chunk CRCs are checked. Errors name the file and the byte offset reached.
-pub fn read_records(
-    path: &Path,
+pub fn read_records(path: &Path, f: impl FnMut(Record<'_>, ReadStats) -> Result<()>) -> Result<()> {
+    read_records_from(&mut McapInput::open(path)?, f)
+}
+
+/// [`read_records`] over any input, from where its source is (its start, when new).
+pub fn read_records_from<R: Read>(
+    input: &mut McapInput<R>,
     mut f: impl FnMut(Record<'_>, ReadStats) -> Result<()>,
 ) -> Result<()> {
-    let mut file = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    read_records_while(input, |rec, stats| f(rec, stats).map(ControlFlow::Continue))
+}
+
+/// [`read_records_from`], stopping early (without an error) when `f` says
+/// [`ControlFlow::Break`].
+pub fn read_records_while<R: Read>(
+    input: &mut McapInput<R>,
+    mut f: impl FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>>,
+) -> Result<()> {
+    // Errors show the input's name like a path.
+    let path = Path::new(input.name.as_str());
+    let file = &mut input.source;
     let options = LinearReaderOptions::default()
         .with_emit_chunks(true)
         .with_record_length_limit(usize::try_from(size_limit()).unwrap_or(usize::MAX));
@@ -110,11 +166,15 @@ pub fn read_records(
                     validator
                         .check(&record, here)
                         .map_err(|e| invalid(path, e))?;
-                    f(record, stats)?;
+                    if f(record, stats)?.is_break() {
+                        return Ok(());
+                    }
                     continue;
                 };
                 let (buf, v) = (&mut chunk_buf, &mut validator);
-                read_chunk(path, at, &header, &data, buf, v, stats, &mut f)?;
+                if read_chunk(path, at, &header, &data, buf, v, stats, &mut f)?.is_break() {
+                    return Ok(());
+                }
             }
         }
     }
@@ -133,9 +193,10 @@ fn read_chunk(
     buf: &mut Vec<u8>,
     validator: &mut Validator,
     stats: ReadStats,
-    f: &mut impl FnMut(Record<'_>, ReadStats) -> Result<()>,
-) -> Result<()> {
+    f: &mut impl FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>>,
+) -> Result<ControlFlow<()>> {
     let mut stopped = None;
+    let mut broke = false;
     let res = for_each_record(header, data, buf, |opcode, body, inner| {
         let record = parse_record(opcode, body).with_context(|| {
             format!("malformed record (opcode {opcode:#04x}) at byte {inner} of its records")
@@ -146,13 +207,23 @@ fn read_chunk(
             })
             .map_err(|e| invalid(path, e))
             .and_then(|()| f(record, stats));
-        step.map_err(|e| {
-            stopped = Some(e);
-            anyhow::anyhow!("stopped by the reader of the records")
-        })
+        match step {
+            Ok(ControlFlow::Continue(())) => Ok(()),
+            Ok(ControlFlow::Break(())) => {
+                broke = true;
+                Err(anyhow::anyhow!(
+                    "stopped early by the reader of the records"
+                ))
+            }
+            Err(e) => {
+                stopped = Some(e);
+                Err(anyhow::anyhow!("stopped by the reader of the records"))
+            }
+        }
     });
     match (res, stopped) {
-        (Ok(()), _) => Ok(()),
+        (Ok(()), _) => Ok(ControlFlow::Continue(())),
+        (Err(e), None) if broke && !e.is::<CrcMismatch>() => Ok(ControlFlow::Break(())),
         (Err(e), Some(caller)) if !e.is::<CrcMismatch>() => Err(caller),
         (Err(e), _) => Err(e.context(format!("{}: malformed chunk at byte {at}", path.display()))),
     }
@@ -183,9 +254,15 @@ pub fn has_metadata(path: &Path, name: &str) -> Option<bool> {
 /// linear read then reports on), or larger than 64 MiB. Also the header record at the start of
 /// the file. Reads only the start and the end of the file.
 pub fn read_summary_records(path: &Path) -> Option<(Record<'static>, Vec<Record<'static>>)> {
-    use std::io::{Seek, SeekFrom};
-    let mut file = File::open(path).ok()?;
-    let size = file.metadata().ok()?.len();
+    read_summary_records_from(&mut File::open(path).ok()?)
+}
+
+/// [`read_summary_records`] of any seekable source (left at an unspecified position).
+pub fn read_summary_records_from<R: Read + Seek>(
+    file: &mut R,
+) -> Option<(Record<'static>, Vec<Record<'static>>)> {
+    let size = file.seek(SeekFrom::End(0)).ok()?;
+    file.seek(SeekFrom::Start(0)).ok()?;
     // The header: magic, opcode, length, body.
     let mut start = [0u8; 17];
     file.read_exact(&mut start).ok()?;

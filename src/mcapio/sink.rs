@@ -33,6 +33,9 @@ pub trait RecordSink {
     fn attach(&mut self, a: &mcap::Attachment) -> Result<()>;
     /// Writes a metadata record.
     fn write_metadata(&mut self, m: &Metadata) -> Result<()>;
+    /// Forgets everything written so far: the output starts again, empty (when a single pass
+    /// over the input turns out to need two).
+    fn restart(&mut self) -> Result<()>;
 }
 
 impl RecordSink for BackgroundOutput {
@@ -67,6 +70,10 @@ impl RecordSink for BackgroundOutput {
 
     fn write_metadata(&mut self, m: &Metadata) -> Result<()> {
         BackgroundOutput::write_metadata(self, m)
+    }
+
+    fn restart(&mut self) -> Result<()> {
+        BackgroundOutput::restart(self)
     }
 }
 
@@ -125,6 +132,11 @@ impl RecordSink for MemorySink {
 
     fn write_metadata(&mut self, m: &Metadata) -> Result<()> {
         self.records.push(SinkRecord::Metadata(m.name.clone()));
+        Ok(())
+    }
+
+    fn restart(&mut self) -> Result<()> {
+        self.records.clear();
         Ok(())
     }
 }

@@ -4,24 +4,23 @@
 //! in a single pass, a watermark over the detection channels ([`Schedule::Streaming`]): the
 //! earliest pending frame is complete once every channel has moved past its stamp or delivered
 //! all its messages. The watermark assumes no stamp goes back to a frame already tracked; one
-//! that does ends the single pass with [`NeedsTwoPasses`].
+//! that does stops the single pass with a [`Replan`], and the run goes on in two passes.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
+use std::ops::ControlFlow;
 
-use anyhow::Result;
-
-/// The single pass met a detection stamp at or before a frame it has already tracked (or a
-/// record its plan did not know); the file is tracked in two passes instead.
-#[derive(Debug)]
-pub struct NeedsTwoPasses;
-
-impl std::fmt::Display for NeedsTwoPasses {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str("the single pass cannot go on; the file needs two passes")
-    }
+/// Why the single pass cannot go on: the file is tracked in two passes instead (the plan made
+/// from the summary section was wrong about the file).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Replan {
+    /// A detection stamp at or before a frame already tracked.
+    StampBeforeTracked,
+    /// A schema or channel record the summary did not list (or listed otherwise).
+    UnlistedRecord,
+    /// A detection stamp over a day from its message's log_time: the far-stamp check needs the
+    /// median stamp of the file ([`super::stamp_check`]).
+    StampFarFromLogTime,
 }
-
-impl std::error::Error for NeedsTwoPasses {}
 
 /// How the tracking pass tells that a frame is complete.
 pub enum Schedule {
@@ -88,41 +87,41 @@ impl Schedule {
 
     /// A schema record of the data section: the single pass stops at one the summary did not
     /// list.
-    pub fn on_schema(&self, id: u16) -> Result<()> {
+    pub fn on_schema(&self, id: u16) -> ControlFlow<Replan> {
         match self {
             Schedule::Streaming(st) if !st.summary_schemas.contains(&id) => {
-                Err(NeedsTwoPasses.into())
+                ControlFlow::Break(Replan::UnlistedRecord)
             }
-            _ => Ok(()),
+            _ => ControlFlow::Continue(()),
         }
     }
 
     /// A channel record of the data section: the single pass stops at one that differs from
     /// the summary's.
-    pub fn on_channel(&self, id: u16, topic: &str, schema_id: u16) -> Result<()> {
+    pub fn on_channel(&self, id: u16, topic: &str, schema_id: u16) -> ControlFlow<Replan> {
         match self {
             Schedule::Streaming(st)
                 if st.summary_channels.get(&id).map(|(t, s)| (t.as_str(), *s))
                     != Some((topic, schema_id)) =>
             {
-                Err(NeedsTwoPasses.into())
+                ControlFlow::Break(Replan::UnlistedRecord)
             }
-            _ => Ok(()),
+            _ => ControlFlow::Continue(()),
         }
     }
 
     /// A message of detection channel `channel` with `stamp` has arrived; the single pass stops
     /// if the stamp's frame is already tracked.
-    pub fn on_message(&mut self, channel: u16, stamp: u64) -> Result<()> {
+    pub fn on_message(&mut self, channel: u16, stamp: u64) -> ControlFlow<Replan> {
         if let Schedule::Streaming(st) = self {
             if st.done.is_some_and(|d| stamp <= d) {
-                return Err(NeedsTwoPasses.into());
+                return ControlFlow::Break(Replan::StampBeforeTracked);
             }
             let c = st.channels.get_mut(&channel).expect("a detection channel");
             c.seen += 1;
             c.last = Some(stamp);
         }
-        Ok(())
+        ControlFlow::Continue(())
     }
 
     /// The stamp of the next frame to track if it is complete: `pending` holds the messages
@@ -170,7 +169,7 @@ mod tests {
         let mut tracked = Vec::new();
         let mut n = 0;
         for &(ch, stamp) in msgs {
-            if s.on_message(ch, stamp).is_err() {
+            if s.on_message(ch, stamp).is_break() {
                 return (tracked, true);
             }
             pending.entry(stamp).or_default().push(ch);
@@ -255,11 +254,12 @@ mod tests {
             HashMap::from([(1, ("/detections".to_string(), 3))]),
             HashSet::from([3]),
         ));
-        assert!(s.on_schema(3).is_ok() && s.on_schema(4).is_err());
-        assert!(s.on_channel(1, "/detections", 3).is_ok());
-        assert!(s.on_channel(1, "/other", 3).is_err());
-        assert!(s.on_channel(2, "/detections", 3).is_err());
+        let unlisted = ControlFlow::Break(Replan::UnlistedRecord);
+        assert!(s.on_schema(3).is_continue() && s.on_schema(4) == unlisted);
+        assert!(s.on_channel(1, "/detections", 3).is_continue());
+        assert_eq!(s.on_channel(1, "/other", 3), unlisted);
+        assert_eq!(s.on_channel(2, "/detections", 3), unlisted);
         let known = Schedule::Known(vec![]);
-        assert!(known.on_schema(4).is_ok() && known.on_channel(2, "/x", 0).is_ok());
+        assert!(known.on_schema(4).is_continue() && known.on_channel(2, "/x", 0).is_continue());
     }
 }

@@ -1,12 +1,13 @@
 //! `probmot info`: what a recording holds, per channel, and which channels probmot can use.
 
 use std::collections::{BTreeMap, HashMap};
+use std::io::Read;
 use std::path::Path;
 
 use anyhow::Result;
 use mcap::records::Record;
 
-use crate::mcapio::reader::read_records;
+use crate::mcapio::reader::{read_records_from, McapInput};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_source::{
     is_default_candidate, is_detection_schema, scenes_left_out, DetectionSource,
@@ -77,12 +78,20 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
 /// [`file_info`], telling `progress` the bytes read at each step. Memory stays bounded by the
 /// number of channels and labels, whatever the file's length.
 pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
+    file_info_from(&mut McapInput::open(path)?, progress)
+}
+
+/// [`file_info_progress`] of any input (a file, bytes in memory), named by its name.
+pub fn file_info_from<R: Read>(
+    input: &mut McapInput<R>,
+    progress: &dyn Fn(u64),
+) -> Result<FileSummary> {
     let mut st = InfoState {
         out: FileSummary {
-            path: path.display().to_string(),
+            path: input.name.clone(),
             ..Default::default()
         },
-        file: path.display().to_string(),
+        file: input.name.clone(),
         schemas: HashMap::new(),
         channels: BTreeMap::new(),
         sources: HashMap::new(),
@@ -90,7 +99,7 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
         transforms: TransformCollector::new(),
     };
     let mut reported = 0u64;
-    read_records(path, |rec, stats| {
+    read_records_from(input, |rec, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         match rec {

@@ -9,10 +9,11 @@
 //! (which keeps it inside that range); a stamp further off makes the file take two passes.
 
 use std::collections::HashMap;
+use std::ops::ControlFlow;
 
 use anyhow::{bail, Result};
 
-use super::frame_schedule::NeedsTwoPasses;
+use super::frame_schedule::Replan;
 
 /// How far a stamp may be from its message's log_time for the single pass to go on: 24 h.
 pub const NEAR_LOG_TIME_NS: u64 = 24 * 3600 * 1_000_000_000;
@@ -83,9 +84,9 @@ impl StampCheck {
         }
     }
 
-    /// Whether the message (`describe` names it) with `stamp` is tracked: `Ok(false)` skips a
-    /// stamp outside the window; `Err`: the same with `strict`, or the single pass meeting a
-    /// stamp far from its log_time ([`NeedsTwoPasses`]).
+    /// Whether the message (`describe` names it) with `stamp` is tracked: `false` skips a
+    /// stamp outside the window; `Err`: the same with `strict`; [`Replan::StampFarFromLogTime`]:
+    /// the single pass meeting a stamp far from its log_time.
     pub fn keep(
         &mut self,
         channel: u16,
@@ -93,13 +94,13 @@ impl StampCheck {
         log_time: u64,
         strict: bool,
         describe: impl Fn() -> String,
-    ) -> Result<bool> {
+    ) -> Result<ControlFlow<Replan, bool>> {
         let Some(w) = self.window else {
             if stamp.abs_diff(log_time) > NEAR_LOG_TIME_NS {
-                return Err(NeedsTwoPasses.into());
+                return Ok(ControlFlow::Break(Replan::StampFarFromLogTime));
             }
             self.note_shared(channel, stamp, log_time, &describe);
-            return Ok(true);
+            return Ok(ControlFlow::Continue(true));
         };
         if !w.contains(stamp) {
             if strict {
@@ -114,10 +115,10 @@ impl StampCheck {
             self.far += 1;
             self.first_far
                 .get_or_insert_with(|| format!("{} (stamp {stamp})", describe()));
-            return Ok(false);
+            return Ok(ControlFlow::Continue(false));
         }
         self.note_shared(channel, stamp, log_time, &describe);
-        Ok(true)
+        Ok(ControlFlow::Continue(true))
     }
 
     /// Counts a message whose stamp equals the previous one of its channel.
@@ -194,10 +195,15 @@ mod tests {
         let mut c = StampCheck::new(w);
         let name = || "a.mcap: topic /d, message at log_time 5".to_string();
         let first = "first: topic /d, message at log_time 5";
-        assert!(c.keep(1, t0, t0, false, name).unwrap());
-        assert!(!c.keep(1, u64::MAX, t0, false, name).unwrap());
-        assert!(c.keep(1, t0, t0, false, name).unwrap());
-        assert!(c.keep(2, t0, t0, false, name).unwrap(), "another channel");
+        let (kept, skipped) = (ControlFlow::Continue(true), ControlFlow::Continue(false));
+        assert_eq!(c.keep(1, t0, t0, false, name).unwrap(), kept);
+        assert_eq!(c.keep(1, u64::MAX, t0, false, name).unwrap(), skipped);
+        assert_eq!(c.keep(1, t0, t0, false, name).unwrap(), kept);
+        assert_eq!(
+            c.keep(2, t0, t0, false, name).unwrap(),
+            kept,
+            "another channel"
+        );
         let err = c.keep(1, u64::MAX, t0, true, name).unwrap_err().to_string();
         assert!(
             err.contains("log_time 5") && err.contains("--strict"),
@@ -221,8 +227,8 @@ mod tests {
         );
         // The single pass: a stamp a day off its log_time needs two passes.
         let mut single = StampCheck::new(None);
-        assert!(single.keep(1, t0, t0 + HOUR, false, name).unwrap());
-        let e = single.keep(1, t0 + 30 * HOUR, t0, false, name).unwrap_err();
-        assert!(e.downcast_ref::<NeedsTwoPasses>().is_some());
+        assert_eq!(single.keep(1, t0, t0 + HOUR, false, name).unwrap(), kept);
+        let far = single.keep(1, t0 + 30 * HOUR, t0, false, name).unwrap();
+        assert_eq!(far, ControlFlow::Break(Replan::StampFarFromLogTime));
     }
 }

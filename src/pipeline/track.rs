@@ -13,203 +13,41 @@
 //! its chunks are compressed on other threads while this one reads and tracks.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
+use std::io::{Read, Seek, SeekFrom};
+use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
-use mcap::records::Record;
 
-use super::detections::InputCounters;
 use super::ego::EgoMotion;
-use super::frame_schedule::{NeedsTwoPasses, Schedule, Streaming};
+use super::frame_schedule::{Replan, Schedule};
 use super::progress::Progress;
-use super::stamp_check::{LogSpan, StampCheck, StampWindow};
+use super::stamp_check::{StampCheck, StampWindow};
 use super::track_outputs::{ExtraOutputs, ExtraRequest};
-use super::track_session::{check_count, note_stamp, undecodable, FrameState, TrackSession};
+use super::track_plan::{scan, PassPlan, Scan};
+use super::track_records::RecordSession;
+use super::track_session::{SessionOptions, TrackSession};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::background::BackgroundOutput;
-use crate::mcapio::reader::{read_records, read_summary_records};
+use crate::mcapio::reader::{read_records_while, McapInput};
+use crate::mcapio::sink::RecordSink;
 use crate::mcapio::writer::{check_output_path, OutputOptions};
-use crate::msgs;
-use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::{self, DetectionSource};
 pub use crate::msgs::track_encode::{fill_track3d, to_track3d};
-use crate::tracker::Tracker;
 use crate::transforms::TransformCollector;
 
 pub use super::track_options::{
     SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS, SCENE_TOPIC_SUFFIX,
 };
 
-/// Result of the first pass.
-#[derive(Default)]
-struct Scan {
-    profile: String,
-    schema_ids: HashSet<u16>,
-    /// `(name, encoding, data)` of every schema.
-    schemas: HashMap<u16, (String, String, Vec<u8>)>,
-    channel_ids: HashSet<u16>,
-    det_channels: HashMap<u16, (DetectionSource, String)>,
-    /// `(stamp, ordinal)` of every detection message.
-    entries: Vec<(u64, u64)>,
-    stamps_backwards: BTreeMap<String, u64>,
-    topics: HashSet<String>,
-    /// Channels of a detection schema left out of the default selection, with the reason.
-    unreadable: BTreeMap<u16, String>,
-    /// Readable detection channels left out of the default selection (SceneUpdates beside other
-    /// detection channels), as warnings.
-    left_out: Vec<String>,
-    /// Channel of each entry of `entries`.
-    entry_channels: Vec<u16>,
-    /// log_times of the detection messages, and the stamps they may carry (two passes).
-    log_span: LogSpan,
-    stamp_window: Option<StampWindow>,
-    transforms: TransformCollector,
-}
-
-impl Scan {
-    /// A schema record.
-    fn on_schema(&mut self, header: mcap::records::SchemaHeader, data: &[u8]) {
-        self.schema_ids.insert(header.id);
-        let schema = (header.name, header.encoding, data.to_vec());
-        self.schemas.insert(header.id, schema);
-    }
-
-    /// A channel record: chooses it as detections (by topic, or by schema by default) and
-    /// registers it with the transform sources. Returns whether it is a transform source.
-    fn on_channel(
-        &mut self,
-        c: &mcap::records::Channel,
-        opts: &TrackOptions,
-        file: &str,
-    ) -> Result<bool> {
-        self.channel_ids.insert(c.id);
-        self.topics.insert(c.topic.clone());
-        let (schema_name, schema_enc, schema_data) =
-            self.schemas.get(&c.schema_id).cloned().unwrap_or_default();
-        let transform = self.transforms.on_channel(c, &schema_name).is_some();
-        let wanted = if opts.detection_topics.is_empty() {
-            // probmot's own outputs (e.g. a --scene-topic SceneUpdate) are not input.
-            detection_source::is_default_candidate(&schema_name, &c.metadata)
-        } else {
-            opts.detection_topics.contains(&c.topic)
-        };
-        if wanted {
-            // A schemaless channel given by topic is read as probmot.Detections3D.
-            let name = if schema_name.is_empty() {
-                msgs::DETECTIONS_SCHEMA
-            } else {
-                &schema_name
-            };
-            match DetectionSource::for_channel(name, &schema_enc, &schema_data, &c.message_encoding)
-            {
-                Ok(source) => {
-                    self.det_channels.insert(c.id, (source, c.topic.clone()));
-                }
-                // Chosen by topic: the user asked for it, so it is an error.
-                Err(why) if !opts.detection_topics.is_empty() => {
-                    bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
-                }
-                // Chosen by default: left out, and reported below.
-                Err(why) => {
-                    let why = format!("channel {} (topic {}): {why}", c.id, c.topic);
-                    self.unreadable.insert(c.id, why);
-                }
-            }
-        }
-        Ok(transform)
-    }
-
-    /// After every channel is known: leaves out SceneUpdates beside other detection channels
-    /// (by default), and checks that there is something readable and every named topic exists.
-    fn finish(&mut self, opts: &TrackOptions, file: &str) -> Result<()> {
-        if opts.detection_topics.is_empty() {
-            let left_out = detection_source::scenes_left_out(
-                self.det_channels.iter().map(|(id, (src, _))| (*id, src)),
-            );
-            if !left_out.is_empty() {
-                let mut k = self.entry_channels.iter();
-                self.entries
-                    .retain(|_| !left_out.contains(k.next().expect("one channel per entry")));
-                for id in left_out {
-                    let (_, topic) = self.det_channels.remove(&id).expect("selected channel");
-                    self.stamps_backwards.remove(&topic);
-                    self.left_out.push(format!(
-                        "channel {id} (topic {topic}, foxglove.SceneUpdate) is left out because \
-                         the log has other detection channels; name it with --detections-topic \
-                         to track it"
-                    ));
-                }
-            }
-        }
-        if self.det_channels.is_empty() && !self.unreadable.is_empty() {
-            bail!(
-                "{file}: no readable detection channel: {}",
-                self.unreadable
-                    .values()
-                    .cloned()
-                    .collect::<Vec<_>>()
-                    .join("; ")
-            );
-        }
-        for t in &opts.detection_topics {
-            if !self.topics.contains(t) {
-                bail!("{file}: no channel with topic {t} (given with --detections-topic)");
-            }
-        }
-        Ok(())
-    }
-}
-
-fn scan(input: &Path, opts: &TrackOptions, progress: &dyn Fn(Progress<'_>)) -> Result<Scan> {
-    let file = input.display().to_string();
-    let mut s = Scan::default();
-    let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    read_records(input, |rec, stats| {
-        match rec {
-            Record::Header(h) => s.profile = h.profile,
-            Record::Schema { header, data } => s.on_schema(header, &data),
-            Record::Channel(c) => {
-                s.on_channel(&c, opts, &file)?;
-            }
-            Record::Message { header, data } => {
-                s.transforms.on_message(&file, &header, &data);
-                if let Some((source, topic)) = s.det_channels.get(&header.channel_id) {
-                    let (msg_stamp, count) = source
-                        .stamp_and_count(&data)
-                        .with_context(|| undecodable(&file, topic, &header, source))?;
-                    check_count(count, opts, &file, topic, &header)?;
-                    let stamp = stamp_or_log_time(msg_stamp, header.log_time);
-                    note_stamp(
-                        &mut last_stamp,
-                        &header,
-                        stamp,
-                        topic,
-                        &mut s.stamps_backwards,
-                    );
-                    s.entries.push((stamp, s.entries.len() as u64));
-                    s.entry_channels.push(header.channel_id);
-                    s.log_span.note(header.log_time);
-                }
-                if s.entries.len().is_multiple_of(256) {
-                    progress(Progress::Position(stats.bytes_read));
-                }
-            }
-            _ => {}
-        }
-        Ok(())
-    })?;
-    s.finish(opts, &file)?;
-    Ok(s)
-}
-
 /// Runs `track` on one file. The output appears only when everything succeeded.
 ///
 /// A file is read once when its summary section lists its schemas and channels (and, with
 /// several detection channels, their message counts), it has no transform channels, and its
-/// detection stamps never go back to a frame already tracked: a frame is then complete once
-/// every detection channel has moved past its stamp. Otherwise, or as soon as such a stamp
-/// turns up, the file is read twice (the first pass learns every frame's stamp and message
+/// detection stamps never go back to a frame already tracked (nor lie over a day from their
+/// message's log_time): a frame is then complete once every detection channel has moved past
+/// its stamp. Otherwise, or as soon as such a stamp turns up, the file is read twice (the first pass learns every frame's stamp and message
 /// count). Both give the same tracks.
 pub fn track_file(
     input: &Path,
@@ -219,28 +57,44 @@ pub fn track_file(
 ) -> Result<TrackSummary> {
     let started = Instant::now();
     check_output_path(Some(input), output)?;
-    let file = input.display().to_string();
-    let size = super::track_input::regular_input(input)?;
-    if opts.no_track {
+    super::track_input::regular_input(input)?;
+    let mut source = McapInput::open(input)?;
+    let open = |profile| open_output(output, opts, profile);
+    let (out, mut summary) = track_input(&mut source, opts, progress, open)?;
+    out.commit()?;
+    progress(Progress::Done);
+    summary.output = output.display().to_string();
+    summary.wall_time_s = started.elapsed().as_secs_f64();
+    Ok(summary)
+}
+
+/// [`track_file`] over any seekable input, into the sink `open` makes from the input's
+/// profile (made once; a single pass that turns out to need two restarts it). Returns the sink,
+/// for the caller to finish, and the summary (its `output` and `wall_time_s` left to the
+/// caller).
+pub fn track_input<R: Read + Seek, S: RecordSink>(
+    input: &mut McapInput<R>,
+    opts: &TrackOptions,
+    progress: &dyn Fn(Progress<'_>),
+    open: impl FnOnce(String) -> Result<S>,
+) -> Result<(S, TrackSummary)> {
+    let size = input.source.seek(SeekFrom::End(0)).unwrap_or(0);
+    let mut out = Output::Unopened(open);
+    let single = match PassPlan::decide(input, opts) {
+        PassPlan::CopyOnly => Some((None, Schedule::Known(Vec::new()))),
+        PassPlan::OnePass(plan, schedule) => Some((Some(*plan), schedule)),
+        PassPlan::TwoPasses => None,
+    };
+    if let Some((plan, schedule)) = single {
         progress(Progress::Length(size));
-        return run_pass(
-            input,
-            output,
-            opts,
-            progress,
-            None,
-            Schedule::Known(Vec::new()),
-            0,
-        )
-        .map(|s| finish_summary(s, 1, started));
-    }
-    if let Some((plan, streaming)) = one_pass_plan(input, opts, &file) {
-        progress(Progress::Length(size));
-        progress(Progress::Message("tracking"));
-        let r = run_pass(input, output, opts, progress, Some(plan), streaming, 0);
-        match r {
-            Err(e) if e.downcast_ref::<NeedsTwoPasses>().is_some() => {}
-            r => return r.map(|s| finish_summary(s, 1, started)),
+        if plan.is_some() {
+            progress(Progress::Message("tracking"));
+        }
+        let (sink, end) = run_pass(input, out, opts, progress, plan, schedule, 0)?;
+        match end {
+            ControlFlow::Continue(summary) => return Ok((sink, with_passes(summary, 1))),
+            // The plan from the summary was wrong about the file: two passes after all.
+            ControlFlow::Break(_) => out = Output::Open(sink),
         }
     }
     progress(Progress::Length(2 * size));
@@ -260,75 +114,40 @@ pub fn track_file(
         }
     }
     progress(Progress::Message("tracking"));
-    run_pass(
-        input,
-        output,
-        opts,
-        progress,
-        Some(s),
-        Schedule::Known(frames),
-        size,
-    )
-    .map(|s| finish_summary(s, 2, started))
+    let schedule = Schedule::Known(frames);
+    let (sink, end) = run_pass(input, out, opts, progress, Some(s), schedule, size)?;
+    match end {
+        ControlFlow::Continue(summary) => Ok((sink, with_passes(summary, 2))),
+        // (Only a file changed between the passes can make the tracking pass replan.)
+        ControlFlow::Break(replan) => bail!(
+            "{}: the file changed while it was read ({replan:?} in the second pass)",
+            input.name
+        ),
+    }
 }
 
-fn finish_summary(mut s: TrackSummary, passes: u8, started: Instant) -> TrackSummary {
+fn with_passes(mut s: TrackSummary, passes: u8) -> TrackSummary {
     s.passes = passes;
-    s.wall_time_s = started.elapsed().as_secs_f64();
     s
 }
 
-/// The plan of a one-pass run from the file's summary section, or `None` if the file needs
-/// two passes: no readable summary (or one without channels), a transform channel (ego motion
-/// looks ahead in time), several detection channels without message counts, or a channel
-/// choice that fails (the first pass then reports it from the data section).
-fn one_pass_plan(input: &Path, opts: &TrackOptions, file: &str) -> Option<(Scan, Schedule)> {
-    let Some((Record::Header(header), records)) = read_summary_records(input) else {
-        return None;
-    };
-    let mut plan = Scan {
-        profile: header.profile,
-        ..Default::default()
-    };
-    let mut summary_channels = HashMap::new();
-    let mut counts = None;
-    for rec in records {
-        match rec {
-            Record::Schema { header, data } if header.id != 0 => plan.on_schema(header, &data),
-            Record::Channel(c) => {
-                // A transform channel (ego motion looks ahead in time), or an error that the
-                // first pass will report with the data section's records.
-                if plan.on_channel(&c, opts, file).unwrap_or(true) {
-                    return None;
-                }
-                summary_channels.insert(c.id, (c.topic, c.schema_id));
+/// The output of a run: made by the first pass, restarted by a second.
+enum Output<S, F> {
+    Unopened(F),
+    Open(S),
+}
+
+impl<S: RecordSink, F: FnOnce(String) -> Result<S>> Output<S, F> {
+    /// The sink, empty, with the input's `profile`.
+    fn start(self, profile: String) -> Result<S> {
+        match self {
+            Output::Unopened(open) => open(profile),
+            Output::Open(mut sink) => {
+                sink.restart()?;
+                Ok(sink)
             }
-            Record::Statistics(st) => counts = Some(st.channel_message_counts),
-            _ => {}
         }
     }
-    if summary_channels.is_empty() || plan.finish(opts, file).is_err() {
-        return None;
-    }
-    if plan.det_channels.len() > 1 && counts.is_none() {
-        return None;
-    }
-    let channels: Vec<(u16, Option<u64>)> = plan
-        .det_channels
-        .keys()
-        .map(|id| {
-            (
-                *id,
-                counts.as_ref().map(|c| c.get(id).copied().unwrap_or(0)),
-            )
-        })
-        .collect();
-    let schedule = Schedule::Streaming(Streaming::new(
-        channels,
-        summary_channels,
-        plan.schema_ids.clone(),
-    ));
-    Some((plan, schedule))
 }
 
 /// Warnings about the detection channels chosen (none, unreadable, left out, mixed kinds).
@@ -364,27 +183,30 @@ fn selection_warnings(s: &Scan, opts: &TrackOptions, file: &str, warnings: &mut 
     }
 }
 
-/// Creates the output (written on a thread of its own with [`TrackOptions::background_writer`])
-/// and adds the tracks channel and the extra channels when there are detections (`ids`).
-fn create_output(
-    output: &Path,
-    opts: &TrackOptions,
-    profile: String,
-    ids: Option<(u16, u16)>,
-    format: TracksFormat,
-    extra: &ExtraOutputs,
-) -> Result<BackgroundOutput> {
-    let tracks_topic = opts.tracks_topic_for(format);
+/// Creates the output file (written on a thread of its own with
+/// [`TrackOptions::background_writer`]).
+fn open_output(output: &Path, opts: &TrackOptions, profile: String) -> Result<BackgroundOutput> {
     let out_opts = OutputOptions {
         profile,
         compression: opts.compression,
         ..Default::default()
     };
-    let mut out = if opts.background_writer {
-        BackgroundOutput::create(output, &out_opts)?
+    if opts.background_writer {
+        BackgroundOutput::create(output, &out_opts)
     } else {
-        BackgroundOutput::create_inline(output, &out_opts)?
-    };
+        BackgroundOutput::create_inline(output, &out_opts)
+    }
+}
+
+/// Adds the tracks channel and the extra channels when there are detections (`ids`).
+fn add_tracks_channels(
+    out: &mut impl RecordSink,
+    opts: &TrackOptions,
+    ids: Option<(u16, u16)>,
+    format: TracksFormat,
+    extra: &ExtraOutputs,
+) -> Result<()> {
+    let tracks_topic = opts.tracks_topic_for(format);
     if let Some((schema_id, channel_id)) = ids {
         let (name, schema_encoding, data, message_encoding) = format.schema();
         out.add_schema_with_id(schema_id, name, schema_encoding, data)?;
@@ -395,10 +217,9 @@ fn create_output(
             message_encoding,
             &format.channel_metadata(),
         )?;
-        extra.add_channels(&mut out, schema_id)?;
+        extra.add_channels(out, schema_id)?;
     }
-
-    Ok(out)
+    Ok(())
 }
 
 /// What the output's channels come from: the detection channels chosen in the scan, the ids free
@@ -477,19 +298,19 @@ fn check_tracks_topic(
 
 /// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
 /// the first pass or the summary; `None` with `--no-track`), `base` the progress already made.
-fn run_pass(
-    input: &Path,
-    output: &Path,
+/// Returns the output, and the summary or the [`Replan`] that stopped a single pass.
+fn run_pass<R: Read + Seek, S: RecordSink, F: FnOnce(String) -> Result<S>>(
+    input: &mut McapInput<R>,
+    out: Output<S, F>,
     opts: &TrackOptions,
     progress: &dyn Fn(Progress<'_>),
     plan: Option<Scan>,
     schedule: Schedule,
     base: u64,
-) -> Result<TrackSummary> {
-    let file = input.display().to_string();
+) -> Result<(S, ControlFlow<Replan, TrackSummary>)> {
+    let file = input.name.clone();
     let mut summary = TrackSummary {
         input: file.clone(),
-        output: output.display().to_string(),
         ..Default::default()
     };
     let stamps = StampCheck::new(plan.as_ref().and_then(|s| s.stamp_window));
@@ -529,36 +350,46 @@ fn run_pass(
     };
     let extra = ExtraOutputs::new(&request, &file, scan_ids.as_ref(), ids)?;
 
-    let out = create_output(output, opts, profile, ids, format, &extra)?;
+    let mut out = out.start(profile)?;
+    add_tracks_channels(&mut out, opts, ids, format, &extra)?;
 
-    let mut session = TrackSession {
+    let options = SessionOptions {
+        name: file.clone(),
+        strict: opts.strict,
+    };
+    let mut tracking = TrackSession::new(opts.config.clone(), options)?;
+    tracking.topics = topics;
+    let mut session = RecordSession {
         opts,
         file: &file,
-        topics,
         det_channels,
         ids,
         format,
         out,
         extra,
         ego,
-        tracker: Tracker::new(opts.config.clone())?,
-        counters: InputCounters::default(),
+        session: tracking,
         schedule,
         last_stamp: HashMap::new(),
         stamps,
         pending: BTreeMap::new(),
         next_frame: 0,
-        intervals: super::track_warnings::FrameIntervals::default(),
-        frame_state: FrameState::new(&opts.config),
         order: Default::default(),
         summary,
         progress,
         base,
     };
-    read_records(input, |rec, stats| session.on_record(rec, stats.bytes_read))?;
+    input.rewind()?;
+    let mut replan = None;
+    read_records_while(input, |rec, stats| {
+        let flow = session.on_record(rec, stats.bytes_read)?;
+        replan = flow.break_value();
+        Ok(flow.map_break(|_| ()))
+    })?;
+    if let Some(replan) = replan {
+        return Ok((session.out, ControlFlow::Break(replan)));
+    }
     session.end_of_input()?;
     let (out, summary) = session.finish();
-    out.commit()?;
-    progress(Progress::Done);
-    Ok(summary)
+    Ok((out, ControlFlow::Continue(summary)))
 }

@@ -42,6 +42,25 @@ pub struct TrackOptions {
 }
 
 impl TrackOptions {
+    /// The options of `probmot track` without flags, with the tracker configuration `config`:
+    /// every detection channel, the format's tracks topic, the scene channel by default, zstd
+    /// output written on the caller's thread.
+    pub fn new(config: TrackerConfig) -> TrackOptions {
+        TrackOptions {
+            detection_topics: Vec::new(),
+            tracks_topic: None,
+            tracks_format: None,
+            config,
+            no_track: false,
+            strict: false,
+            max_detections_per_message: DEFAULT_MAX_DETECTIONS,
+            ego: EgoOptions::default(),
+            scene: SceneOutput::Default,
+            compression: OutputCompression::default(),
+            background_writer: false,
+        }
+    }
+
     /// The topic of the tracks channel of a run whose tracks are written as `format`.
     pub fn tracks_topic_for(&self, format: super::tracks_format::TracksFormat) -> &str {
         self.tracks_topic

@@ -13,8 +13,8 @@ pub mod space;
 
 use std::collections::BTreeMap;
 
+use crate::pipeline::progress::ProgressFn;
 use anyhow::{anyhow, Result};
-use indicatif::ProgressBar;
 
 pub use data::TuneLog;
 pub use score::{Protocol, Scoring};
@@ -145,7 +145,7 @@ pub fn tune(
     base: &TrackerConfig,
     logs: &[&TuneLog],
     o: &TuneOptions,
-    progress: &ProgressBar,
+    progress: ProgressFn<'_>,
 ) -> Result<Tuned> {
     let fitted = fit_noise(base, logs, o)?;
     let starts: BTreeMap<String, ClassConfig> = classes(logs, o)
@@ -235,7 +235,7 @@ fn pooled_reporting(
     starts: &BTreeMap<String, ClassConfig>,
     signal: &[String],
     o: &TuneOptions,
-    progress: &ProgressBar,
+    progress: ProgressFn<'_>,
 ) -> Result<(Vec<space::Dim>, Vec<usize>)> {
     let mut names: Vec<String> = space::REPORTING_NAMES.map(String::from).to_vec();
     names.retain(|n| o.search.is_empty() || o.search.contains(n));
@@ -368,7 +368,7 @@ pub fn cross_validate(
     logs: &[TuneLog],
     k: usize,
     o: &TuneOptions,
-    progress: &ProgressBar,
+    progress: ProgressFn<'_>,
 ) -> Result<CvReport> {
     if k < 2 || logs.len() < k {
         return Err(anyhow!(

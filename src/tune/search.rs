@@ -3,8 +3,8 @@
 //! when it beats the current score by more than the margin; rounds repeat until none improves or
 //! the budget is spent. [`tune_class`] runs it on one class's settings.
 
+use crate::pipeline::progress::{Progress, ProgressFn};
 use anyhow::Result;
-use indicatif::ProgressBar;
 use rayon::prelude::*;
 
 use super::cache::ScoreCache;
@@ -79,7 +79,7 @@ pub fn descend<V, E>(
     limits: SearchLimits,
     valid: V,
     eval: E,
-    progress: &ProgressBar,
+    progress: ProgressFn<'_>,
 ) -> Result<Descent>
 where
     V: Fn(&[usize]) -> bool,
@@ -87,7 +87,7 @@ where
 {
     let mut point = vec![0usize; dims.len()];
     let start = eval(&point)?;
-    progress.inc(1);
+    progress(Progress::Advance(1));
     let (mut best, mut evaluations, mut steps) = (start, 1, Vec::new());
     let rounds = if start.is_finite() { limits.rounds } else { 0 };
     'rounds: for _ in 0..rounds {
@@ -112,7 +112,7 @@ where
                 .par_iter()
                 .map(|p| {
                     let s = eval(p);
-                    progress.inc(1);
+                    progress(Progress::Advance(1));
                     s
                 })
                 .collect::<Result<Vec<f64>>>()?;
@@ -177,7 +177,7 @@ pub fn tune_class(
     start: &ClassConfig,
     dims: &[Dim],
     limits: SearchLimits,
-    progress: &ProgressBar,
+    progress: ProgressFn<'_>,
 ) -> Result<(Descent, ClassConfig)> {
     let d = descend(
         dims,

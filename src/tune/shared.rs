@@ -5,8 +5,8 @@
 
 use std::collections::BTreeMap;
 
+use crate::pipeline::progress::ProgressFn;
 use anyhow::Result;
-use indicatif::ProgressBar;
 
 use super::cache::ScoreCache;
 use super::search::{descend, Descent, SearchLimits};
@@ -22,7 +22,7 @@ pub fn tune_shared(
     signal: &[String],
     limits: SearchLimits,
     only: &[String],
-    progress: &ProgressBar,
+    progress: ProgressFn<'_>,
 ) -> Result<(Descent, BTreeMap<String, ClassConfig>)> {
     let dims = restrict(shared_dims(), only);
     let limits = if signal.is_empty() || !limits.shared {

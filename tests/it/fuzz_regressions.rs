@@ -8,7 +8,7 @@ use std::path::Path;
 
 use crate::common::alloc::largest_allocation;
 use crate::common::repo;
-use probmot::mcapio::reader::read_records;
+use probmot::mcapio::reader::{read_records, read_records_from, McapInput};
 use probmot::msgs::{self, Detections3D, DetectionsEnvelope, Encoding};
 use probmot::pipeline::info::file_info;
 use probmot::pipeline::progress::no_progress;
@@ -52,6 +52,16 @@ fn assert_refused(name: &str, expect: &str) {
     assert!(
         err.contains(expect),
         "{name}: expected '{expect}' in: {err}"
+    );
+    // The same bytes from memory: the same error, under the name given.
+    let bytes = std::fs::read(&input).unwrap();
+    let mut in_memory = McapInput::from_bytes(format!("memory:{name}"), &bytes);
+    let from_bytes = read_records_from(&mut in_memory, |_, _| Ok(()));
+    let from_bytes = format!("{:#}", from_bytes.expect_err(name));
+    assert_eq!(
+        from_bytes,
+        err.replace(&input.display().to_string(), &format!("memory:{name}")),
+        "{name}: the reader over bytes and over the file disagree"
     );
 
     let (res, peak) = largest_allocation(|| file_info(&input));

@@ -501,3 +501,59 @@ fn a_bad_summary_offset_falls_back_to_two_passes() {
     );
     assert!(tracks(&a, "/tracks") == tracks(&b, "/tracks"));
 }
+
+/// `track` over bytes in memory into a sink in memory (no file): the same tracks as the file
+/// run; and when the single pass finds a stamp going back to a tracked frame, the sink is
+/// restarted, so it holds every input message once, not the first attempt's too.
+#[test]
+fn tracking_bytes_into_memory_restarts_the_sink_for_a_second_pass() {
+    use probmot::mcapio::reader::McapInput;
+    use probmot::mcapio::sink::{MemorySink, SinkRecord};
+    use probmot::pipeline::progress::no_progress;
+    use probmot::pipeline::track::{track_input, TrackOptions};
+
+    let dir = tempfile::tempdir().unwrap();
+    let input = repo("sample_logs/turning-car.mcap");
+    let late = dir.path().join("late.mcap");
+    late_first_detections_copy(&input, &late);
+    let file_out = dir.path().join("late.out.mcap");
+    let file_summary = track_json(&late, &file_out);
+    let expected: Vec<probmot::msgs::Tracks3D> = tracks(&file_out, "/tracks");
+
+    let bytes = std::fs::read(&late).unwrap();
+    let mut source = McapInput::from_bytes("late in memory", &bytes);
+    let config = probmot::tracker::TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let opts = TrackOptions::new(config);
+    let open = |_profile: String| Ok(MemorySink::default());
+    let (sink, summary) = track_input(&mut source, &opts, &no_progress, open).unwrap();
+    assert_eq!(summary.passes, 2, "the single pass met a stamp going back");
+    assert_eq!(summary.input, "late in memory");
+    assert_eq!(
+        file_summary["messages_copied"].as_u64(),
+        Some(summary.messages_copied)
+    );
+    let mut input_channels = std::collections::BTreeSet::new();
+    let mut input_messages = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        input_channels.insert(m.unwrap().channel.id);
+        input_messages += 1;
+    }
+    let tracks_channel =
+        |r: &&SinkRecord| matches!(r, SinkRecord::Channel(_, _, t) if t == "/tracks");
+    let Some(SinkRecord::Channel(tracks_id, _, _)) = sink.records.iter().find(tracks_channel)
+    else {
+        panic!("no tracks channel in the sink");
+    };
+    let (mut copied, mut got) = (0, Vec::new());
+    for r in &sink.records {
+        match r {
+            SinkRecord::Message(h, d) if h.channel_id == *tracks_id => {
+                got.push(probmot::msgs::Tracks3D::decode(d.as_slice()).unwrap())
+            }
+            SinkRecord::Message(h, _) if input_channels.contains(&h.channel_id) => copied += 1,
+            _ => {}
+        }
+    }
+    assert_eq!(copied, input_messages, "every input message once");
+    assert!(got == expected, "the tracks differ from the file run's");
+}

@@ -5,11 +5,11 @@ use crate::common;
 
 use std::path::Path;
 
-use indicatif::ProgressBar;
 use probmot::eval::columns::ColumnScene;
 use probmot::eval::kitti::{KittiParams, MeanScores};
 use probmot::eval::kitti_box::{KittiBox, KittiNames};
 use probmot::mcapio::LabelledBox;
+use probmot::pipeline::progress::no_progress;
 use probmot::tracker::{Box3, TrackerConfig};
 use probmot::tune::data::{TuneDet, TuneFrame};
 use probmot::tune::score::{score_class, single_class, track_log};
@@ -135,7 +135,7 @@ fn search_beats_the_base_on_synthetic_logs_and_is_deterministic() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap())
+            .install(|| tune(&base, &refs, &o, &no_progress).unwrap())
     };
     let a = run(1);
     let b = run(2);
@@ -171,14 +171,14 @@ fn classes_with_too_few_trajectories_keep_the_base_settings() {
     // Six car trajectories: under 7 the class is not searched and keeps the base's own
     // settings (noise not fitted).
     o.limits.min_tracks = 7;
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     let car = &t.classes[0];
     assert!(!car.refined && car.steps.is_empty() && car.evaluations == 0);
     assert_eq!(t.tuned.classes["car"], base.classes["car"]);
     assert_ne!(t.fitted.classes["car"], base.classes["car"]);
     // At 6 it is searched.
     o.limits.min_tracks = 6;
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     assert!(t.classes[0].refined && !t.classes[0].steps.is_empty());
 }
 
@@ -223,10 +223,10 @@ fn pooled_reporting_reaches_the_classes_that_are_not_searched() {
     let mut o = options(20);
     o.limits.min_tracks = 3;
     o.search = vec!["coast".into(), "backfill".into()];
-    let plain = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let plain = tune(&base, &refs, &o, &no_progress).unwrap();
     assert_eq!(plain.tuned.classes["truck"], base.classes["truck"]);
     o.limits.pool_reporting = true;
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     let (car, truck) = (&t.tuned.classes["car"], &t.tuned.classes["truck"]);
     assert_ne!(car.levers.coast, Coast::All, "{car:?}");
     assert_eq!(truck.levers.coast, car.levers.coast);
@@ -252,7 +252,7 @@ fn a_restricted_search_moves_only_the_named_options() {
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     let mut o = options(40);
     o.search = vec!["noise".into(), "nms_iou".into()];
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     let car = &t.classes[0];
     let dims: Vec<&str> = car.steps.iter().map(|s| s.dim.as_str()).collect();
     assert!(dims.contains(&"noise"), "{car:?}");
@@ -297,7 +297,7 @@ fn two_point_speed_is_searched_when_named() {
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     let mut o = options(40);
     o.search = vec!["two_point_speed".into()];
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     let car = &t.classes[0];
     let dims: Vec<&str> = car.steps.iter().map(|s| s.dim.as_str()).collect();
     assert_eq!(dims, ["two_point_speed"], "{car:?}");
@@ -306,7 +306,7 @@ fn two_point_speed_is_searched_when_named() {
     assert!(car.score > car.base_score + 0.5, "{car:?}");
 
     o.search.clear();
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     assert!(t.classes[0]
         .steps
         .iter()
@@ -320,12 +320,12 @@ fn a_move_needs_more_than_the_margin() {
     let refs: Vec<&TuneLog> = logs.iter().collect();
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     let mut o = options(40);
-    let free = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let free = tune(&base, &refs, &o, &no_progress).unwrap();
     assert!(!free.classes[0].steps.is_empty());
     // AMOTA lies in [0, 1]: with a margin of 1 no move can be accepted, and the search stays
     // at the fitted base.
     o.limits.margin = 1.0;
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     assert!(t.classes[0].steps.is_empty(), "{:?}", t.classes[0].steps);
     assert_eq!(t.tuned.classes["car"], t.fitted.classes["car"]);
 }
@@ -337,7 +337,7 @@ fn shared_stage_moves_every_class_together() {
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
     let mut o = options(30);
     o.limits.shared = true;
-    let t = tune(&base, &refs, &o, &ProgressBar::hidden()).unwrap();
+    let t = tune(&base, &refs, &o, &no_progress).unwrap();
     assert_eq!(t.shared.classes, vec!["car".to_string()]);
     assert!(
         t.shared.score > t.shared.base_score && !t.shared.steps.is_empty(),
@@ -352,7 +352,7 @@ fn shared_stage_moves_every_class_together() {
 fn cross_validation_scores_held_out_logs() {
     let logs: Vec<TuneLog> = (1..=4).map(synthetic_log).collect();
     let base = TrackerConfig::preset("nuscenes-chiu2019").unwrap();
-    let cv = cross_validate(&base, &logs, 2, &options(25), &ProgressBar::hidden()).unwrap();
+    let cv = cross_validate(&base, &logs, 2, &options(25), &no_progress).unwrap();
     assert_eq!(cv.folds.len(), 2);
     assert_eq!(cv.folds[0].held_out, vec!["synthetic_1", "synthetic_2"]);
     assert_eq!(cv.folds[1].held_out, vec!["synthetic_3", "synthetic_4"]);
@@ -369,7 +369,7 @@ fn cross_validation_scores_held_out_logs() {
         assert!((gain.this - cv.tuned[c]).abs() < 1e-9, "{c}: {gain:?}");
         assert!((gain.baseline - cv.base[c]).abs() < 1e-9, "{c}: {gain:?}");
     }
-    assert!(cross_validate(&base, &logs[..1], 2, &options(5), &ProgressBar::hidden()).is_err());
+    assert!(cross_validate(&base, &logs[..1], 2, &options(5), &no_progress).is_err());
 }
 
 /// Scoring one class on the truth prepared for it (in columns: its boxes, and those of other
@@ -733,7 +733,7 @@ fn kitti_two_fold_cross_validation_beats_the_base() {
         );
         assert!(label != "car" || want > 0.5, "car: {want}");
     }
-    let cv = cross_validate(&base, &logs, 2, &o, &ProgressBar::hidden()).unwrap();
+    let cv = cross_validate(&base, &logs, 2, &o, &no_progress).unwrap();
     eprintln!("base {:?}\ntuned {:?}", cv.base, cv.tuned);
     assert_eq!(cv.tuned.len(), 1);
     // Next to the official numbers, the same tracks with each mean computed once.
