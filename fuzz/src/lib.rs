@@ -81,7 +81,7 @@ pub fn decode_source_and_track(data: &[u8]) {
     track_decoded(DetectionFrame::from_message(msg, 0));
 }
 
-/// Runs the boxes of a checked message through `reject`/`convert` in message order (with and
+/// Runs the boxes of a checked message through `reject` (refused ones) and `convert` (with and
 /// without `--strict`, as `track` does) and a tracker of the default preset for [`FRAMES`]
 /// frames.
 fn track_decoded(frame: DetectionFrame) {
