@@ -5,11 +5,12 @@ pub mod read_path;
 use std::collections::BTreeMap;
 
 use mcap::records::{Channel, MessageHeader};
+use probmot::msgs::detection_frame::DetectionFrame;
 use probmot::msgs::detection_source::DetectionSource;
 use probmot::msgs::ros2_tf::{ODOMETRY_SCHEMA, TF_MESSAGE_SCHEMA};
 use probmot::msgs::ros2_vision::VisionLayout;
 use probmot::msgs::{self, Detection3D, Detections3D, DetectionsEnvelope, Encoding, Vector3};
-use probmot::pipeline::detections::{convert, InputCounters, Origin};
+use probmot::pipeline::detections::{convert, reject, InputCounters, Origin};
 use probmot::pipeline::ego::{EgoMotion, EgoOptions};
 use probmot::tracker::{Tracker, TrackerConfig};
 use probmot::transforms::sources::{FOXGLOVE_FRAME_TRANSFORM, FOXGLOVE_FRAME_TRANSFORMS};
@@ -42,7 +43,8 @@ pub fn decode_and_track(data: &[u8], encoding: Encoding) {
         msg.detections.len(),
         "envelope count"
     );
-    track_decoded(&msg);
+    // What `track`'s second pass makes of a message that decodes fully.
+    track_decoded(DetectionFrame::from_message(msg, 0));
 }
 
 /// The first byte of `data` picks a detection input other than probmot's own (0: ROS 2
@@ -76,12 +78,13 @@ pub fn decode_source_and_track(data: &[u8]) {
         (msg.stamp, msg.detections.len()),
         "stamp and count"
     );
-    track_decoded(&msg);
+    track_decoded(DetectionFrame::from_message(msg, 0));
 }
 
-/// Runs the boxes of a decoded message through `convert` (with and without `--strict`) and a
-/// tracker of the default preset for [`FRAMES`] frames.
-fn track_decoded(msg: &Detections3D) {
+/// Runs the boxes of a checked message through `reject` (refused ones) and `convert` (with and
+/// without `--strict`, as `track` does) and a tracker of the default preset for [`FRAMES`]
+/// frames.
+fn track_decoded(frame: DetectionFrame) {
     let config = TrackerConfig::preset(DEFAULT_PRESET).expect("default preset");
     let mut tracker = Tracker::new(config.clone()).expect("default preset validates");
     let mut strict_tracker = Tracker::new(config).expect("default preset validates");
@@ -92,33 +95,37 @@ fn track_decoded(msg: &Detections3D) {
         topic: "/detections",
         log_time: 0,
     };
-    let mut dets = Vec::with_capacity(msg.detections.len());
-    for (i, d) in msg.detections.iter().enumerate() {
-        let lenient = convert(d, i, &mut tracker, &mut counters, false, &origin)
-            .expect("convert without --strict never fails");
-        let strict = convert(
-            d,
-            i,
-            &mut strict_tracker,
-            &mut strict_counters,
-            true,
-            &origin,
+    for r in &frame.rejected {
+        reject(r, &mut counters, false, &origin).expect("reject without --strict never fails");
+        assert!(
+            reject(r, &mut strict_counters, true, &origin).is_err(),
+            "--strict refuses rejected box {}",
+            r.index
         );
+    }
+    let mut dets = Vec::with_capacity(frame.boxes.len());
+    for d in &frame.boxes {
+        let lenient = convert(d, &mut tracker, &mut counters, false, &origin)
+            .expect("convert without --strict never fails");
+        let strict = convert(d, &mut strict_tracker, &mut strict_counters, true, &origin);
         match (&lenient, &strict) {
             (Some(a), Ok(Some(b))) => assert_eq!((a.bbox, a.score), (b.bbox, b.score)),
             (None, Err(_)) => {}
-            _ => panic!("strict and lenient convert disagree on detection {i}: {d:?}"),
+            _ => panic!(
+                "strict and lenient convert disagree on detection {}: {d:?}",
+                d.index
+            ),
         }
         dets.extend(lenient);
     }
     assert_eq!(
         counters.total_skipped() as usize + dets.len(),
-        msg.detections.len(),
+        frame.boxes.len() + frame.rejected.len(),
         "every box is either converted or counted as skipped"
     );
 
     // Step spacing from the message's own stamp: 1 ns .. ~10 s.
-    let dt = msg.stamp.unwrap_or(500_000_000) % 10_000_000_000 + 1;
+    let dt = frame.stamp % 10_000_000_000 + 1;
     for k in 0..FRAMES {
         let stamp = 1 + k * dt;
         if let Err(e) = tracker.step(stamp, &dets) {
@@ -238,7 +245,7 @@ pub fn read_transforms(data: &[u8]) {
                     ..Default::default()
                 }],
             };
-            let mut msg = probmot::msgs::detection_frame::DetectionFrame::from_message(msg, stamp);
+            let mut msg = DetectionFrame::from_message(msg, stamp);
             ego.to_fixed(&mut msg, || format!("{frame} at {stamp}"))
                 .expect("to_fixed without --strict never fails");
             // Taken every time, so that the next message at this stamp is remembered afresh.
