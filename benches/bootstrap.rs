@@ -1,5 +1,5 @@
 //! `eval --bootstrap`'s cost: 1,000 paired resamples (two runs over the same truth), the
-//! per-unit curves included. KITTI: the ten KITTI train sequences of
+//! per-unit curves of the protocol and of HOTA included (KITTI: both HOTA similarities). KITTI: the ten KITTI train sequences of
 //! `../shared/data/kitti-tracking-train` tracked with the `kitti-pointrcnn` and `ab3dmot-kitti`
 //! presets (10-s blocks; skipped with a message when the data is absent). nuScenes: one log of
 //! 20,000 ground-truth boxes (250 frames x 80 objects of the seven classes) and two noisy runs.
@@ -9,8 +9,13 @@ use std::process::Command;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use probmot::eval::bootstrap::curve::{kitti_metrics, nuscenes_metrics};
-use probmot::eval::bootstrap::{changes, Options, Units};
+use probmot::eval::bootstrap::curve::{KITTI_METRICS, NUSCENES_METRICS};
+use probmot::eval::bootstrap::paired::{self, aligned, HotaGroup, Protocol, HOTA_METRICS};
+use probmot::eval::bootstrap::{Options, Units};
 use probmot::eval::columns::ColumnScene;
+use probmot::eval::hota::centre::centre_hota_by;
+use probmot::eval::hota::kitti2d::{kitti_hota_by, KittiSimilarity};
+use probmot::eval::hota::units::ByUnit;
 use probmot::eval::kitti::{self, KittiBox, KittiParams};
 use probmot::eval::nuscenes::{self, NuscenesParams};
 use probmot::eval::scene::{load_kitti_scene, Scene};
@@ -89,19 +94,26 @@ fn kitti_bench(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("kitti_10_train_sequences_1000_resamples", |bench| {
         bench.iter(|| {
-            let curves = |s: &[Scene<KittiBox>], u: &Units| -> Vec<_> {
-                kitti::curve::unit_curves(s, &p, u)
-                    .into_iter()
-                    .map(|c| c.1)
-                    .collect()
+            let (ca, cb) = (
+                kitti::curve::unit_curves(&a, &p, &units[0]),
+                kitti::curve::unit_curves(&b, &p, &units[1]),
+            );
+            let group = |names, sim| {
+                let hota = |s: &[Scene<KittiBox>], u| kitti_hota_by(s, &p.classes, sim, &ByUnit(u));
+                let runs = vec![hota(&a, &units[0]).0, hota(&b, &units[1]).0];
+                HotaGroup { names, runs }
             };
-            let (ca, cb) = (curves(&a, &units[0]), curves(&b, &units[1]));
-            changes(
-                units[0].count,
-                OPTIONS,
-                |w| kitti_metrics(&ca, w),
-                |w| kitti_metrics(&cb, w),
-            )
+            let hota = [
+                group(&HOTA_METRICS, KittiSimilarity::Image),
+                group(&HOTA_METRICS, KittiSimilarity::Box3d),
+            ];
+            let (rows, ca, cb) = aligned(ca, Some(cb));
+            let proto = Protocol {
+                names: &KITTI_METRICS,
+                metrics: kitti_metrics,
+            };
+            let runs = (&ca[..], cb.as_deref());
+            paired::run((proto, rows), runs, &hota, &units[0], OPTIONS)
         })
     });
     g.finish();
@@ -179,19 +191,19 @@ fn nuscenes_bench(c: &mut Criterion) {
     g.sample_size(10);
     g.bench_function("nuscenes_20000_box_log_1000_resamples", |bench| {
         bench.iter(|| {
-            let curves = |s: &[ColumnScene]| -> Vec<_> {
-                nuscenes::curve::unit_curves(s, &p, &units)
-                    .into_iter()
-                    .map(|c| c.1)
-                    .collect()
+            let curves = |s: &[ColumnScene]| nuscenes::curve::unit_curves(s, &p, &units);
+            let hota = |s: &[ColumnScene]| centre_hota_by(s, &p.classes, &ByUnit(&units)).0;
+            let group = HotaGroup {
+                names: &HOTA_METRICS,
+                runs: vec![hota(&a), hota(&b)],
             };
-            let (ca, cb) = (curves(&a), curves(&b));
-            changes(
-                units.count,
-                OPTIONS,
-                |w| nuscenes_metrics(&ca, w),
-                |w| nuscenes_metrics(&cb, w),
-            )
+            let (rows, ca, cb) = aligned(curves(&a), Some(curves(&b)));
+            let proto = Protocol {
+                names: &NUSCENES_METRICS,
+                metrics: nuscenes_metrics,
+            };
+            let runs = (&ca[..], cb.as_deref());
+            paired::run((proto, rows), runs, &[group], &units, OPTIONS)
         })
     });
     g.finish();

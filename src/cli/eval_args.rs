@@ -111,9 +111,10 @@ pub struct EvalArgs {
     #[arg(long, value_enum, default_value_t = Gate::Interval, requires = "max_drop")]
     pub(super) gate: Gate,
     /// Bootstrap with N resamples: each compared metric (nuscenes AMOTA, AMOTP, MOTA, IDS; kitti
-    /// sAMOTA, AMOTA, MOTA) per class and overall with its 95 % interval; with --baseline the
-    /// change this - baseline with a paired interval (both runs resampled alike). Resampled are
-    /// whole logs when there are 20 or more, else time blocks within them (--block).
+    /// sAMOTA, AMOTA, MOTA; and HOTA, DetA, AssA: kitti's of both similarities) per class and
+    /// overall with its 95 % interval; with --baseline the change this - baseline with a paired
+    /// interval (both runs resampled alike). Resampled are whole logs when there are 20 or more,
+    /// else time blocks within them (--block).
     /// Example: --bootstrap 1000
     #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
     pub(super) bootstrap: Option<u64>,

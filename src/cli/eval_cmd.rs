@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 
 use probmot::eval::columns::{boxes_outside, load_columns, ColumnScene};
 use probmot::eval::filters::{apply_bike_racks, apply_min_points, read_racks, FilterCounts, Rack};
-use probmot::eval::hota::centre::{centre_hota, ZERO_DISTANCE};
+use probmot::eval::hota::centre::{centre_hota, centre_hota_by, ZERO_DISTANCE};
 use probmot::eval::hota::{hota_rows, HOTA_COLUMNS};
 
 use probmot::eval::legend;
@@ -30,11 +30,14 @@ use super::eval_args::{
     change_table, describe, footer, gate_exit, header, paths, reading_bar, scoring_spinner,
     EvalArgs, LogPairs, Protocol,
 };
-use super::eval_bootstrap::{self, Bootstrap};
+use super::eval_bootstrap;
 use super::eval_events;
 use probmot::eval::bootstrap::curve::{nuscenes_metrics, NUSCENES_METRICS};
+use probmot::eval::bootstrap::paired::{self, aligned, paired_units, HotaGroup, HOTA_METRICS};
+use probmot::eval::bootstrap::report::Bootstrap;
 use probmot::eval::bootstrap::Options;
 use probmot::eval::events::Protocol as EventsProtocol;
+use probmot::eval::hota::units::ByUnit;
 use probmot::eval::nuscenes::curve::unit_curves;
 
 const COLUMNS: [&str; 14] = [
@@ -318,7 +321,7 @@ fn nuscenes_baseline(
     Ok((pairs, Some(result), keep.then_some(scenes)))
 }
 
-/// The bootstrap of the nuScenes metrics over `scenes` (and the change from `base`).
+/// The bootstrap of the nuScenes metrics and HOTA over `scenes` (and the change from `base`).
 fn nuscenes_bootstrap(
     scenes: &[ColumnScene],
     base: Option<&[ColumnScene]>,
@@ -329,18 +332,23 @@ fn nuscenes_bootstrap(
     let stamps =
         |s: &[ColumnScene]| -> Vec<Vec<u64>> { s.iter().map(|s| s.stamps.clone()).collect() };
     let runs: Vec<Vec<Vec<u64>>> = std::iter::once(scenes).chain(base).map(stamps).collect();
-    let units = eval_bootstrap::paired_units(&runs, a.block);
+    let units = paired_units(&runs, a.block);
+    let last = &units[units.len() - 1];
     let this = unit_curves(scenes, params, &units[0]);
-    let base = base.map(|b| unit_curves(b, params, &units[units.len() - 1]));
-    let (rows, this, base) = eval_bootstrap::aligned(this, base);
-    let names = (&NUSCENES_METRICS[..], rows);
-    eval_bootstrap::run(
-        names,
-        (&this, base.as_deref()),
-        nuscenes_metrics,
-        &units[0],
-        o,
-    )
+    let base_curves = base.map(|b| unit_curves(b, params, last));
+    let hota = |s, u| centre_hota_by(s, &params.classes, &ByUnit(u)).0;
+    let mut runs = vec![hota(scenes, &units[0])];
+    runs.extend(base.map(|b| hota(b, last)));
+    let (rows, this, base) = aligned(this, base_curves);
+    let p = paired::Protocol {
+        names: &NUSCENES_METRICS[..],
+        metrics: nuscenes_metrics,
+    };
+    let hota = [HotaGroup {
+        names: &HOTA_METRICS,
+        runs,
+    }];
+    paired::run((p, rows), (&this, base.as_deref()), &hota, &units[0], o)
 }
 
 /// The result, refused when no evaluated class had ground truth, with the note on the labels

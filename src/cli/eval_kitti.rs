@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{bail, Result};
-use probmot::eval::hota::kitti2d::{kitti_hota, KittiSimilarity};
+use probmot::eval::hota::kitti2d::{kitti_hota, kitti_hota_by, KittiSimilarity};
 use probmot::eval::hota::{hota_rows, Hota, HOTA_COLUMNS};
 use probmot::eval::kitti::{self, KittiBox, KittiMetrics, KittiParams, KittiResult, MeanScores};
 use probmot::eval::legend;
@@ -19,12 +19,15 @@ use super::eval_args::{
     change_table, describe, footer, gate_exit, header, paths, reading_bar, scoring_spinner,
     EvalArgs, LogPairs,
 };
-use super::eval_bootstrap::{self, Bootstrap};
+use super::eval_bootstrap;
 use super::eval_events::{self, EventsReport};
 use super::means_arg::MeansArg;
 use probmot::eval::bootstrap::curve::{kitti_metrics, KITTI_METRICS};
+use probmot::eval::bootstrap::paired::{self, aligned, paired_units, HotaGroup};
+use probmot::eval::bootstrap::report::Bootstrap;
 use probmot::eval::bootstrap::Options;
 use probmot::eval::events::Protocol as EventsProtocol;
+use probmot::eval::hota::units::ByUnit;
 use probmot::eval::kitti::curve::unit_curves;
 
 /// Loads every log (in parallel) for the KITTI protocol, each box as the KITTI evaluation
@@ -267,7 +270,7 @@ fn print_kitti(
     print!("{}", footer(a, &[legend::KITTI, legend::HOTA]));
 }
 
-/// The bootstrap of the KITTI metrics over `scenes` (and the change from `base`).
+/// The bootstrap of the KITTI metrics and both HOTAs over `scenes` (and the change from `base`).
 fn kitti_bootstrap(
     scenes: &[Scene<KittiBox>],
     base: Option<&[Scene<KittiBox>]>,
@@ -281,10 +284,27 @@ fn kitti_bootstrap(
             .collect()
     };
     let runs: Vec<Vec<Vec<u64>>> = std::iter::once(scenes).chain(base).map(stamps).collect();
-    let units = eval_bootstrap::paired_units(&runs, a.block);
+    let units = paired_units(&runs, a.block);
+    let last = &units[units.len() - 1];
     let this = unit_curves(scenes, params, &units[0]);
-    let base = base.map(|b| unit_curves(b, params, &units[units.len() - 1]));
-    let (rows, this, base) = eval_bootstrap::aligned(this, base);
-    let names = (&KITTI_METRICS[..], rows);
-    eval_bootstrap::run(names, (&this, base.as_deref()), kitti_metrics, &units[0], o)
+    let base_curves = base.map(|b| unit_curves(b, params, last));
+    let group = |names, sim| {
+        let hota = |s, u| kitti_hota_by(s, &params.classes, sim, &ByUnit(u)).0;
+        let mut runs = vec![hota(scenes, &units[0])];
+        runs.extend(base.map(|b| hota(b, last)));
+        HotaGroup { names, runs }
+    };
+    let hota = [
+        group(&KITTI_HOTA_METRICS[..3], KittiSimilarity::Image),
+        group(&KITTI_HOTA_METRICS[3..], KittiSimilarity::Box3d),
+    ];
+    let (rows, this, base) = aligned(this, base_curves);
+    let p = paired::Protocol {
+        names: &KITTI_METRICS[..],
+        metrics: kitti_metrics,
+    };
+    paired::run((p, rows), (&this, base.as_deref()), &hota, &units[0], o)
 }
+
+/// The HOTA metrics of the KITTI bootstrap: image-box HOTA, DetA, AssA, then the 3D-IoU ones.
+const KITTI_HOTA_METRICS: [&str; 6] = ["HOTA", "DetA", "AssA", "HOTA_3d", "DetA_3d", "AssA_3d"];

@@ -56,6 +56,29 @@ fn check_values(v: &Value, names: &[(&str, &str)], base: bool) {
     assert!(n >= 8, "too few metrics compared: {n}");
 }
 
+/// Checks that the bootstrap's HOTA, DetA and AssA (`names`) of this run and the baseline are
+/// exactly the HOTA tables' values (`hota`: the `hota` member of this run's and the baseline's
+/// own evaluation; `group`: its member holding the classes), per class and overall (the mean
+/// over the classes).
+fn check_hota(v: &Value, hota: [&Value; 2], group: &str, names: [&str; 3]) {
+    let b = &v["bootstrap"];
+    for (run, side) in ["this", "baseline"].into_iter().zip(hota) {
+        let table = side[group].as_object().unwrap();
+        assert!(!table.is_empty(), "no HOTA class in {side}");
+        for (k, field) in ["hota", "deta", "assa"].iter().enumerate() {
+            let mut sum = 0.0;
+            for (class, h) in table {
+                let want = h[field].as_f64().unwrap();
+                sum += want;
+                let got = &b["classes"][class][names[k]][run];
+                assert_eq!(got.as_f64(), Some(want), "{class} {field} {run}");
+            }
+            let overall = b["overall"][names[k]][run].as_f64().unwrap();
+            assert_eq!(overall, sum / table.len() as f64, "overall {field} {run}");
+        }
+    }
+}
+
 /// Every interval of the bootstrap is [0, 0] and every change 0.
 fn all_zero(b: &Value) {
     let rows = b["classes"]
@@ -97,6 +120,13 @@ fn nuscenes_bootstrap_reuses_the_protocols_numbers_and_gates_on_the_interval() {
     let v = json(&[&eval[..], &["--block", "5", "--json"]].concat());
     check_values(&v, &names, true);
     assert_eq!(v["bootstrap"]["n_units"], 4, "20 s of frames in 5-s blocks");
+    let base = json(&["eval", "--truth", s(&bad), "--json"]);
+    check_hota(
+        &v,
+        [&v["hota"], &base["hota"]],
+        "classes",
+        ["hota", "deta", "assa"],
+    );
 
     // Identical runs: no change, [0, 0], and the gate passes even at --max-drop 0.
     let same = [
@@ -223,6 +253,10 @@ fn kitti_bootstrap_reuses_the_protocols_numbers() {
     let v = json(&[&eval[..], &["--baseline", s(&b), "--json"]].concat());
     let names = [("sAMOTA", "sAMOTA"), ("AMOTA", "AMOTA"), ("MOTA", "MOTA")];
     check_values(&v, &names, true);
+    let base = json(&["eval", "--protocol", "kitti", "--truth", s(&b), "--json"]);
+    let hota = [&v["hota"], &base["hota"]];
+    check_hota(&v, hota, "image_2d", ["HOTA", "DetA", "AssA"]);
+    check_hota(&v, hota, "iou_3d", ["HOTA_3d", "DetA_3d", "AssA_3d"]);
     let same = json(&[&eval[..], &["--baseline", s(&a), "--json"]].concat());
     all_zero(&same["bootstrap"]);
 }

@@ -29,6 +29,8 @@ use serde::Serialize;
 #[cfg(test)]
 mod coverage;
 pub mod curve;
+pub mod paired;
+pub mod report;
 
 /// Fewer logs than this are resampled by time blocks within them.
 pub const MIN_LOGS: usize = 20;

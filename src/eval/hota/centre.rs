@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{eval_scenes, Hota, RawFrame};
+use super::{eval_scenes_by, Evaluation, Hota, RawFrame, Whole};
 use crate::eval::columns::ColumnScene;
 
 /// Distance (m) at which the similarity reaches 0.
@@ -31,13 +31,22 @@ pub fn centre_hota(
     scenes: &[ColumnScene],
     classes: &[String],
 ) -> (BTreeMap<String, Hota>, Vec<String>) {
+    centre_hota_by(scenes, classes, &Whole)
+}
+
+/// [`centre_hota`] with each class evaluated by `how`.
+pub fn centre_hota_by<E: Evaluation>(
+    scenes: &[ColumnScene],
+    classes: &[String],
+    how: &E,
+) -> (BTreeMap<String, E::Class>, Vec<String>) {
     let mut out = BTreeMap::new();
     let mut notes = Vec::new();
     for c in classes {
-        let prepared = eval_scenes(scenes, |scene| class_frames(scene, c));
+        let prepared = eval_scenes_by(scenes, |scene| class_frames(scene, c), how);
         match prepared {
-            Ok((counts, true)) => {
-                out.insert(c.clone(), Hota::from_counts(&counts));
+            Ok((seqs, true)) => {
+                out.insert(c.clone(), how.class(seqs));
             }
             Ok((_, false)) => {}
             Err(e) => notes.push(format!("HOTA: class {c} is not evaluated: {e}")),

@@ -14,7 +14,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{eval_scenes, Hota, RawFrame, EPS};
+use super::{eval_scenes_by, Evaluation, Hota, RawFrame, Whole, EPS};
 use crate::eval::kitti_box::KittiFields;
 use crate::eval::scene::Scene;
 use crate::tracker::geometry::iou3d;
@@ -178,6 +178,16 @@ pub fn kitti_hota<B: KittiFields + Sync>(
     classes: &[String],
     sim: KittiSimilarity,
 ) -> (BTreeMap<String, Hota>, Vec<String>) {
+    kitti_hota_by(scenes, classes, sim, &Whole)
+}
+
+/// [`kitti_hota`] with each class evaluated by `how`.
+pub fn kitti_hota_by<B: KittiFields + Sync, E: Evaluation>(
+    scenes: &[Scene<B>],
+    classes: &[String],
+    sim: KittiSimilarity,
+    how: &E,
+) -> (BTreeMap<String, E::Class>, Vec<String>) {
     let mut out = BTreeMap::new();
     let mut notes = Vec::new();
     for c in classes {
@@ -201,16 +211,14 @@ pub fn kitti_hota<B: KittiFields + Sync>(
             ));
             continue;
         }
-        let prepared = eval_scenes(scenes, |scene| {
-            scene
-                .frames
-                .iter()
+        let frames = |scene: &Scene<B>| {
+            (scene.frames.iter())
                 .map(|(_, g, t)| prepare_frame(g, t, cls, distractor, sim))
                 .collect()
-        });
-        match prepared {
-            Ok((counts, _)) => {
-                out.insert(c, Hota::from_counts(&counts));
+        };
+        match eval_scenes_by(scenes, frames, how) {
+            Ok((seqs, _)) => {
+                out.insert(c, how.class(seqs));
             }
             Err(e) => notes.push(format!(
                 "HOTA: class {c} is not evaluated: {e} (TrackEval refuses such data)"

@@ -16,6 +16,7 @@
 
 pub mod centre;
 pub mod kitti2d;
+pub mod units;
 
 use std::collections::HashMap;
 
@@ -89,14 +90,12 @@ pub struct HotaCounts {
     pub loc_a: [f64; N_ALPHA],
 }
 
-/// Per (truth id, track id) pair that is ever similar: the summed normalised similarity and the
-/// number of matches per alpha.
+/// Per (truth id, track id) pair that is ever similar: the summed normalised similarity.
 #[derive(Clone, Default)]
 struct Pair {
     gt: u32,
     tr: u32,
     potential: f64,
-    matches: [f64; N_ALPHA],
 }
 
 /// The first pass over a sequence: detection counts per id and, per pair of ids that is ever
@@ -179,12 +178,12 @@ pub fn eval_sequence(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCoun
         res.loc_a = [1.0; N_ALPHA];
         return res;
     }
-    let mut al = Alignment::new(frames, n_gt, n_tr);
-    let loc_sum = match_frames(frames, &mut al, &mut res);
+    let al = Alignment::new(frames, n_gt, n_tr);
+    let (loc_sum, matches) = match_frames(frames, &al, &mut res);
     for (a, loc) in loc_sum.iter().enumerate() {
         let (mut ass_a, mut ass_re, mut ass_pr) = (0.0, 0.0, 0.0);
-        for p in &al.pairs {
-            let m = p.matches[a];
+        for (p, m) in al.pairs.iter().zip(&matches) {
+            let m = m[a];
             if m == 0.0 {
                 continue;
             }
@@ -202,42 +201,25 @@ pub fn eval_sequence(frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCoun
     res
 }
 
-/// The second pass: matches every frame, counts TP/FN/FP and each pair's matches per alpha;
-/// returns the summed similarity of the TPs per alpha.
-fn match_frames(frames: &[HotaFrame], al: &mut Alignment, res: &mut HotaCounts) -> [f64; N_ALPHA] {
+/// The second pass: counts TP/FN/FP and each pair's matches per alpha (in the order of
+/// `al.pairs`); returns the summed similarity of the TPs per alpha, and the matches.
+fn match_frames(
+    frames: &[HotaFrame],
+    al: &Alignment,
+    res: &mut HotaCounts,
+) -> ([f64; N_ALPHA], Vec<[f64; N_ALPHA]>) {
     let alpha = alphas();
     let mut loc_sum = [0.0f64; N_ALPHA];
-    let mut matched = Vec::new();
-    let mut sim = Vec::new();
-    for f in frames {
-        let (ng, nt) = (f.gt.len(), f.tr.len());
-        if ng == 0 || nt == 0 {
-            res.fp.iter_mut().for_each(|v| *v += nt as f64);
-            res.fn_.iter_mut().for_each(|v| *v += ng as f64);
-            continue;
-        }
-        f.dense_into(&mut sim);
-        let sim = &sim;
-        let score = |i: usize, j: usize| {
-            let s = sim[i * nt + j];
-            if s == 0.0 {
-                return 0.0;
-            }
-            al.index
-                .get(&(f.gt[i], f.tr[j]))
-                .map_or(0.0, |&k| al.score[k] * s)
-        };
-        best_assignment(ng, nt, score, &mut matched);
+    let mut matches = vec![[0.0f64; N_ALPHA]; al.pairs.len()];
+    for_each_match(frames, al, |_, (ng, nt), matched| {
         for (a, &alpha) in alpha.iter().enumerate() {
             let mut n = 0usize;
             let mut s_sum = 0.0f64;
-            for &(i, j) in &matched {
-                let s = sim[i * nt + j];
+            for &(k, s) in matched {
                 if s >= alpha - EPS {
                     n += 1;
                     s_sum += s;
-                    let k = al.index[&(f.gt[i], f.tr[j])];
-                    al.pairs[k].matches[a] += 1.0;
+                    matches[k][a] += 1.0;
                 }
             }
             res.tp[a] += n as f64;
@@ -247,8 +229,43 @@ fn match_frames(frames: &[HotaFrame], al: &mut Alignment, res: &mut HotaCounts) 
                 loc_sum[a] += s_sum;
             }
         }
+    });
+    (loc_sum, matches)
+}
+
+/// Matches every frame by the optimal assignment maximising `alignment score x similarity`:
+/// `visit(frame index, (truth count, track count), matched)` gets the matched pairs as
+/// `(index into al.pairs, similarity)`, in row order (none when a side is empty).
+fn for_each_match(
+    frames: &[HotaFrame],
+    al: &Alignment,
+    mut visit: impl FnMut(usize, (usize, usize), &[(usize, f64)]),
+) {
+    let mut assigned = Vec::new();
+    let mut matched = Vec::new();
+    let mut sim = Vec::new();
+    for (fi, f) in frames.iter().enumerate() {
+        let (ng, nt) = (f.gt.len(), f.tr.len());
+        matched.clear();
+        if ng > 0 && nt > 0 {
+            f.dense_into(&mut sim);
+            let sim = &sim;
+            let score = |i: usize, j: usize| {
+                let s = sim[i * nt + j];
+                if s == 0.0 {
+                    return 0.0;
+                }
+                al.index
+                    .get(&(f.gt[i], f.tr[j]))
+                    .map_or(0.0, |&k| al.score[k] * s)
+            };
+            best_assignment(ng, nt, score, &mut assigned);
+            matched.extend(
+                (assigned.iter()).map(|&(i, j)| (al.index[&(f.gt[i], f.tr[j])], sim[i * nt + j])),
+            );
+        }
+        visit(fi, (ng, nt), &matched);
     }
-    loc_sum
 }
 
 /// The optimal assignment maximising `score` over a `rows x cols` frame, as
@@ -435,6 +452,34 @@ pub fn relabel(raw: Vec<RawFrame>) -> (Vec<HotaFrame>, usize, usize) {
 /// similarity's nonzero entries, [`sparse`]).
 pub type RawFrame = (Vec<i64>, Vec<i64>, SparseSim);
 
+/// How each sequence of a class is evaluated, and the sequences combined: [`Whole`] (the
+/// metrics) or per resampling unit (`units::ByUnit`, for `eval --bootstrap`).
+pub trait Evaluation: Sync {
+    /// What one sequence gives.
+    type Seq: Send;
+    /// What a class gives (its sequences combined, in scene order).
+    type Class;
+    /// Evaluates the frames of scene `scene` (ids relabelled to `0..n_gt` and `0..n_tr`).
+    fn sequence(&self, scene: usize, frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> Self::Seq;
+    /// Combines a class's sequences.
+    fn class(&self, seqs: Vec<Self::Seq>) -> Self::Class;
+}
+
+/// The metrics of all the data: [`eval_sequence`], [`combine`] and [`Hota::from_counts`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Whole;
+
+impl Evaluation for Whole {
+    type Seq = HotaCounts;
+    type Class = Hota;
+    fn sequence(&self, _: usize, frames: &[HotaFrame], n_gt: usize, n_tr: usize) -> HotaCounts {
+        eval_sequence(frames, n_gt, n_tr)
+    }
+    fn class(&self, seqs: Vec<HotaCounts>) -> Hota {
+        Hota::from_counts(&combine(&seqs))
+    }
+}
+
 /// Prepares (with `prepare`) and evaluates every scene as one sequence, in parallel, and
 /// combines them in scene order. Also says whether any box was there. `Err`: the first scene
 /// whose frames hold an id twice, as `"scene, frame F: truth/track id N occurs twice"`.
@@ -443,10 +488,24 @@ where
     S: Named + Sync,
     F: Fn(&S) -> Vec<RawFrame> + Sync,
 {
+    let (seqs, any) = eval_scenes_by(scenes, prepare, &Whole)?;
+    Ok((combine(&seqs), any))
+}
+
+/// [`eval_scenes`] with each sequence evaluated by `how`, not combined.
+pub fn eval_scenes_by<S, F, E>(
+    scenes: &[S],
+    prepare: F,
+    how: &E,
+) -> Result<(Vec<E::Seq>, bool), String>
+where
+    S: Named + Sync,
+    F: Fn(&S) -> Vec<RawFrame> + Sync,
+    E: Evaluation,
+{
     use rayon::prelude::*;
-    let per_scene: Vec<Result<(HotaCounts, bool), String>> = scenes
-        .par_iter()
-        .map(|scene| {
+    let per_scene: Vec<Result<(E::Seq, bool), String>> = (scenes.par_iter().enumerate())
+        .map(|(si, scene)| {
             let raw = prepare(scene);
             if let Some((frame, id, what)) = duplicate_id(&raw) {
                 return Err(format!(
@@ -456,7 +515,7 @@ where
             }
             let any = raw.iter().any(|(g, t, _)| !g.is_empty() || !t.is_empty());
             let (frames, n_gt, n_tr) = relabel(raw);
-            Ok((eval_sequence(&frames, n_gt, n_tr), any))
+            Ok((how.sequence(si, &frames, n_gt, n_tr), any))
         })
         .collect();
     let mut seqs = Vec::with_capacity(per_scene.len());
@@ -466,7 +525,7 @@ where
         seqs.push(c);
         any |= a;
     }
-    Ok((combine(&seqs), any))
+    Ok((seqs, any))
 }
 
 /// A scene with a name for the messages (a [`crate::eval::scene::Scene`] or its columns).
