@@ -1,15 +1,14 @@
-//! The arguments of `probmot eval` and what its two protocol runners ([`super::eval_cmd`] for
-//! nuScenes, [`super::eval_kitti`]) share: progress bars, log pairs, the regression gate.
+//! The arguments of `probmot eval`, as the library's [`EvalOptions`], and the bar over bytes
+//! read that the commands reading files share.
 
 use std::path::{Path, PathBuf};
-use std::process::ExitCode;
 
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::means_arg::MeansArg;
-use super::show_progress;
-use probmot::eval::legend::{Section, SECTIONS};
+use probmot::eval::job::{self, EvalOptions};
+use probmot::eval::legend::SECTIONS;
 use probmot::eval::range::RangeFilter;
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 
@@ -186,16 +185,6 @@ pub struct EvalArgs {
     pub(super) quiet: bool,
 }
 
-/// The reading bar over the bytes of every file (a file holding both channels is read twice);
-/// hidden with --quiet, --json or off a terminal.
-pub(super) fn reading_bar(a: &EvalArgs, pairs: &[(PathBuf, PathBuf)]) -> ProgressBar {
-    let files: Vec<&Path> = pairs
-        .iter()
-        .flat_map(|(t, r)| [t.as_path(), r.as_path()])
-        .collect();
-    bytes_bar(&files, show_progress(a.quiet || a.json))
-}
-
 /// A bar over the total size of `files` (hidden unless `show`), for commands that read them.
 pub(super) fn bytes_bar(files: &[&Path], show: bool) -> ProgressBar {
     if !show {
@@ -205,129 +194,51 @@ pub(super) fn bytes_bar(files: &[&Path], show: bool) -> ProgressBar {
         .iter()
         .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
         .sum();
-    ProgressBar::new(total).with_style(
-        ProgressStyle::with_template(
-            "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
-        )
-        .expect("valid template"),
-    )
+    ProgressBar::new(total).with_style(reading_style())
 }
 
-/// A spinner while the metrics are computed (same visibility as [`reading_bar`]).
-pub(super) fn scoring_spinner(a: &EvalArgs, what: &str) -> ProgressBar {
-    super::spinner(
-        show_progress(a.quiet || a.json),
-        &format!("scoring ({what})"),
+/// The style of a bar over bytes read.
+pub(super) fn reading_style() -> ProgressStyle {
+    ProgressStyle::with_template(
+        "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
     )
+    .expect("valid template")
 }
 
-/// `(truth, tracks)` file pairs, one per log.
-pub(super) type LogPairs = Vec<(PathBuf, PathBuf)>;
-
-/// The regression gate: what fell by more than `max_drop` percentage points, as
-/// `(baseline, this)` values of the main metric, overall and (with `per_class`) per class. An
-/// overall value that has become undefined (no ground truth that counts) also fails.
-pub(super) fn gate_failures<'a>(
-    metric: &str,
-    (old, new): (f64, f64),
-    classes: impl Iterator<Item = (&'a str, f64, f64)>,
-    max_drop: f64,
-    per_class: bool,
-) -> Vec<String> {
-    let mut failures = Vec::new();
-    let d = (old - new) * 100.0;
-    if d > max_drop || (d.is_nan() && old.is_finite()) {
-        failures.push(format!(
-            "overall {metric} fell by {d:.2} points ({old:.4} -> {new:.4}), more than --max-drop {max_drop}"
-        ));
-    }
-    if per_class {
-        for (c, old, new) in classes {
-            let d = (old - new) * 100.0;
-            if d > max_drop {
-                failures.push(format!(
-                    "{c}: {metric} fell by {d:.2} points ({old:.4} -> {new:.4})"
-                ));
-            }
+impl EvalArgs {
+    /// The library's options.
+    pub(super) fn options(&self) -> EvalOptions {
+        EvalOptions {
+            truth: self.truth.clone(),
+            tracks: self.tracks.clone(),
+            truth_topic: self.truth_topic.clone(),
+            tracks_topic: self.tracks_topic.clone(),
+            protocol: match self.protocol {
+                Protocol::Nuscenes => job::Protocol::Nuscenes,
+                Protocol::Kitti => job::Protocol::Kitti,
+            },
+            classes: self.classes.clone(),
+            iou: self.iou,
+            means: self.means.map(MeansArg::means),
+            baseline: self.baseline.clone(),
+            max_drop: self.max_drop,
+            per_class: self.per_class,
+            gate: match self.gate {
+                Gate::Interval => job::Gate::Interval,
+                Gate::Point => job::Gate::Point,
+            },
+            bootstrap: self.bootstrap.map(|n| n as usize),
+            seed: self.seed,
+            block: self.block,
+            max_range: self.max_range.clone(),
+            ego_topic: self.ego_topic.clone(),
+            min_points: self.min_points,
+            bike_racks: self.bike_racks,
+            racks_topic: self.racks_topic.clone(),
+            devkit: self.devkit,
+            json: self.json,
+            events: self.events.clone(),
+            explain: self.explain,
         }
-    }
-    failures
-}
-
-/// Refuses files given without an option (`probmot eval drive.tracked.mcap`), with the command
-/// that names them.
-pub(super) fn refuse_stray(a: &EvalArgs) -> anyhow::Result<()> {
-    let Some(first) = a.stray.first() else {
-        return Ok(());
-    };
-    let files: Vec<String> = a.stray.iter().map(|p| p.display().to_string()).collect();
-    anyhow::bail!(
-        "unexpected argument {}: `probmot eval` takes its files by option: --truth FILE (the \
-         ground truth, and the tracks when one file holds both), --tracks FILE (a separate \
-         tracked file); e.g. `probmot eval --truth {}`",
-        files.join(" "),
-        first.display()
-    )
-}
-
-/// "file" or "N logs" for the report's header.
-pub(super) fn describe(pairs: &[(PathBuf, PathBuf)], tracks: bool) -> String {
-    match pairs {
-        [(t, r)] => if tracks { r } else { t }.display().to_string(),
-        _ => format!("{} logs", pairs.len()),
-    }
-}
-
-/// The report's header: its title, then the tracks and truth files with their topics, one
-/// labelled line each.
-pub(super) fn header(title: &str, pairs: &[(PathBuf, PathBuf)], a: &EvalArgs) -> String {
-    format!(
-        "{title}\n  tracks: {} (topic {})\n  truth:  {} (topic {})",
-        describe(pairs, true),
-        a.tracks_topic,
-        describe(pairs, false),
-        a.truth_topic
-    )
-}
-
-/// The end of a text report: with --explain the legend of `tables`, else a line saying where
-/// it is.
-pub(super) fn footer(a: &EvalArgs, tables: &[Section]) -> String {
-    match a.explain {
-        true => format!("\n{}", probmot::eval::legend::text(tables)),
-        false => "\n`probmot eval --explain` says what each column means, its unit and which way \
-                  is better.\n"
-            .to_string(),
-    }
-}
-
-/// The change table (`this - baseline`) with its row `better`: the sign of an improvement per
-/// column.
-pub(super) fn change_table(
-    table: &Section,
-    columns: &[&str],
-    delta: &[(String, Vec<f64>)],
-) -> String {
-    let signs = table.signs(columns);
-    let t = probmot::eval::report::table_with_row(columns, ("better", &signs), delta);
-    format!("\nchange (this - baseline; row `better`: + higher is better, - lower is better):\n{t}")
-}
-
-pub(super) fn paths(pairs: &[(PathBuf, PathBuf)]) -> serde_json::Value {
-    serde_json::json!(pairs
-        .iter()
-        .map(|(t, r)| serde_json::json!({"truth": t, "tracks": r}))
-        .collect::<Vec<_>>())
-}
-
-/// Exit status 3 when the regression gate failed (each failure on stderr), else success.
-pub(super) fn gate_exit(failures: &[String]) -> ExitCode {
-    for f in failures {
-        eprintln!("gate failed: {f}");
-    }
-    if failures.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(3)
     }
 }

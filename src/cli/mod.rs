@@ -2,10 +2,7 @@
 
 mod config_cmd;
 mod eval_args;
-mod eval_bootstrap;
 mod eval_cmd;
-mod eval_events;
-mod eval_kitti;
 mod fit_cmd;
 mod import_cmd;
 mod info_cmd;

@@ -9,6 +9,7 @@ pub mod events;
 pub mod events_log;
 pub mod filters;
 pub mod hota;
+pub mod job;
 pub mod kitti;
 pub mod kitti_box;
 pub mod legend;

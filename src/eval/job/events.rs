@@ -5,15 +5,13 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::eval::event_view::frame_window;
+use crate::eval::events::{resolve, ClassEvents, Collector, Counts, EventBoxes, Located, Protocol};
+use crate::eval::events_log::{write_events_log, EventLabels, LogEvents};
+use crate::mcapio::writer::{check_output_path, refuse_outputs_onto_inputs};
+use crate::msgs::eval_event::Kind;
+use crate::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
 use anyhow::{bail, Context, Result};
-use probmot::eval::event_view::frame_window;
-use probmot::eval::events::{
-    resolve, ClassEvents, Collector, Counts, EventBoxes, Located, Protocol,
-};
-use probmot::eval::events_log::{write_events_log, EventLabels, LogEvents};
-use probmot::mcapio::writer::{check_output_path, refuse_outputs_onto_inputs};
-use probmot::msgs::eval_event::Kind;
-use probmot::msgs::eval_events::{event_text, EVENTS_SCENE_TOPIC, EVENTS_TOPIC};
 
 /// Worst moments listed in the report.
 const WORST: usize = 10;
