@@ -133,3 +133,60 @@ fn docs_list_every_column_of_the_legend() {
         }
     }
 }
+
+/// The library's `eval::job::evaluate` is the command: the same JSON document and text report,
+/// and the same gate failures, for the same options; contradicting options are refused.
+#[test]
+fn the_library_call_gives_the_commands_report() {
+    use probmot::eval::job::{evaluate, EvalOptions};
+    use probmot::pipeline::progress::no_progress;
+    let dir = tempfile::tempdir().unwrap();
+    let (new, old) = (dir.path().join("new.mcap"), dir.path().join("old.mcap"));
+    let log = repo("sample_logs/turning-car.mcap");
+    probmot_ok(&["track", s(&log), "-o", s(&new), "--quiet"]);
+    let worse = ["--preset", "ab3dmot-2019"];
+    probmot_ok(&[&["track", s(&log), "-o", s(&old), "--quiet"][..], &worse].concat());
+    let o = EvalOptions {
+        truth: vec![old.clone()],
+        baseline: vec![new.clone()],
+        max_drop: Some(0.0),
+        bootstrap: Some(50),
+        ..EvalOptions::default()
+    };
+    let args = [
+        "eval",
+        "--truth",
+        s(&old),
+        "--baseline",
+        s(&new),
+        "--max-drop",
+        "0",
+    ];
+    let args = [&args[..], &["--bootstrap", "50"]].concat();
+    let text = evaluate(&o, &no_progress).unwrap();
+    let cli = probmot(&args);
+    assert_eq!(text.text, String::from_utf8(cli.stdout).unwrap());
+    assert_eq!(cli.status.code(), Some(3), "the worse run fails the gate");
+    let stderr = String::from_utf8(cli.stderr).unwrap();
+    for f in &text.gate_failures {
+        assert!(stderr.contains(&format!("gate failed: {f}")), "{stderr}");
+    }
+    assert!(!text.gate_failures.is_empty());
+    let json = evaluate(
+        &EvalOptions {
+            json: true,
+            ..o.clone()
+        },
+        &no_progress,
+    )
+    .unwrap();
+    let cli: serde_json::Value =
+        serde_json::from_slice(&probmot(&[&args[..], &["--json"]].concat()).stdout).unwrap();
+    assert_eq!(json.json.unwrap(), cli);
+    let bad = EvalOptions {
+        iou: Some(0.5),
+        ..o
+    };
+    let e = evaluate(&bad, &no_progress).unwrap_err().to_string();
+    assert!(e.starts_with("--iou is a KITTI option"), "{e}");
+}
