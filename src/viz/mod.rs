@@ -6,6 +6,7 @@
 pub mod labels;
 mod legend;
 pub mod plot;
+pub mod plot_file;
 pub mod plot_layout;
 mod plot_panel;
 mod plot_scene;
