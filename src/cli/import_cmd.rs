@@ -3,15 +3,15 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Args, Subcommand};
 use probmot::formats::nuscenes::{
     export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
 };
-use probmot::pipeline::kitti_io::{
-    export_kitti, import_kitti, resolve_detection_files, TracksInput,
+use probmot::pipeline::kitti_files::{
+    export_kitti_file, import_kitti_sequence, KittiImportOptions,
 };
-use probmot::pipeline::rosbag_dir::resolve_input;
+use probmot::pipeline::kitti_io::TracksInput;
 
 /// Convert a dataset's files to an MCAP recording.
 ///
@@ -246,48 +246,20 @@ macro_rules! say {
     };
 }
 
-/// The sequence name (--sequence, else the label file's name) and the detection files of
-/// `import kitti`.
-fn kitti_inputs(k: &ImportKitti) -> Result<(String, Vec<PathBuf>)> {
-    let sequence = match (&k.sequence, &k.labels) {
-        (Some(s), _) => s.clone(),
-        (None, Some(l)) => l
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .context("cannot tell the sequence from the label file name; give --sequence")?,
-        (None, None) => anyhow::bail!("give --sequence when no --labels file is given"),
-    };
-    if k.detections.is_empty() {
-        return Ok((sequence, Vec::new()));
-    }
-    let files = resolve_detection_files(&k.detections, &sequence, k.labels.as_deref());
-    let files = match (&k.sequence, &k.labels) {
-        (None, Some(l)) => files.with_context(|| {
-            format!(
-                "sequence {sequence}, named after the label file {} (--sequence sets it)",
-                l.display()
-            )
-        })?,
-        _ => files?,
-    };
-    Ok((sequence, files))
-}
-
 pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
     match a.format {
         ImportFormat::Kitti(k) => {
-            let (sequence, files) = kitti_inputs(&k)?;
             let tracks = k.tracks.clone().map(|file| TracksInput {
                 file,
                 topic: k.tracks_topic.clone(),
             });
-            let s = import_kitti(
-                k.labels.as_deref(),
-                &files,
-                tracks.as_ref(),
-                &sequence,
-                &k.output,
-            )?;
+            let o = KittiImportOptions {
+                labels: k.labels.clone(),
+                detections: k.detections.clone(),
+                tracks: tracks.clone(),
+                sequence: k.sequence.clone(),
+            };
+            let (sequence, s) = import_kitti_sequence(&o, &k.output)?;
             say!(
                 a.quiet,
                 "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows{}",
@@ -359,12 +331,10 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let input = resolve_input(&k.input)?;
-            let bar = super::eval_args::bytes_bar(&[&input], super::show_progress(a.quiet));
-            bar.set_length(2 * bar.length().unwrap_or(0));
-            let progress = |bytes: u64| bar.set_position(bytes);
-            let scores = k.topic != "/ground_truth";
-            let s = export_kitti(&input, &k.topic, &k.output, scores, &progress);
+            let bar = super::reading_bar(super::show_progress(a.quiet));
+            let s = export_kitti_file(&k.input, &k.topic, &k.output, &|e| {
+                super::show_on_bar(&bar, e)
+            });
             bar.finish_and_clear();
             let s = s?;
             for w in &s.warnings {

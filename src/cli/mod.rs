@@ -143,6 +143,20 @@ impl Spinner {
     }
 }
 
+/// A bar over bytes read, its length set by the library's progress events (hidden unless
+/// `show`).
+pub fn reading_bar(show: bool) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
+        )
+        .expect("valid template"),
+    )
+}
+
 /// Whether progress bars should be drawn: stderr is a terminal and not `--quiet`.
 pub fn show_progress(quiet: bool) -> bool {
     use std::io::IsTerminal;
