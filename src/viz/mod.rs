@@ -13,6 +13,8 @@ mod plot_scene;
 pub mod plot_types;
 #[cfg(feature = "rerun")]
 pub mod rrd;
+pub mod rrd_file;
+pub mod rrd_options;
 pub mod scene;
 pub mod text;
 pub mod truth_colors;
