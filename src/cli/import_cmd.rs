@@ -237,13 +237,16 @@ struct ExportNuscenes {
     no_lidar: bool,
 }
 
-/// Prints a summary line unless the first argument (`--quiet`) is set.
-macro_rules! say {
-    ($quiet:expr, $($fmt:tt)*) => {
-        if !$quiet {
-            println!($($fmt)*);
+/// Prints the summary lines unless `quiet`; warnings always, on stderr.
+fn report(quiet: bool, warnings: &[String], lines: &[String]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
+    }
+    if !quiet {
+        for l in lines {
+            println!("{l}");
         }
-    };
+    }
 }
 
 pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
@@ -260,19 +263,8 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                 sequence: k.sequence.clone(),
             };
             let (sequence, s) = import_kitti_sequence(&o, &k.output)?;
-            say!(
-                a.quiet,
-                "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows{}",
-                k.output.display(),
-                s.frames,
-                s.detections,
-                s.detection_files.len(),
-                s.truth_rows,
-                match &tracks {
-                    Some(t) => format!(", {} track rows on {}", s.track_rows, t.topic),
-                    None => String::new(),
-                }
-            );
+            let topic = tracks.as_ref().map(|t| t.topic.as_str());
+            report(a.quiet, &[], &[s.line(&k.output, &sequence, topic)]);
         }
         ImportFormat::Nuscenes(n) => {
             let s = import_nuscenes(&ImportOptions {
@@ -282,47 +274,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                 out_dir: n.output.clone(),
                 scenes: n.scene.clone(),
             })?;
-            for w in &s.warnings {
-                eprintln!("warning: {w}");
-            }
-            for sc in &s.scenes {
-                say!(
-                    a.quiet,
-                    "{}: {} frames, {} detections, {} track boxes, {} ground-truth boxes, {} \
-                     bicycle racks, {} ego poses",
-                    sc.output,
-                    sc.frames,
-                    sc.detections,
-                    sc.tracks,
-                    sc.truth_boxes,
-                    sc.bike_racks,
-                    sc.ego_poses
-                );
-            }
-            say!(
-                a.quiet,
-                "{}: {} scenes, {} frames, {} detections, {} track boxes, {} bicycle racks, {}, {}",
-                n.output.display(),
-                s.scenes.len(),
-                s.frames,
-                s.detections,
-                s.tracks,
-                s.bike_racks,
-                if s.ground_truth {
-                    format!(
-                        "{} ground-truth boxes ({} outside the tracking classes skipped)",
-                        s.truth_boxes,
-                        s.truth_skipped.values().sum::<u64>()
-                    )
-                } else {
-                    "no ground truth (no sample_annotation.json)".to_string()
-                },
-                if s.ego_pose {
-                    format!("{} ego poses", s.ego_poses)
-                } else {
-                    "no ego poses".to_string()
-                }
-            );
+            report(a.quiet, &s.warnings, &s.lines(&n.output));
         }
     }
     Ok(ExitCode::SUCCESS)
@@ -337,16 +289,7 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
             });
             bar.finish_and_clear();
             let s = s?;
-            for w in &s.warnings {
-                eprintln!("warning: {w}");
-            }
-            say!(
-                a.quiet,
-                "{}: {} rows in {} frames",
-                k.output.display(),
-                s.rows,
-                s.frames
-            );
+            report(a.quiet, &s.warnings, &[s.line(&k.output)]);
         }
         ExportFormat::Nuscenes(n) => {
             let opts = ExportOptions {
@@ -361,20 +304,7 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
                 },
             };
             let s = export_nuscenes(&n.inputs, &n.output, &opts)?;
-            for w in &s.warnings {
-                eprintln!("warning: {w}");
-            }
-            say!(
-                a.quiet,
-                "{}: {} scenes, {} samples, {} boxes ({} dropped over the 500-per-sample cap, {} \
-                 with a non-tracking label skipped)",
-                n.output.display(),
-                s.scenes,
-                s.samples,
-                s.boxes,
-                s.dropped_over_cap,
-                s.skipped_labels.values().sum::<u64>()
-            );
+            report(a.quiet, &s.warnings, &[s.line(&n.output)]);
         }
     }
     Ok(ExitCode::SUCCESS)

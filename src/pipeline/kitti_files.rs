@@ -86,3 +86,35 @@ pub fn export_kitti_file(
         progress(Progress::Position(bytes))
     })
 }
+
+impl ImportSummary {
+    /// The line `probmot import kitti` prints: the output, the sequence and the counts (the
+    /// tracks' with their topic, when another tracker's results were imported).
+    pub fn line(&self, output: &Path, sequence: &str, tracks_topic: Option<&str>) -> String {
+        format!(
+            "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth \
+             rows{}",
+            output.display(),
+            self.frames,
+            self.detections,
+            self.detection_files.len(),
+            self.truth_rows,
+            match tracks_topic {
+                Some(t) => format!(", {} track rows on {t}", self.track_rows),
+                None => String::new(),
+            }
+        )
+    }
+}
+
+impl ExportSummary {
+    /// The line `probmot export kitti` prints.
+    pub fn line(&self, output: &Path) -> String {
+        format!(
+            "{}: {} rows in {} frames",
+            output.display(),
+            self.rows,
+            self.frames
+        )
+    }
+}
