@@ -3,15 +3,15 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use clap::{Args, Subcommand};
 use probmot::formats::nuscenes::{
     export_nuscenes, import_nuscenes, ExportOptions, ImportOptions, SubmissionMeta,
 };
-use probmot::pipeline::kitti_io::{
-    export_kitti, import_kitti, resolve_detection_files, TracksInput,
+use probmot::pipeline::kitti_files::{
+    export_kitti_file, import_kitti_sequence, KittiImportOptions,
 };
-use probmot::pipeline::rosbag_dir::resolve_input;
+use probmot::pipeline::kitti_io::TracksInput;
 
 /// Convert a dataset's files to an MCAP recording.
 ///
@@ -237,70 +237,34 @@ struct ExportNuscenes {
     no_lidar: bool,
 }
 
-/// Prints a summary line unless the first argument (`--quiet`) is set.
-macro_rules! say {
-    ($quiet:expr, $($fmt:tt)*) => {
-        if !$quiet {
-            println!($($fmt)*);
-        }
-    };
-}
-
-/// The sequence name (--sequence, else the label file's name) and the detection files of
-/// `import kitti`.
-fn kitti_inputs(k: &ImportKitti) -> Result<(String, Vec<PathBuf>)> {
-    let sequence = match (&k.sequence, &k.labels) {
-        (Some(s), _) => s.clone(),
-        (None, Some(l)) => l
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .context("cannot tell the sequence from the label file name; give --sequence")?,
-        (None, None) => anyhow::bail!("give --sequence when no --labels file is given"),
-    };
-    if k.detections.is_empty() {
-        return Ok((sequence, Vec::new()));
+/// Prints the summary lines unless `quiet`; warnings always, on stderr.
+fn report(quiet: bool, warnings: &[String], lines: &[String]) {
+    for w in warnings {
+        eprintln!("warning: {w}");
     }
-    let files = resolve_detection_files(&k.detections, &sequence, k.labels.as_deref());
-    let files = match (&k.sequence, &k.labels) {
-        (None, Some(l)) => files.with_context(|| {
-            format!(
-                "sequence {sequence}, named after the label file {} (--sequence sets it)",
-                l.display()
-            )
-        })?,
-        _ => files?,
-    };
-    Ok((sequence, files))
+    if !quiet {
+        for l in lines {
+            println!("{l}");
+        }
+    }
 }
 
 pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
     match a.format {
         ImportFormat::Kitti(k) => {
-            let (sequence, files) = kitti_inputs(&k)?;
             let tracks = k.tracks.clone().map(|file| TracksInput {
                 file,
                 topic: k.tracks_topic.clone(),
             });
-            let s = import_kitti(
-                k.labels.as_deref(),
-                &files,
-                tracks.as_ref(),
-                &sequence,
-                &k.output,
-            )?;
-            say!(
-                a.quiet,
-                "{}: sequence {sequence}, {} frames, {} detections from {} files, {} ground-truth rows{}",
-                k.output.display(),
-                s.frames,
-                s.detections,
-                s.detection_files.len(),
-                s.truth_rows,
-                match &tracks {
-                    Some(t) => format!(", {} track rows on {}", s.track_rows, t.topic),
-                    None => String::new(),
-                }
-            );
+            let o = KittiImportOptions {
+                labels: k.labels.clone(),
+                detections: k.detections.clone(),
+                tracks: tracks.clone(),
+                sequence: k.sequence.clone(),
+            };
+            let (sequence, s) = import_kitti_sequence(&o, &k.output)?;
+            let topic = tracks.as_ref().map(|t| t.topic.as_str());
+            report(a.quiet, &[], &[s.line(&k.output, &sequence, topic)]);
         }
         ImportFormat::Nuscenes(n) => {
             let s = import_nuscenes(&ImportOptions {
@@ -310,47 +274,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
                 out_dir: n.output.clone(),
                 scenes: n.scene.clone(),
             })?;
-            for w in &s.warnings {
-                eprintln!("warning: {w}");
-            }
-            for sc in &s.scenes {
-                say!(
-                    a.quiet,
-                    "{}: {} frames, {} detections, {} track boxes, {} ground-truth boxes, {} \
-                     bicycle racks, {} ego poses",
-                    sc.output,
-                    sc.frames,
-                    sc.detections,
-                    sc.tracks,
-                    sc.truth_boxes,
-                    sc.bike_racks,
-                    sc.ego_poses
-                );
-            }
-            say!(
-                a.quiet,
-                "{}: {} scenes, {} frames, {} detections, {} track boxes, {} bicycle racks, {}, {}",
-                n.output.display(),
-                s.scenes.len(),
-                s.frames,
-                s.detections,
-                s.tracks,
-                s.bike_racks,
-                if s.ground_truth {
-                    format!(
-                        "{} ground-truth boxes ({} outside the tracking classes skipped)",
-                        s.truth_boxes,
-                        s.truth_skipped.values().sum::<u64>()
-                    )
-                } else {
-                    "no ground truth (no sample_annotation.json)".to_string()
-                },
-                if s.ego_pose {
-                    format!("{} ego poses", s.ego_poses)
-                } else {
-                    "no ego poses".to_string()
-                }
-            );
+            report(a.quiet, &s.warnings, &s.lines(&n.output));
         }
     }
     Ok(ExitCode::SUCCESS)
@@ -359,24 +283,13 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let input = resolve_input(&k.input)?;
-            let bar = super::eval_args::bytes_bar(&[&input], super::show_progress(a.quiet));
-            bar.set_length(2 * bar.length().unwrap_or(0));
-            let progress = |bytes: u64| bar.set_position(bytes);
-            let scores = k.topic != "/ground_truth";
-            let s = export_kitti(&input, &k.topic, &k.output, scores, &progress);
+            let bar = super::reading_bar(super::show_progress(a.quiet));
+            let s = export_kitti_file(&k.input, &k.topic, &k.output, &|e| {
+                super::show_on_bar(&bar, e)
+            });
             bar.finish_and_clear();
             let s = s?;
-            for w in &s.warnings {
-                eprintln!("warning: {w}");
-            }
-            say!(
-                a.quiet,
-                "{}: {} rows in {} frames",
-                k.output.display(),
-                s.rows,
-                s.frames
-            );
+            report(a.quiet, &s.warnings, &[s.line(&k.output)]);
         }
         ExportFormat::Nuscenes(n) => {
             let opts = ExportOptions {
@@ -391,20 +304,7 @@ pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
                 },
             };
             let s = export_nuscenes(&n.inputs, &n.output, &opts)?;
-            for w in &s.warnings {
-                eprintln!("warning: {w}");
-            }
-            say!(
-                a.quiet,
-                "{}: {} scenes, {} samples, {} boxes ({} dropped over the 500-per-sample cap, {} \
-                 with a non-tracking label skipped)",
-                n.output.display(),
-                s.scenes,
-                s.samples,
-                s.boxes,
-                s.dropped_over_cap,
-                s.skipped_labels.values().sum::<u64>()
-            );
+            report(a.quiet, &s.warnings, &[s.line(&n.output)]);
         }
     }
     Ok(ExitCode::SUCCESS)

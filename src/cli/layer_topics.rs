@@ -1,7 +1,6 @@
 //! The topic options of the commands that draw a file's layers (`plot`, `viz`).
 
 use clap::Args;
-use probmot::viz::Layer;
 
 /// Topics of the detections, tracks and ground-truth layers.
 #[derive(Debug, Clone, Args)]
@@ -18,12 +17,12 @@ pub struct LayerTopics {
 }
 
 impl LayerTopics {
-    /// The topic of `layer`.
-    pub fn of(&self, layer: Layer) -> &str {
-        match layer {
-            Layer::Detections => &self.detections_topic,
-            Layer::Tracks => &self.tracks_topic,
-            Layer::GroundTruth => &self.truth_topic,
+    /// The library's topic names.
+    pub fn names(&self) -> probmot::viz::plot_file::LayerTopics {
+        probmot::viz::plot_file::LayerTopics {
+            detections: self.detections_topic.clone(),
+            tracks: self.tracks_topic.clone(),
+            truth: self.truth_topic.clone(),
         }
     }
 }

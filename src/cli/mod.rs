@@ -106,6 +106,54 @@ pub fn spinner(show: bool, message: &str) -> indicatif::ProgressBar {
     bar
 }
 
+/// A spinner for the library's progress events: drawn (unless hidden) from the first message,
+/// with that message, until the work is done.
+pub struct Spinner {
+    /// The spinner (hidden when not shown).
+    pub bar: indicatif::ProgressBar,
+}
+
+impl Spinner {
+    /// A spinner, drawn only when `show`.
+    pub fn new(show: bool) -> Spinner {
+        let bar = match show {
+            true => indicatif::ProgressBar::new_spinner(),
+            false => indicatif::ProgressBar::hidden(),
+        };
+        Spinner { bar }
+    }
+
+    /// Shows a progress event: a message starts the spinner with it, done clears it.
+    pub fn show(&self, e: probmot::pipeline::progress::Progress<'_>) {
+        use probmot::pipeline::progress::Progress;
+        match e {
+            Progress::Message(m) => {
+                self.bar.set_message(m.to_string());
+                if !self.bar.is_hidden() {
+                    self.bar
+                        .enable_steady_tick(std::time::Duration::from_millis(120));
+                }
+            }
+            Progress::Done => self.bar.finish_and_clear(),
+            _ => {}
+        }
+    }
+}
+
+/// A bar over bytes read, its length set by the library's progress events (hidden unless
+/// `show`).
+pub fn reading_bar(show: bool) -> indicatif::ProgressBar {
+    if !show {
+        return indicatif::ProgressBar::hidden();
+    }
+    indicatif::ProgressBar::new(0).with_style(
+        indicatif::ProgressStyle::with_template(
+            "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
+        )
+        .expect("valid template"),
+    )
+}
+
 /// Whether progress bars should be drawn: stderr is a terminal and not `--quiet`.
 pub fn show_progress(quiet: bool) -> bool {
     use std::io::IsTerminal;

@@ -4,10 +4,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::Args;
+use clap::builder::PossibleValue;
+use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
-use probmot::mcapio::writer::check_output_path;
-use probmot::sim::{write_simulation_progress, Scenario, SimOptions};
+use probmot::sim::{simulate_file, Scenario, SimOptions};
 
 use super::show_progress;
 
@@ -24,7 +24,7 @@ use super::show_progress;
 pub struct SimulateArgs {
     /// Which drive.
     #[arg(long, value_enum)]
-    scenario: Scenario,
+    scenario: ScenarioArg,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -55,24 +55,38 @@ pub struct SimulateArgs {
     quiet: bool,
 }
 
+/// A scenario on the command line; the choices and their help come from [`Scenario`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct ScenarioArg(Scenario);
+
+impl ValueEnum for ScenarioArg {
+    fn value_variants<'a>() -> &'a [Self] {
+        const ALL: [ScenarioArg; 3] = [
+            ScenarioArg(Scenario::ALL[0]),
+            ScenarioArg(Scenario::ALL[1]),
+            ScenarioArg(Scenario::ALL[2]),
+        ];
+        &ALL
+    }
+
+    fn to_possible_value(&self) -> Option<PossibleValue> {
+        Some(PossibleValue::new(self.0.name()).help(self.0.description()))
+    }
+}
+
 pub fn run(a: SimulateArgs) -> Result<ExitCode> {
-    anyhow::ensure!(
-        a.rate.is_finite() && a.rate > 0.0,
-        "--rate must be a positive number of Hz"
-    );
-    anyhow::ensure!(a.frames > 0, "--frames must be at least 1");
-    check_output_path(None, &a.output)?;
     let opts = SimOptions {
-        scenario: a.scenario,
+        scenario: a.scenario.0,
         seed: a.seed,
         frames: a.frames,
         objects: a.objects,
         rate_hz: a.rate,
         ego_frame: a.ego_frame,
     };
-    let bar = frames_bar(u64::from(a.frames), show_progress(a.quiet || a.json));
-    let s = write_simulation_progress(&opts, &a.output, &|n| bar.inc(n))?;
+    let bar = frames_bar(show_progress(a.quiet || a.json));
+    let s = simulate_file(&opts, &a.output, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
+    let s = s?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&s)?);
     } else if !a.quiet {
@@ -88,12 +102,12 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// A bar over the frames to write (hidden unless `show`).
-fn frames_bar(frames: u64, show: bool) -> ProgressBar {
+/// A bar over the frames to write, its length set by the library (hidden unless `show`).
+fn frames_bar(show: bool) -> ProgressBar {
     if !show {
         return ProgressBar::hidden();
     }
-    ProgressBar::new(frames).with_style(
+    ProgressBar::new(0).with_style(
         ProgressStyle::with_template(
             "{spinner} simulating [{bar:30}] {pos}/{len} frames, {elapsed}",
         )

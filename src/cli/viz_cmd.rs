@@ -1,12 +1,12 @@
 //! `probmot viz`, and the Rerun recording of `probmot track --rerun`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{bail, Result};
+use anyhow::Result;
 use clap::Args;
-use probmot::mcapio::writer::check_output_path;
-use probmot::pipeline::rosbag_dir::resolve_input;
+pub use probmot::viz::rrd_file::{check_rrd_output, NEEDS_FEATURE};
+use probmot::viz::rrd_file::{rrd_file, VizOptions};
 
 use super::layer_topics::LayerTopics;
 
@@ -55,49 +55,7 @@ pub struct VizArgs {
     quiet: bool,
 }
 
-/// The error without the `rerun` feature: how to enable it, or the script to use instead.
-pub const NEEDS_FEATURE: &str = "this probmot was built without the `rerun` cargo feature; \
-     rebuild with `cargo build --release --features rerun` (or `cargo install --path . \
-     --features rerun`), or convert a tracked file with `python3 scripts/to_rerun.py \
-     TRACKED.mcap -o OUT.rrd` (needs `python3 -m pip install -r scripts/requirements-view.txt`, \
-     the viewer only, about 770 MB)";
-
-/// Checks the output path of a recording before any work.
-pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {
-    let is_rrd = out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("rrd"));
-    if !is_rrd {
-        bail!(
-            "output {} must end in .rrd (a Rerun recording)",
-            out.display()
-        );
-    }
-    check_output_path(input, out)
-}
-
-pub fn run(mut a: VizArgs) -> Result<ExitCode> {
-    a.file = resolve_input(&a.file)?;
-    check_rrd_output(Some(&a.file), &a.output)?;
-    if a.trail == 0 {
-        bail!("--trail must be at least 1");
-    }
-    for (name, v) in [("--from", a.from), ("--to", a.to)] {
-        if v.is_some_and(|v| !v.is_finite()) {
-            bail!("{name} must be a number of seconds");
-        }
-    }
-    if let (Some(f), Some(t)) = (a.from, a.to) {
-        if f > t {
-            bail!("--from {f} is after --to {t}; the window is empty");
-        }
-    }
-    write(&a)
-}
-
-#[cfg(feature = "rerun")]
-fn write(a: &VizArgs) -> Result<ExitCode> {
-    use probmot::viz::rrd::{mcap_to_rrd, VizOptions};
+pub fn run(a: VizArgs) -> Result<ExitCode> {
     let o = VizOptions {
         detections_topic: a.topics.detections_topic.clone(),
         tracks_topic: a.topics.tracks_topic.clone(),
@@ -108,20 +66,11 @@ fn write(a: &VizArgs) -> Result<ExitCode> {
         from_s: a.from,
         to_s: a.to,
     };
-    let spinner = super::spinner(
-        super::show_progress(a.quiet),
-        &format!("writing {}", a.output.display()),
-    );
-    let s = mcap_to_rrd(&a.file, &a.output, &o);
-    spinner.finish_and_clear();
+    let spinner = super::Spinner::new(super::show_progress(a.quiet));
+    let warn = |w: &str| eprintln!("warning: {w}");
+    let s = rrd_file(&a.file, &a.output, &o, &warn, &|e| spinner.show(e));
+    spinner.bar.finish_and_clear();
     let s = s?;
-    for (topic, n) in &s.undrawable {
-        eprintln!(
-            "warning: {}: topic {topic}: {n} box(es) with a non-finite centre, size or yaw are \
-             not drawn",
-            a.file.display()
-        );
-    }
     if !a.quiet {
         println!(
             "{}: {} frames, {} track ids, {} bytes",
@@ -134,21 +83,16 @@ fn write(a: &VizArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-#[cfg(not(feature = "rerun"))]
-fn write(_: &VizArgs) -> Result<ExitCode> {
-    bail!("probmot viz: {NEEDS_FEATURE}")
-}
-
 /// The Rerun recording of a finished `probmot track` run: the same as `probmot viz TRACKED -o
 /// OUT` with the run's detections and tracks topics.
 #[cfg(feature = "rerun")]
 pub fn track_recording(
-    tracked: &Path,
-    out: &Path,
+    tracked: &std::path::Path,
+    out: &std::path::Path,
     detections_topic: &str,
     tracks_topic: &str,
 ) -> Result<probmot::viz::rrd::RrdSummary> {
-    use probmot::viz::rrd::{mcap_to_rrd, VizOptions};
+    use probmot::viz::rrd::mcap_to_rrd;
     let o = VizOptions {
         detections_topic: detections_topic.into(),
         tracks_topic: tracks_topic.into(),

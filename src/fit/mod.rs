@@ -18,6 +18,7 @@
 pub mod accumulate;
 pub mod apply;
 pub mod data;
+pub mod files;
 pub mod load;
 pub mod measurement;
 pub mod process;

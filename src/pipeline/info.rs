@@ -7,6 +7,7 @@ use std::path::Path;
 use anyhow::Result;
 use mcap::records::Record;
 
+use super::progress::{Progress, ProgressFn};
 use crate::mcapio::reader::{read_records_from, McapInput};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_source::{
@@ -79,6 +80,17 @@ pub fn file_info(path: &Path) -> Result<FileSummary> {
 /// number of channels and labels, whatever the file's length.
 pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
     file_info_from(&mut McapInput::open(path)?, progress)
+}
+
+/// [`file_info`] of a recording's path (a rosbag directory resolved to its MCAP file), as
+/// `probmot info` reads it. Progress: bytes read of the file's size.
+pub fn recording_info(path: &Path, progress: ProgressFn<'_>) -> Result<FileSummary> {
+    let path = super::rosbag_dir::resolve_input(path)?;
+    let size = std::fs::metadata(&path).map_or(0, |m| m.len());
+    progress(Progress::Length(size));
+    let info = file_info_progress(&path, &|n| progress(Progress::Advance(n)))?;
+    progress(Progress::Done);
+    Ok(info)
 }
 
 /// [`file_info_progress`] of any input (a file, bytes in memory), named by its name.

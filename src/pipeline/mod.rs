@@ -4,6 +4,8 @@ pub mod detections;
 pub mod ego;
 pub mod frame_schedule;
 pub mod info;
+pub mod info_text;
+pub mod kitti_files;
 pub mod kitti_io;
 pub mod log_pairs;
 pub mod many;

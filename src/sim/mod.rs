@@ -9,8 +9,31 @@ pub mod scenario;
 pub mod sensor;
 pub mod write;
 
+use std::path::Path;
+
+use anyhow::Result;
+
+use crate::mcapio::writer::check_output_path;
+use crate::pipeline::progress::{Progress, ProgressFn};
 pub use scenario::{Scenario, SimOptions};
-pub use write::{write_simulation, write_simulation_progress};
+pub use write::{write_simulation, write_simulation_progress, SimSummary};
+
+/// [`write_simulation`] after checking the options and the output path, as `probmot simulate`
+/// runs it. Progress: frames written, out of `opts.frames`.
+pub fn simulate_file(
+    opts: &SimOptions,
+    out: &Path,
+    progress: ProgressFn<'_>,
+) -> Result<SimSummary> {
+    anyhow::ensure!(
+        opts.rate_hz.is_finite() && opts.rate_hz > 0.0,
+        "--rate must be a positive number of Hz"
+    );
+    anyhow::ensure!(opts.frames > 0, "--frames must be at least 1");
+    check_output_path(None, out)?;
+    progress(Progress::Length(u64::from(opts.frames)));
+    write_simulation_progress(opts, out, &|n| progress(Progress::Advance(n)))
+}
 
 /// The true state of one object in one frame.
 #[derive(Debug, Clone, Copy, PartialEq)]

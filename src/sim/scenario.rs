@@ -10,7 +10,7 @@ use super::{SimObject, TruthState};
 use crate::tracker::angle::wrap;
 
 /// Which drive to simulate.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Scenario {
     /// A car making a sharp 90-degree left turn among a few other cars (the paper's Figure 2).
     TurningCar,
@@ -21,6 +21,26 @@ pub enum Scenario {
 }
 
 impl Scenario {
+    /// Every scenario, in the order the help lists them.
+    pub const ALL: [Scenario; 3] = [Scenario::TurningCar, Scenario::Pedestrians, Scenario::City];
+
+    /// What the drive shows (the help's line).
+    pub fn description(self) -> &'static str {
+        match self {
+            Scenario::TurningCar => {
+                "A car making a sharp 90-degree left turn among a few other cars (the paper's \
+                 Figure 2)"
+            }
+            Scenario::Pedestrians => {
+                "Pedestrians crossing and walking side by side, with short occlusions"
+            }
+            Scenario::City => {
+                "All seven nuScenes classes, dozens of objects, misses, false positives and \
+                 heading flips"
+            }
+        }
+    }
+
     /// The name used on the command line.
     pub fn name(self) -> &'static str {
         match self {
@@ -31,7 +51,7 @@ impl Scenario {
     }
 }
 
-/// Simulation settings.
+/// Simulation settings; the defaults are `probmot simulate`'s (with the city scenario).
 #[derive(Debug, Clone)]
 pub struct SimOptions {
     /// Scenario.
@@ -47,6 +67,19 @@ pub struct SimOptions {
     /// Write the detections in the moving `base_link` frame of a simulated ego vehicle, with
     /// its transforms on `/tf` (see [`super::ego`]); the ground truth stays in `map`.
     pub ego_frame: bool,
+}
+
+impl Default for SimOptions {
+    fn default() -> Self {
+        SimOptions {
+            scenario: Scenario::City,
+            seed: 1,
+            frames: 40,
+            objects: None,
+            rate_hz: 2.0,
+            ego_frame: false,
+        }
+    }
 }
 
 impl SimOptions {

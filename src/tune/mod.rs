@@ -5,11 +5,13 @@
 
 pub mod cache;
 pub mod data;
+pub mod files;
 pub mod gains;
 pub mod score;
 pub mod search;
 pub mod shared;
 pub mod space;
+pub mod text;
 
 use std::collections::BTreeMap;
 

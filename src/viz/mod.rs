@@ -6,12 +6,15 @@
 pub mod labels;
 mod legend;
 pub mod plot;
+pub mod plot_file;
 pub mod plot_layout;
 mod plot_panel;
 mod plot_scene;
 pub mod plot_types;
 #[cfg(feature = "rerun")]
 pub mod rrd;
+pub mod rrd_file;
+pub mod rrd_options;
 pub mod scene;
 pub mod text;
 pub mod truth_colors;

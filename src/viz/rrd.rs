@@ -37,6 +37,7 @@ use rerun::{
 };
 
 use super::plot::{id_color, mix64, DETECTION_GREY};
+pub use super::rrd_options::{RrdSummary, VizOptions};
 use super::scene::{drawable, Scene};
 use super::window::{read_timed_events, read_window};
 use super::{read_layers, FileLayers, Layer, Selection};
@@ -64,20 +65,6 @@ pub struct RrdOptions {
     pub recording_id: Option<String>,
     /// Name of the view (and of the recording), e.g. the input's file name.
     pub name: String,
-}
-
-/// What was written.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct RrdSummary {
-    /// Frames logged.
-    pub frames: usize,
-    /// Distinct track ids.
-    pub track_ids: usize,
-    /// Size of the file, bytes.
-    pub bytes: usize,
-    /// Per topic, the boxes (of the chosen classes) left out because they cannot be drawn
-    /// ([`super::scene::drawable`]); only topics with any.
-    pub undrawable: Vec<(String, u64)>,
 }
 
 fn rgb((r, g, b): (u8, u8, u8)) -> Color {
@@ -364,43 +351,6 @@ pub fn write_rrd(scene: &Scene, out: &Path, opts: &RrdOptions) -> Result<RrdSumm
         bytes: bytes.len(),
         undrawable: Vec::new(),
     })
-}
-
-/// What to read from an MCAP file for [`mcap_to_rrd`].
-#[derive(Debug, Clone)]
-pub struct VizOptions {
-    /// Topic of the detections (`probmot.Detections3D`).
-    pub detections_topic: String,
-    /// Topic of the tracks (`probmot.Tracks3D`).
-    pub tracks_topic: String,
-    /// Topic of the ground truth (`probmot.Tracks3D`).
-    pub truth_topic: String,
-    /// Only boxes of these classes; all when empty.
-    pub classes: Vec<String>,
-    /// Centres per track in `world/trails` (at least 1).
-    pub trail: usize,
-    /// Rerun recording id; `None` for a random one.
-    pub recording_id: Option<String>,
-    /// Window start, seconds after the first frame (inclusive); `None` from the start. With a
-    /// window only the chunks that overlap it are read.
-    pub from_s: Option<f64>,
-    /// Window end, seconds after the first frame (inclusive); `None` to the end.
-    pub to_s: Option<f64>,
-}
-
-impl Default for VizOptions {
-    fn default() -> Self {
-        VizOptions {
-            detections_topic: Layer::Detections.default_topic().into(),
-            tracks_topic: Layer::Tracks.default_topic().into(),
-            truth_topic: Layer::GroundTruth.default_topic().into(),
-            classes: Vec::new(),
-            trail: 20,
-            recording_id: None,
-            from_s: None,
-            to_s: None,
-        }
-    }
 }
 
 /// Reads the detections, tracks and ground truth of the MCAP file `input` (each optional, but at

@@ -23,6 +23,7 @@ mod hota;
 mod interrupts;
 mod kitti_eval;
 mod levers;
+mod library_calls;
 mod nuscenes_io;
 mod plot;
 mod plot_layout;

@@ -22,6 +22,7 @@ mod import;
 mod plan;
 mod results;
 mod scene_file;
+mod summary_text;
 mod tables;
 pub mod tracks;
 mod truth;
