@@ -62,6 +62,8 @@ pub struct Frame {
     pub log_time: u64,
     /// Its boxes.
     pub boxes: Boxes,
+    /// The message's `frame_id` (the coordinate frame of its boxes).
+    pub frame_id: String,
 }
 
 /// The frames of the requested topics of one recording.
@@ -83,11 +85,19 @@ pub fn tracks_stamp(stamp: u64, log_time: u64) -> u64 {
     }
 }
 
-/// How the messages of one requested channel are decoded.
-enum Decoder {
+/// How the messages of one box channel are decoded: chosen once per channel from its schema and
+/// encodings for a request ([`Decoder::for_channel`]), then applied to each message with the
+/// stamp rule ([`Decoder::decode`]). Every reader of box channels (eval, fit, plot, viz, tune,
+/// export) decodes through it.
+#[derive(Debug, Clone, Copy)]
+pub enum Decoder {
+    /// Detections of any supported input schema.
     Detections(DetectionSource),
+    /// `probmot.Tracks3D` in protobuf or JSON.
     Tracks(Encoding),
+    /// ROS 2 `vision_msgs/msg/Detection3DArray` tracks.
     Ros2Tracks(VisionLayout),
+    /// Autoware `TrackedObjects`.
     AutowareTracks(KinematicsOrder),
 }
 
@@ -105,64 +115,105 @@ impl fmt::Display for TopicRequest {
     }
 }
 
-/// The decoder of a channel for a request, or an error naming the file, topic and role.
-fn decoder_for(
-    file: &str,
-    req: &TopicRequest,
-    schema: &SchemaInfo,
-    message_encoding: &str,
-) -> Result<Decoder> {
-    match req.kind {
-        TopicKind::Detections => DetectionSource::for_channel(
-            &schema.name,
-            &schema.encoding,
-            &schema.data,
-            message_encoding,
-        )
-        .map(Decoder::Detections)
-        .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}")),
-        TopicKind::Tracks => {
-            if let Some(layout) = autoware_tracks::layout_for_channel(
-                &schema.name,
-                &schema.encoding,
-                &schema.data,
-                message_encoding,
-            ) {
-                return layout
-                    .map(Decoder::AutowareTracks)
-                    .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"));
+impl Decoder {
+    /// The decoder of a channel (its schema's name, encoding and data, and its message
+    /// encoding; a channel without a schema gives empty ones) for a request, or an error naming
+    /// the file, topic and role.
+    pub fn for_channel(
+        file: &str,
+        req: &TopicRequest,
+        schema: (&str, &str, &[u8]),
+        message_encoding: &str,
+    ) -> Result<Decoder> {
+        let (name, encoding, data) = schema;
+        match req.kind {
+            TopicKind::Detections => {
+                DetectionSource::for_channel(name, encoding, data, message_encoding)
+                    .map(Decoder::Detections)
+                    .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"))
             }
-            if ros2_vision::SCHEMA_NAMES.contains(&schema.name.as_str()) {
-                return match DetectionSource::for_channel(
-                    &schema.name,
-                    &schema.encoding,
-                    &schema.data,
-                    message_encoding,
-                ) {
-                    Ok(DetectionSource::Ros2Vision(layout)) => Ok(Decoder::Ros2Tracks(layout)),
-                    Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
-                    Err(why) => bail!("{file}: {req}: {why}"),
-                };
-            }
-            if schema.name != TRACKS_SCHEMA {
-                bail!(
-                    "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
+            TopicKind::Tracks => {
+                if let Some(layout) =
+                    autoware_tracks::layout_for_channel(name, encoding, data, message_encoding)
+                {
+                    return layout
+                        .map(Decoder::AutowareTracks)
+                        .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"));
+                }
+                if ros2_vision::SCHEMA_NAMES.contains(&name) {
+                    return match DetectionSource::for_channel(
+                        name,
+                        encoding,
+                        data,
+                        message_encoding,
+                    ) {
+                        Ok(DetectionSource::Ros2Vision(layout)) => Ok(Decoder::Ros2Tracks(layout)),
+                        Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
+                        Err(why) => bail!("{file}: {req}: {why}"),
+                    };
+                }
+                if name != TRACKS_SCHEMA {
+                    bail!(
+                        "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
                      vision_msgs/msg/Detection3DArray tracks, or Autoware TrackedObjects) for \
                      the {}",
-                    req.topic,
-                    schema.name,
-                    req.role
-                );
-            }
-            let Some(enc) = Encoding::from_message_encoding(message_encoding) else {
-                bail!(
-                    "{file}: topic {} has message encoding '{message_encoding}'; expected \
+                        req.topic,
+                        name,
+                        req.role
+                    );
+                }
+                let Some(enc) = Encoding::from_message_encoding(message_encoding) else {
+                    bail!(
+                        "{file}: topic {} has message encoding '{message_encoding}'; expected \
                      protobuf or json",
-                    req.topic
-                );
-            };
-            Ok(Decoder::Tracks(enc))
+                        req.topic
+                    );
+                };
+                Ok(Decoder::Tracks(enc))
+            }
         }
+    }
+
+    /// Decodes one message of the channel (logged at `log_time`), with the stamp rule applied.
+    pub fn decode(&self, data: &[u8], log_time: u64) -> Result<Frame> {
+        Ok(match self {
+            Decoder::Detections(source) => {
+                let m = source.decode(data)?;
+                Frame {
+                    stamp: stamp_or_log_time(m.stamp, log_time),
+                    log_time,
+                    boxes: Boxes::Detections(m.detections),
+                    frame_id: m.frame_id,
+                }
+            }
+            Decoder::Ros2Tracks(layout) => {
+                let m = ros2_tracks::decode_tracks(data, *layout)?;
+                Frame {
+                    stamp: tracks_stamp(m.stamp, log_time),
+                    log_time,
+                    boxes: Boxes::Tracks(m.tracks),
+                    frame_id: m.frame_id,
+                }
+            }
+            Decoder::AutowareTracks(order) => {
+                let m = autoware_tracks::decode_tracks(data, *order)?;
+                Frame {
+                    stamp: tracks_stamp(m.stamp, log_time),
+                    log_time,
+                    boxes: Boxes::Tracks(m.tracks),
+                    frame_id: m.frame_id,
+                }
+            }
+            Decoder::Tracks(enc) => {
+                let m: Tracks3D = msgs::decode(data, *enc)?;
+                Frame {
+                    stamp: tracks_stamp(m.stamp, log_time),
+                    log_time,
+                    boxes: Boxes::Tracks(m.tracks),
+                    frame_id: m.frame_id,
+                }
+            }
+        })
     }
 }
 
@@ -224,8 +275,10 @@ pub fn for_each_frame(
                     .enumerate()
                     .filter(|(_, r)| r.topic == c.topic)
                 {
-                    let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                    let decoder = decoder_for(&file, req, &schema, &c.message_encoding)?;
+                    let schema = schemas.get(&c.schema_id).map_or(("", "", &[][..]), |s| {
+                        (s.name.as_str(), s.encoding.as_str(), &s.data[..])
+                    });
+                    let decoder = Decoder::for_channel(&file, req, schema, &c.message_encoding)?;
                     channels.entry(c.id).or_default().push((i, decoder));
                     f(FrameEvent::Channel(i), stats)?;
                 }
@@ -238,7 +291,7 @@ pub fn for_each_frame(
                             wanted[*i].topic, header.log_time
                         )
                     };
-                    let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
+                    let frame = decoder.decode(&data, header.log_time).with_context(ctx)?;
                     f(FrameEvent::Frame(*i, frame), stats)?;
                 }
             }
@@ -247,44 +300,6 @@ pub fn for_each_frame(
         Ok(())
     })?;
     Ok(topics)
-}
-
-/// Decodes one message of a requested channel, with the stamp rule applied.
-fn decode_frame(decoder: &Decoder, data: &[u8], log_time: u64) -> Result<Frame> {
-    Ok(match decoder {
-        Decoder::Detections(source) => {
-            let m = source.decode(data)?;
-            Frame {
-                stamp: stamp_or_log_time(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Detections(m.detections),
-            }
-        }
-        Decoder::Ros2Tracks(layout) => {
-            let m = ros2_tracks::decode_tracks(data, *layout)?;
-            Frame {
-                stamp: tracks_stamp(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Tracks(m.tracks),
-            }
-        }
-        Decoder::AutowareTracks(order) => {
-            let m = autoware_tracks::decode_tracks(data, *order)?;
-            Frame {
-                stamp: tracks_stamp(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Tracks(m.tracks),
-            }
-        }
-        Decoder::Tracks(enc) => {
-            let m: Tracks3D = msgs::decode(data, *enc)?;
-            Frame {
-                stamp: tracks_stamp(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Tracks(m.tracks),
-            }
-        }
-    })
 }
 
 /// The error for a topic the file has no channel for: it names the topics the file has, and for
