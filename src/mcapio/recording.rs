@@ -251,7 +251,18 @@ pub enum FrameEvent {
 pub fn for_each_frame(
     path: &Path,
     wanted: &[TopicRequest],
+    f: impl FnMut(FrameEvent, ReadStats) -> Result<()>,
+) -> Result<BTreeSet<String>> {
+    for_each_frame_with(path, wanted, f, |_| Ok(()))
+}
+
+/// [`for_each_frame`], handing `other` every record that is not a schema, a channel or a
+/// message (metadata, attachments, the summary's statistics...) in file order.
+pub fn for_each_frame_with(
+    path: &Path,
+    wanted: &[TopicRequest],
     mut f: impl FnMut(FrameEvent, ReadStats) -> Result<()>,
+    mut other: impl FnMut(Record<'_>) -> Result<()>,
 ) -> Result<BTreeSet<String>> {
     let file = path.display().to_string();
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
@@ -295,7 +306,7 @@ pub fn for_each_frame(
                     f(FrameEvent::Frame(*i, frame), stats)?;
                 }
             }
-            _ => {}
+            rec => other(rec)?,
         }
         Ok(())
     })?;
@@ -341,7 +352,18 @@ pub fn no_channel(
 pub fn for_each_tracks_frame(
     path: &Path,
     topic: &str,
+    f: impl FnMut(u64, Vec<Track3D>, ReadStats) -> Result<()>,
+) -> Result<()> {
+    for_each_tracks_frame_with(path, topic, f, |_| Ok(()))
+}
+
+/// [`for_each_tracks_frame`], handing `other` the records [`for_each_frame_with`] does (e.g.
+/// the metadata an export needs beside the tracks).
+pub fn for_each_tracks_frame_with(
+    path: &Path,
+    topic: &str,
     mut f: impl FnMut(u64, Vec<Track3D>, ReadStats) -> Result<()>,
+    other: impl FnMut(Record<'_>) -> Result<()>,
 ) -> Result<()> {
     let req = TopicRequest {
         topic: topic.to_string(),
@@ -349,7 +371,7 @@ pub fn for_each_tracks_frame(
         role: "tracks or ground truth".to_string(),
     };
     let mut found = false;
-    let topics = for_each_frame(
+    let topics = for_each_frame_with(
         path,
         std::slice::from_ref(&req),
         |event, stats| match event {
@@ -362,6 +384,7 @@ pub fn for_each_tracks_frame(
                 Boxes::Detections(_) => bail!("{}: topic {topic} gave detections", path.display()),
             },
         },
+        other,
     )?;
     match found {
         true => Ok(()),
