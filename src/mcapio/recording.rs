@@ -1,6 +1,7 @@
-//! One reader of the box channels of a recording, for every consumer that reads frames (fit,
-//! plot, viz): schemas and channels are resolved once into typed decoders, and each message
-//! becomes a [`Frame`] `{stamp, log_time, boxes}` with the stamp rule applied here.
+//! One reader of the box channels of a recording, for every consumer that reads frames (eval,
+//! fit, plot, viz, tune, export): each channel is resolved once into a [`Decoder`] (also what
+//! viz's windowed read uses), and each message becomes a [`Frame`] `{stamp, log_time, boxes,
+//! frame_id}` with the stamp rule applied here.
 //!
 //! The stamp rule: a message's own stamp, else its MCAP `log_time`. A detection message's
 //! stamp is optional ([`crate::msgs::detection_frame::stamp_or_log_time`]); a
