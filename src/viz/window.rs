@@ -124,8 +124,8 @@ fn span(
 /// The layers of `path` for a window of `[from_s, to_s]` seconds after the first frame: every
 /// asked-for topic's presence and the first and last frame stamps over them
 /// ([`FileLayers::span`]), and the frames of the `drawn` layers in the window (a little more:
-/// the caller selects by stamp). Falls back to reading the whole file when it has no chunk
-/// indexes.
+/// the caller selects by stamp; none when no layer is drawn or the file has none of the drawn
+/// ones). Falls back to reading the whole file when it has no chunk indexes.
 pub fn read_window(
     path: &Path,
     wanted: &[(Layer, String)],

@@ -877,3 +877,35 @@ fn the_protocol_follows_the_logs() {
     assert_eq!(mixed.status.code(), Some(2), "{}", said(&mixed));
     assert!(said(&mixed).contains("give --protocol"), "{}", said(&mixed));
 }
+
+/// Tune reads detections through the one decoder of box channels: a ROS 2
+/// `vision_msgs/msg/Detection3DArray` channel (here the tracks `track --tracks-format ros2`
+/// writes) gives the same frames and boxes as its probmot twin.
+#[test]
+fn tune_reads_ros2_detections_as_probmot_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::repo("sample_logs/city.mcap");
+    let out = |format: &str| {
+        let path = dir.path().join(format!("{format}.mcap"));
+        let s = |p: &Path| p.to_str().unwrap().to_string();
+        let args = ["track", &s(&input), "-o", &s(&path), "--quiet"];
+        common::probmot_ok(&[&args[..], &["--tracks-format", format, "--no-scene"]].concat());
+        path
+    };
+    let (pb, ros) = (out("probmot"), out("ros2"));
+    let a = TuneLog::load(&pb, "/ground_truth", "/tracks").unwrap();
+    let b = TuneLog::load(&ros, "/ground_truth", "/tracks").unwrap();
+    let boxes = |l: &TuneLog| l.frames.iter().map(|f| f.detections.len()).sum::<usize>();
+    assert!(boxes(&a) > 100, "{}", boxes(&a));
+    assert_eq!(a.frames.len(), b.frames.len());
+    assert_eq!(boxes(&a), boxes(&b));
+    for (x, y) in a.frames.iter().zip(&b.frames) {
+        assert_eq!(x.stamp, y.stamp);
+        for (p, r) in x.detections.iter().zip(&y.detections) {
+            assert_eq!(p.label, r.label);
+            for k in 0..3 {
+                assert!((p.bbox.center[k] - r.bbox.center[k]).abs() < 1e-9);
+            }
+        }
+    }
+}
