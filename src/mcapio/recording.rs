@@ -1,7 +1,7 @@
 //! One reader of the box channels of a recording, for every consumer that reads frames (eval,
 //! fit, plot, viz, tune, export): each channel is resolved once into a [`Decoder`] (also what
-//! viz's windowed read uses), and each message becomes a [`Frame`] `{stamp, log_time, boxes,
-//! frame_id}` with the stamp rule applied here.
+//! viz's windowed read uses), and each message becomes a [`Frame`] `{stamp, log_time, boxes}`
+//! with the stamp rule applied here.
 //!
 //! The stamp rule: a message's own stamp, else its MCAP `log_time`. A detection message's
 //! stamp is optional ([`crate::msgs::detection_frame::stamp_or_log_time`]); a
@@ -63,8 +63,6 @@ pub struct Frame {
     pub log_time: u64,
     /// Its boxes.
     pub boxes: Boxes,
-    /// The message's `frame_id` (the coordinate frame of its boxes).
-    pub frame_id: String,
 }
 
 /// The frames of the requested topics of one recording.
@@ -177,43 +175,41 @@ impl Decoder {
 
     /// Decodes one message of the channel (logged at `log_time`), with the stamp rule applied.
     pub fn decode(&self, data: &[u8], log_time: u64) -> Result<Frame> {
+        // The frame id is dropped here, as soon as decoded, not with the frame.
+        self.decode_with_frame_id(data, log_time).map(|(f, _)| f)
+    }
+
+    /// [`Decoder::decode`], with the message's `frame_id` (the coordinate frame of its boxes).
+    pub fn decode_with_frame_id(&self, data: &[u8], log_time: u64) -> Result<(Frame, String)> {
+        let tracks = |m: Tracks3D| {
+            let stamp = tracks_stamp(m.stamp, log_time);
+            let boxes = Boxes::Tracks(m.tracks);
+            (
+                Frame {
+                    stamp,
+                    log_time,
+                    boxes,
+                },
+                m.frame_id,
+            )
+        };
         Ok(match self {
             Decoder::Detections(source) => {
                 let m = source.decode(data)?;
-                Frame {
-                    stamp: stamp_or_log_time(m.stamp, log_time),
-                    log_time,
-                    boxes: Boxes::Detections(m.detections),
-                    frame_id: m.frame_id,
-                }
+                let stamp = stamp_or_log_time(m.stamp, log_time);
+                let boxes = Boxes::Detections(m.detections);
+                (
+                    Frame {
+                        stamp,
+                        log_time,
+                        boxes,
+                    },
+                    m.frame_id,
+                )
             }
-            Decoder::Ros2Tracks(layout) => {
-                let m = ros2_tracks::decode_tracks(data, *layout)?;
-                Frame {
-                    stamp: tracks_stamp(m.stamp, log_time),
-                    log_time,
-                    boxes: Boxes::Tracks(m.tracks),
-                    frame_id: m.frame_id,
-                }
-            }
-            Decoder::AutowareTracks(order) => {
-                let m = autoware_tracks::decode_tracks(data, *order)?;
-                Frame {
-                    stamp: tracks_stamp(m.stamp, log_time),
-                    log_time,
-                    boxes: Boxes::Tracks(m.tracks),
-                    frame_id: m.frame_id,
-                }
-            }
-            Decoder::Tracks(enc) => {
-                let m: Tracks3D = msgs::decode(data, *enc)?;
-                Frame {
-                    stamp: tracks_stamp(m.stamp, log_time),
-                    log_time,
-                    boxes: Boxes::Tracks(m.tracks),
-                    frame_id: m.frame_id,
-                }
-            }
+            Decoder::Ros2Tracks(layout) => tracks(ros2_tracks::decode_tracks(data, *layout)?),
+            Decoder::AutowareTracks(order) => tracks(autoware_tracks::decode_tracks(data, *order)?),
+            Decoder::Tracks(enc) => tracks(msgs::decode::<Tracks3D>(data, *enc)?),
         })
     }
 }

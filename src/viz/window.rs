@@ -198,11 +198,12 @@ pub fn read_window(
             let Some(lf) = layers.iter_mut().find(|l| l.topic == wanted[*i].1) else {
                 return Ok(true);
             };
-            let f = decoder.decode(data, h.log_time).with_context(|| ctx(h))?;
+            let (f, frame_id) =
+                (decoder.decode_with_frame_id(data, h.log_time)).with_context(|| ctx(h))?;
             let frame: Frame = (f.stamp, drawn_boxes(f.boxes));
             lf.frames.push(frame);
             lf.log_times.push(h.log_time);
-            lf.frame_ids.insert(f.frame_id);
+            lf.frame_ids.insert(frame_id);
             Ok(true)
         })?;
     }
