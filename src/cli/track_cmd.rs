@@ -212,6 +212,7 @@ fn print_summary(s: &TrackSummary) {
 /// the `--out-dir` outputs (empty with `-o`).
 fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
     match (&a.output, &a.out_dir) {
+        (None, Some(dir)) => out_dir_outputs(dir, &a.inputs),
         (Some(out), None) => {
             if a.inputs.len() != 1 {
                 bail!("-o takes one input; use --out-dir DIR for several inputs");
@@ -223,7 +224,6 @@ fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
             }
             Ok(Vec::new())
         }
-        (None, Some(dir)) => out_dir_outputs(dir, &a.inputs),
         _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
     }
 }

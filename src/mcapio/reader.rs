@@ -396,7 +396,7 @@ impl Fields<'_> {
     }
 
     /// A map: `u32` byte length, then entries until at least that many bytes were read.
-    fn map(&mut self, mut entry: impl FnMut(&mut Self) -> bool) -> bool {
+    fn map_entries(&mut self, mut entry: impl FnMut(&mut Self) -> bool) -> bool {
         let Some(len) = self.u32() else {
             return false;
         };
@@ -410,10 +410,10 @@ impl Fields<'_> {
     }
 
     fn string_map(&mut self) -> bool {
-        self.map(|f| f.string() && f.string())
+        self.map_entries(|f| f.string() && f.string())
     }
 
     fn int_map(&mut self, entry_len: usize) -> bool {
-        self.map(|f| f.skip(entry_len))
+        self.map_entries(|f| f.skip(entry_len))
     }
 }

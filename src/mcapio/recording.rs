@@ -1,6 +1,7 @@
-//! One reader of the box channels of a recording, for every consumer that reads frames (fit,
-//! plot, viz): schemas and channels are resolved once into typed decoders, and each message
-//! becomes a [`Frame`] `{stamp, log_time, boxes}` with the stamp rule applied here.
+//! One reader of the box channels of a recording, for every consumer that reads frames (eval,
+//! fit, plot, viz, tune, export): each channel is resolved once into a [`Decoder`] (also what
+//! viz's windowed read uses), and each message becomes a [`Frame`] `{stamp, log_time, boxes}`
+//! with the stamp rule applied here.
 //!
 //! The stamp rule: a message's own stamp, else its MCAP `log_time`. A detection message's
 //! stamp is optional ([`crate::msgs::detection_frame::stamp_or_log_time`]); a
@@ -83,11 +84,19 @@ pub fn tracks_stamp(stamp: u64, log_time: u64) -> u64 {
     }
 }
 
-/// How the messages of one requested channel are decoded.
-enum Decoder {
+/// How the messages of one box channel are decoded: chosen once per channel from its schema and
+/// encodings for a request ([`Decoder::for_channel`]), then applied to each message with the
+/// stamp rule ([`Decoder::decode`]). Every reader of box channels (eval, fit, plot, viz, tune,
+/// export) decodes through it.
+#[derive(Debug, Clone, Copy)]
+pub enum Decoder {
+    /// Detections of any supported input schema.
     Detections(DetectionSource),
+    /// `probmot.Tracks3D` in protobuf or JSON.
     Tracks(Encoding),
+    /// ROS 2 `vision_msgs/msg/Detection3DArray` tracks.
     Ros2Tracks(VisionLayout),
+    /// Autoware `TrackedObjects`.
     AutowareTracks(KinematicsOrder),
 }
 
@@ -105,64 +114,103 @@ impl fmt::Display for TopicRequest {
     }
 }
 
-/// The decoder of a channel for a request, or an error naming the file, topic and role.
-fn decoder_for(
-    file: &str,
-    req: &TopicRequest,
-    schema: &SchemaInfo,
-    message_encoding: &str,
-) -> Result<Decoder> {
-    match req.kind {
-        TopicKind::Detections => DetectionSource::for_channel(
-            &schema.name,
-            &schema.encoding,
-            &schema.data,
-            message_encoding,
-        )
-        .map(Decoder::Detections)
-        .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}")),
-        TopicKind::Tracks => {
-            if let Some(layout) = autoware_tracks::layout_for_channel(
-                &schema.name,
-                &schema.encoding,
-                &schema.data,
-                message_encoding,
-            ) {
-                return layout
-                    .map(Decoder::AutowareTracks)
-                    .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"));
+impl Decoder {
+    /// The decoder of a channel (its schema's name, encoding and data, and its message
+    /// encoding; a channel without a schema gives empty ones) for a request, or an error naming
+    /// the file, topic and role.
+    pub fn for_channel(
+        file: &str,
+        req: &TopicRequest,
+        schema: (&str, &str, &[u8]),
+        message_encoding: &str,
+    ) -> Result<Decoder> {
+        let (name, encoding, data) = schema;
+        match req.kind {
+            TopicKind::Detections => {
+                DetectionSource::for_channel(name, encoding, data, message_encoding)
+                    .map(Decoder::Detections)
+                    .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"))
             }
-            if ros2_vision::SCHEMA_NAMES.contains(&schema.name.as_str()) {
-                return match DetectionSource::for_channel(
-                    &schema.name,
-                    &schema.encoding,
-                    &schema.data,
-                    message_encoding,
-                ) {
-                    Ok(DetectionSource::Ros2Vision(layout)) => Ok(Decoder::Ros2Tracks(layout)),
-                    Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
-                    Err(why) => bail!("{file}: {req}: {why}"),
-                };
-            }
-            if schema.name != TRACKS_SCHEMA {
-                bail!(
-                    "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
+            TopicKind::Tracks => {
+                if let Some(layout) =
+                    autoware_tracks::layout_for_channel(name, encoding, data, message_encoding)
+                {
+                    return layout
+                        .map(Decoder::AutowareTracks)
+                        .map_err(|why| anyhow::anyhow!("{file}: {req}: {why}"));
+                }
+                if ros2_vision::SCHEMA_NAMES.contains(&name) {
+                    return match DetectionSource::for_channel(
+                        name,
+                        encoding,
+                        data,
+                        message_encoding,
+                    ) {
+                        Ok(DetectionSource::Ros2Vision(layout)) => Ok(Decoder::Ros2Tracks(layout)),
+                        Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
+                        Err(why) => bail!("{file}: {req}: {why}"),
+                    };
+                }
+                if name != TRACKS_SCHEMA {
+                    bail!(
+                        "{file}: topic {} has schema '{}', expected {TRACKS_SCHEMA} (or ROS 2 \
                      vision_msgs/msg/Detection3DArray tracks, or Autoware TrackedObjects) for \
                      the {}",
-                    req.topic,
-                    schema.name,
-                    req.role
-                );
-            }
-            let Some(enc) = Encoding::from_message_encoding(message_encoding) else {
-                bail!(
-                    "{file}: topic {} has message encoding '{message_encoding}'; expected \
+                        req.topic,
+                        name,
+                        req.role
+                    );
+                }
+                let Some(enc) = Encoding::from_message_encoding(message_encoding) else {
+                    bail!(
+                        "{file}: topic {} has message encoding '{message_encoding}'; expected \
                      protobuf or json",
-                    req.topic
-                );
-            };
-            Ok(Decoder::Tracks(enc))
+                        req.topic
+                    );
+                };
+                Ok(Decoder::Tracks(enc))
+            }
         }
+    }
+
+    /// Decodes one message of the channel (logged at `log_time`), with the stamp rule applied.
+    pub fn decode(&self, data: &[u8], log_time: u64) -> Result<Frame> {
+        // The frame id is dropped here, as soon as decoded, not with the frame.
+        self.decode_with_frame_id(data, log_time).map(|(f, _)| f)
+    }
+
+    /// [`Decoder::decode`], with the message's `frame_id` (the coordinate frame of its boxes).
+    pub fn decode_with_frame_id(&self, data: &[u8], log_time: u64) -> Result<(Frame, String)> {
+        let tracks = |m: Tracks3D| {
+            let stamp = tracks_stamp(m.stamp, log_time);
+            let boxes = Boxes::Tracks(m.tracks);
+            (
+                Frame {
+                    stamp,
+                    log_time,
+                    boxes,
+                },
+                m.frame_id,
+            )
+        };
+        Ok(match self {
+            Decoder::Detections(source) => {
+                let m = source.decode(data)?;
+                let stamp = stamp_or_log_time(m.stamp, log_time);
+                let boxes = Boxes::Detections(m.detections);
+                (
+                    Frame {
+                        stamp,
+                        log_time,
+                        boxes,
+                    },
+                    m.frame_id,
+                )
+            }
+            Decoder::Ros2Tracks(layout) => tracks(ros2_tracks::decode_tracks(data, *layout)?),
+            Decoder::AutowareTracks(order) => tracks(autoware_tracks::decode_tracks(data, *order)?),
+            Decoder::Tracks(enc) => tracks(msgs::decode::<Tracks3D>(data, *enc)?),
+        })
     }
 }
 
@@ -200,7 +248,18 @@ pub enum FrameEvent {
 pub fn for_each_frame(
     path: &Path,
     wanted: &[TopicRequest],
+    f: impl FnMut(FrameEvent, ReadStats) -> Result<()>,
+) -> Result<BTreeSet<String>> {
+    for_each_frame_with(path, wanted, f, |_| Ok(()))
+}
+
+/// [`for_each_frame`], handing `other` every record that is not a schema, a channel or a
+/// message (metadata, attachments, the summary's statistics...) in file order.
+pub fn for_each_frame_with(
+    path: &Path,
+    wanted: &[TopicRequest],
     mut f: impl FnMut(FrameEvent, ReadStats) -> Result<()>,
+    mut other: impl FnMut(Record<'_>) -> Result<()>,
 ) -> Result<BTreeSet<String>> {
     let file = path.display().to_string();
     let mut schemas: BTreeMap<u16, SchemaInfo> = BTreeMap::new();
@@ -224,8 +283,10 @@ pub fn for_each_frame(
                     .enumerate()
                     .filter(|(_, r)| r.topic == c.topic)
                 {
-                    let schema = schemas.get(&c.schema_id).cloned().unwrap_or_default();
-                    let decoder = decoder_for(&file, req, &schema, &c.message_encoding)?;
+                    let schema = schemas.get(&c.schema_id).map_or(("", "", &[][..]), |s| {
+                        (s.name.as_str(), s.encoding.as_str(), &s.data[..])
+                    });
+                    let decoder = Decoder::for_channel(&file, req, schema, &c.message_encoding)?;
                     channels.entry(c.id).or_default().push((i, decoder));
                     f(FrameEvent::Channel(i), stats)?;
                 }
@@ -238,53 +299,15 @@ pub fn for_each_frame(
                             wanted[*i].topic, header.log_time
                         )
                     };
-                    let frame = decode_frame(decoder, &data, header.log_time).with_context(ctx)?;
+                    let frame = decoder.decode(&data, header.log_time).with_context(ctx)?;
                     f(FrameEvent::Frame(*i, frame), stats)?;
                 }
             }
-            _ => {}
+            rec => other(rec)?,
         }
         Ok(())
     })?;
     Ok(topics)
-}
-
-/// Decodes one message of a requested channel, with the stamp rule applied.
-fn decode_frame(decoder: &Decoder, data: &[u8], log_time: u64) -> Result<Frame> {
-    Ok(match decoder {
-        Decoder::Detections(source) => {
-            let m = source.decode(data)?;
-            Frame {
-                stamp: stamp_or_log_time(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Detections(m.detections),
-            }
-        }
-        Decoder::Ros2Tracks(layout) => {
-            let m = ros2_tracks::decode_tracks(data, *layout)?;
-            Frame {
-                stamp: tracks_stamp(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Tracks(m.tracks),
-            }
-        }
-        Decoder::AutowareTracks(order) => {
-            let m = autoware_tracks::decode_tracks(data, *order)?;
-            Frame {
-                stamp: tracks_stamp(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Tracks(m.tracks),
-            }
-        }
-        Decoder::Tracks(enc) => {
-            let m: Tracks3D = msgs::decode(data, *enc)?;
-            Frame {
-                stamp: tracks_stamp(m.stamp, log_time),
-                log_time,
-                boxes: Boxes::Tracks(m.tracks),
-            }
-        }
-    })
 }
 
 /// The error for a topic the file has no channel for: it names the topics the file has, and for
@@ -326,7 +349,18 @@ pub fn no_channel(
 pub fn for_each_tracks_frame(
     path: &Path,
     topic: &str,
+    f: impl FnMut(u64, Vec<Track3D>, ReadStats) -> Result<()>,
+) -> Result<()> {
+    for_each_tracks_frame_with(path, topic, f, |_| Ok(()))
+}
+
+/// [`for_each_tracks_frame`], handing `other` the records [`for_each_frame_with`] does (e.g.
+/// the metadata an export needs beside the tracks).
+pub fn for_each_tracks_frame_with(
+    path: &Path,
+    topic: &str,
     mut f: impl FnMut(u64, Vec<Track3D>, ReadStats) -> Result<()>,
+    other: impl FnMut(Record<'_>) -> Result<()>,
 ) -> Result<()> {
     let req = TopicRequest {
         topic: topic.to_string(),
@@ -334,7 +368,7 @@ pub fn for_each_tracks_frame(
         role: "tracks or ground truth".to_string(),
     };
     let mut found = false;
-    let topics = for_each_frame(
+    let topics = for_each_frame_with(
         path,
         std::slice::from_ref(&req),
         |event, stats| match event {
@@ -347,6 +381,7 @@ pub fn for_each_tracks_frame(
                 Boxes::Detections(_) => bail!("{}: topic {topic} gave detections", path.display()),
             },
         },
+        other,
     )?;
     match found {
         true => Ok(()),

@@ -1,14 +1,13 @@
-//! Reading the decoded messages of one topic of a probmot schema.
+//! Reading the messages of one topic as bytes, for the channels that are not boxes (e.g. the
+//! ego poses); box channels are read through [`super::recording`].
 
-use std::collections::{BTreeMap, BTreeSet};
+use std::collections::BTreeMap;
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
+use anyhow::Result;
 use mcap::records::{Channel, MessageHeader, Record};
 
 use super::reader::read_records;
-use super::recording::no_channel;
-use crate::msgs::{self, Encoding};
 
 /// Calls `on_channel` for every channel of `topic` with its schema's name (it checks the
 /// channel and returns how its messages are to be read), `on_message` for every message of
@@ -44,57 +43,4 @@ pub fn for_each_payload<E: Copy>(
         Ok(())
     })?;
     Ok(found)
-}
-
-/// Calls `on_message` for every message of `topic` (schema `schema`, protobuf or JSON) in file
-/// order, decoded as `M`, and `on_other` for every other record (e.g. metadata). Errors name the
-/// file, the topic and the message; a missing topic, another schema or encoding is an error.
-pub fn for_each_message<M>(
-    path: &Path,
-    topic: &str,
-    schema: &str,
-    mut on_message: impl FnMut(&MessageHeader, M) -> Result<()>,
-    mut on_other: impl FnMut(Record<'_>) -> Result<()>,
-) -> Result<()>
-where
-    M: prost::Message + Default + serde::de::DeserializeOwned,
-{
-    let file = path.display().to_string();
-    // The other topics, for the error when `topic` is missing.
-    let mut topics = BTreeSet::new();
-    let found = for_each_payload(
-        path,
-        topic,
-        |c, name| {
-            if name != schema {
-                bail!("{file}: topic {topic} has schema '{name}', expected {schema}");
-            }
-            Encoding::from_message_encoding(&c.message_encoding).with_context(|| {
-                format!(
-                    "{file}: topic {topic} has message encoding '{}'; expected protobuf or json",
-                    c.message_encoding
-                )
-            })
-        },
-        |header, data, enc| {
-            let m: M = msgs::decode(data, enc).with_context(|| {
-                format!(
-                    "{file}: topic {topic}, message at log_time {} (sequence {}): cannot decode \
-                     {schema}",
-                    header.log_time, header.sequence
-                )
-            })?;
-            on_message(header, m)
-        },
-        |rec| {
-            if let Record::Channel(c) = &rec {
-                topics.insert(c.topic.clone());
-            }
-            on_other(rec)
-        },
-    )?;
-    if !found {
-        return Err(no_channel(&file, topic, &topics));
-    }
-    Ok(())
 }

@@ -9,7 +9,7 @@ use std::collections::{BTreeMap, HashMap, HashSet};
 use std::io::{Read, Seek};
 
 use anyhow::{bail, Context, Result};
-use mcap::records::Record;
+use mcap::records::{MessageHeader, Record};
 
 use super::frame_schedule::{Schedule, Streaming};
 use super::progress::Progress;
@@ -52,6 +52,8 @@ impl PassPlan {
 /// Result of the first pass.
 #[derive(Default)]
 pub(super) struct Scan {
+    /// The input's name, for error messages.
+    pub(super) file: String,
     pub(super) profile: String,
     pub(super) schema_ids: HashSet<u16>,
     /// `(name, encoding, data)` of every schema.
@@ -85,12 +87,7 @@ impl Scan {
 
     /// A channel record: chooses it as detections (by topic, or by schema by default) and
     /// registers it with the transform sources. Returns whether it is a transform source.
-    fn on_channel(
-        &mut self,
-        c: &mcap::records::Channel,
-        opts: &TrackOptions,
-        file: &str,
-    ) -> Result<bool> {
+    fn on_channel(&mut self, c: &mcap::records::Channel, opts: &TrackOptions) -> Result<bool> {
         self.channel_ids.insert(c.id);
         self.topics.insert(c.topic.clone());
         let (schema_name, schema_enc, schema_data) =
@@ -116,7 +113,7 @@ impl Scan {
                 }
                 // Chosen by topic: the user asked for it, so it is an error.
                 Err(why) if !opts.detection_topics.is_empty() => {
-                    bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
+                    bail!("{}: channel {} (topic {}): {why}", self.file, c.id, c.topic)
                 }
                 // Chosen by default: left out, and reported below.
                 Err(why) => {
@@ -128,9 +125,36 @@ impl Scan {
         Ok(transform)
     }
 
+    /// A message of the first pass: the transforms, and a detection message's stamp (`last`:
+    /// the newest stamp of each detection channel so far).
+    fn on_message(
+        &mut self,
+        header: &MessageHeader,
+        data: &[u8],
+        opts: &TrackOptions,
+        last: &mut HashMap<u16, u64>,
+    ) -> Result<()> {
+        let file = &self.file;
+        self.transforms.on_message(file, header, data);
+        let Some((source, topic)) = self.det_channels.get(&header.channel_id) else {
+            return Ok(());
+        };
+        let (msg_stamp, count) = source
+            .stamp_and_count(data)
+            .with_context(|| undecodable(file, topic, header, source))?;
+        check_count(count, opts, file, topic, header)?;
+        let stamp = stamp_or_log_time(msg_stamp, header.log_time);
+        note_stamp(last, header, stamp, topic, &mut self.stamps_backwards);
+        self.entries.push((stamp, self.entries.len() as u64));
+        self.entry_channels.push(header.channel_id);
+        self.log_span.note(header.log_time);
+        Ok(())
+    }
+
     /// After every channel is known: leaves out SceneUpdates beside other detection channels
     /// (by default), and checks that there is something readable and every named topic exists.
-    fn finish(&mut self, opts: &TrackOptions, file: &str) -> Result<()> {
+    fn finish(&mut self, opts: &TrackOptions) -> Result<()> {
+        let file = &self.file;
         if opts.detection_topics.is_empty() {
             let left_out = detection_source::scenes_left_out(
                 self.det_channels.iter().map(|(id, (src, _))| (*id, src)),
@@ -177,35 +201,20 @@ pub(super) fn scan<R: Read + Seek>(
     progress: &dyn Fn(Progress<'_>),
 ) -> Result<Scan> {
     input.rewind()?;
-    let file = input.name.clone();
-    let mut s = Scan::default();
+    let mut s = Scan {
+        file: input.name.clone(),
+        ..Scan::default()
+    };
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
     read_records_from(input, |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
             Record::Schema { header, data } => s.on_schema(header, &data),
             Record::Channel(c) => {
-                s.on_channel(&c, opts, &file)?;
+                s.on_channel(&c, opts)?;
             }
             Record::Message { header, data } => {
-                s.transforms.on_message(&file, &header, &data);
-                if let Some((source, topic)) = s.det_channels.get(&header.channel_id) {
-                    let (msg_stamp, count) = source
-                        .stamp_and_count(&data)
-                        .with_context(|| undecodable(&file, topic, &header, source))?;
-                    check_count(count, opts, &file, topic, &header)?;
-                    let stamp = stamp_or_log_time(msg_stamp, header.log_time);
-                    note_stamp(
-                        &mut last_stamp,
-                        &header,
-                        stamp,
-                        topic,
-                        &mut s.stamps_backwards,
-                    );
-                    s.entries.push((stamp, s.entries.len() as u64));
-                    s.entry_channels.push(header.channel_id);
-                    s.log_span.note(header.log_time);
-                }
+                s.on_message(&header, &data, opts, &mut last_stamp)?;
                 if s.entries.len().is_multiple_of(256) {
                     progress(Progress::Position(stats.bytes_read));
                 }
@@ -214,7 +223,7 @@ pub(super) fn scan<R: Read + Seek>(
         }
         Ok(())
     })?;
-    s.finish(opts, &file)?;
+    s.finish(opts)?;
     Ok(s)
 }
 
@@ -226,15 +235,15 @@ fn one_pass_plan<R: Read + Seek>(
     input: &mut McapInput<R>,
     opts: &TrackOptions,
 ) -> Option<(Scan, Schedule)> {
-    let file = &input.name.clone();
+    let mut plan = Scan {
+        file: input.name.clone(),
+        ..Scan::default()
+    };
     let Some((Record::Header(header), records)) = read_summary_records_from(&mut input.source)
     else {
         return None;
     };
-    let mut plan = Scan {
-        profile: header.profile,
-        ..Default::default()
-    };
+    plan.profile = header.profile;
     let mut summary_channels = HashMap::new();
     let mut counts = None;
     for rec in records {
@@ -243,7 +252,7 @@ fn one_pass_plan<R: Read + Seek>(
             Record::Channel(c) => {
                 // A transform channel (ego motion looks ahead in time), or an error that the
                 // first pass will report with the data section's records.
-                if plan.on_channel(&c, opts, file).unwrap_or(true) {
+                if plan.on_channel(&c, opts).unwrap_or(true) {
                     return None;
                 }
                 summary_channels.insert(c.id, (c.topic, c.schema_id));
@@ -252,7 +261,7 @@ fn one_pass_plan<R: Read + Seek>(
             _ => {}
         }
     }
-    if summary_channels.is_empty() || plan.finish(opts, file).is_err() {
+    if summary_channels.is_empty() || plan.finish(opts).is_err() {
         return None;
     }
     if plan.det_channels.len() > 1 && counts.is_none() {

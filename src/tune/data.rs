@@ -13,10 +13,11 @@ use crate::eval::scene::read_kitti_topic;
 use crate::fit::stats::median;
 use crate::fit::timing::interval_s;
 use crate::fit::{FitAccumulator, FitFrame};
-use crate::mcapio::topic::for_each_message;
+use crate::mcapio::recording::{
+    for_each_frame, no_channel, Boxes, FrameEvent, TopicKind, TopicRequest,
+};
 use crate::mcapio::LabelledBox;
 use crate::msgs::detection_frame::{check_box, SkipReason};
-use crate::msgs::{self, Detections3D};
 use crate::tracker::Box3;
 
 /// One detection, reduced to what tracking and scoring need.
@@ -86,7 +87,8 @@ pub fn frame_periods<'a>(
 
 impl TuneLog {
     /// Reads a log: truth from `truth_topic` (`probmot.Tracks3D` with the true instance ids),
-    /// detections from `detections_topic` (`probmot.Detections3D`). Errors name the file.
+    /// detections from `detections_topic` (any detection input `track` reads). Errors name the
+    /// file.
     pub fn load(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<TuneLog> {
         let file = path.display().to_string();
         let mut shared = KittiBoxes::default();
@@ -102,35 +104,48 @@ impl TuneLog {
             f.truth.extend(boxes);
         }
         let (mut n_msgs, mut skipped) = (0u64, BTreeMap::new());
-        for_each_message(
-            path,
-            detections_topic,
-            msgs::DETECTIONS_SCHEMA,
-            |header, m: Detections3D| {
-                let stamp = m.stamp.unwrap_or(header.log_time);
-                let f = frames.entry(stamp).or_default();
-                f.stamp = stamp;
-                f.has_detections = true;
-                n_msgs += 1;
-                // Exactly the message's boxes: grown push by push, a frame's vector would keep
-                // up to twice its size for as long as the tune runs.
-                f.detections.reserve_exact(m.detections.len());
-                for d in &m.detections {
-                    match check_box(d) {
-                        Ok(bbox) => f.detections.push(TuneDet {
-                            label: shared.shared(&d.label),
-                            bbox,
-                            score: d.score,
-                            image_box: d.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
-                        }),
-                        Err(reason) => *skipped.entry(reason).or_default() += 1,
-                    }
+        let request = TopicRequest {
+            topic: detections_topic.to_string(),
+            kind: TopicKind::Detections,
+            role: "detections".to_string(),
+        };
+        let mut found = false;
+        let topics = for_each_frame(path, std::slice::from_ref(&request), |event, _| {
+            let (stamp, detections) = match event {
+                FrameEvent::Channel(_) => {
+                    found = true;
+                    return Ok(());
                 }
-                Ok(())
-            },
-            |_| Ok(()),
-        )
+                FrameEvent::Frame(_, m) => match m.boxes {
+                    Boxes::Detections(d) => (m.stamp, d),
+                    Boxes::Tracks(_) => unreachable!("a detections request gives detections"),
+                },
+            };
+            let f = frames.entry(stamp).or_default();
+            f.stamp = stamp;
+            f.has_detections = true;
+            n_msgs += 1;
+            // Exactly the message's boxes: grown push by push, a frame's vector would keep
+            // up to twice its size for as long as the tune runs.
+            f.detections.reserve_exact(detections.len());
+            for d in &detections {
+                match check_box(d) {
+                    Ok(bbox) => f.detections.push(TuneDet {
+                        label: shared.shared(&d.label),
+                        bbox,
+                        score: d.score,
+                        image_box: d.image_box.map(|b| [b.x1, b.y1, b.x2, b.y2]),
+                    }),
+                    Err(reason) => *skipped.entry(reason).or_default() += 1,
+                }
+            }
+            Ok(())
+        })
         .with_context(|| format!("reading detections from {file}"))?;
+        if !found {
+            let e = no_channel(&file, detections_topic, &topics);
+            return Err(e.context(format!("reading detections from {file}")));
+        }
         if n_msgs == 0 {
             bail!("{file}: topic {detections_topic} (detections) has no messages");
         }

@@ -31,13 +31,21 @@ use crate::mcapio::LabelledBox;
 use crate::msgs::{self, Detection3D, Track3D};
 
 /// A track as drawn. Nothing draws attributes, so they are not kept.
-pub(crate) fn drawn_track(t: Track3D) -> LabelledBox {
+fn drawn_track(t: Track3D) -> LabelledBox {
     LabelledBox::from_track(t).keep_attributes(|_| false)
 }
 
 /// A detection as drawn (a missing centre or size draws at zero, as the message says).
-pub(crate) fn drawn_detection(d: Detection3D) -> LabelledBox {
+fn drawn_detection(d: Detection3D) -> LabelledBox {
     LabelledBox::from_detection(d).keep_attributes(|_| false)
+}
+
+/// The boxes of a decoded message as drawn.
+pub(crate) fn drawn_boxes(boxes: Boxes) -> Vec<LabelledBox> {
+    match boxes {
+        Boxes::Detections(d) => d.into_iter().map(drawn_detection).collect(),
+        Boxes::Tracks(t) => t.into_iter().map(drawn_track).collect(),
+    }
 }
 
 /// Boxes of one frame: `(stamp in ns, boxes)`.
@@ -92,6 +100,19 @@ impl Layer {
         match self {
             Layer::Detections => msgs::DETECTIONS_SCHEMA,
             Layer::Tracks | Layer::GroundTruth => msgs::TRACKS_SCHEMA,
+        }
+    }
+
+    /// The request that reads this layer from `topic` ([`recording::Decoder`]): detections
+    /// of any input `track` reads (probmot, ROS 2, Foxglove), else tracks.
+    pub fn request(self, topic: &str) -> TopicRequest {
+        TopicRequest {
+            topic: topic.to_string(),
+            kind: match self {
+                Layer::Detections => TopicKind::Detections,
+                Layer::Tracks | Layer::GroundTruth => TopicKind::Tracks,
+            },
+            role: format!("{self} layer"),
         }
     }
 
@@ -177,19 +198,7 @@ impl FileLayers {
 /// [`FileLayers::topics`]); a topic with the wrong schema or an undecodable message is an error
 /// naming the file, topic and log time.
 pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers> {
-    let requests: Vec<TopicRequest> = wanted
-        .iter()
-        .map(|(layer, topic)| TopicRequest {
-            topic: topic.clone(),
-            // Detections: any input `track` reads (probmot, ROS 2, Foxglove).
-            kind: if *layer == Layer::Detections {
-                TopicKind::Detections
-            } else {
-                TopicKind::Tracks
-            },
-            role: format!("{layer} layer"),
-        })
-        .collect();
+    let requests: Vec<TopicRequest> = wanted.iter().map(|(l, t)| l.request(t)).collect();
     let read = recording::frames(path, &requests)?;
     let layers = wanted
         .iter()
@@ -199,13 +208,7 @@ pub fn read_layers(path: &Path, wanted: &[(Layer, String)]) -> Result<FileLayers
             let log_times = f.iter().map(|fr| fr.log_time).collect();
             let frames = f
                 .into_iter()
-                .map(|fr| {
-                    let boxes = match fr.boxes {
-                        Boxes::Detections(d) => d.into_iter().map(drawn_detection).collect(),
-                        Boxes::Tracks(t) => t.into_iter().map(drawn_track).collect(),
-                    };
-                    (fr.stamp, boxes)
-                })
+                .map(|fr| (fr.stamp, drawn_boxes(fr.boxes)))
                 .collect();
             Some(LayerFrames {
                 layer: *layer,

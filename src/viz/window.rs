@@ -16,15 +16,11 @@ use mcap::sans_io::indexed_reader::{IndexedReadEvent, IndexedReader, IndexedRead
 use mcap::sans_io::summary_reader::{SummaryReadEvent, SummaryReader};
 use mcap::{Channel, Summary};
 
-use super::{drawn_detection, drawn_track, read_layers, FileLayers, Frame, Layer, LayerFrames};
+use super::{drawn_boxes, read_layers, FileLayers, Frame, Layer, LayerFrames};
 use crate::mcapio::reader::read_records;
-use crate::mcapio::recording::tracks_stamp;
-use crate::mcapio::LabelledBox;
-use crate::msgs::autoware_tracks::{self, KinematicsOrder};
-use crate::msgs::detection_frame::stamp_or_log_time;
-use crate::msgs::detection_source::DetectionSource;
+use crate::mcapio::recording::Decoder;
 use crate::msgs::eval_events::EVAL_EVENTS_SCHEMA;
-use crate::msgs::{self, ros2_tracks, ros2_vision, Encoding, EvalEvents, Tracks3D, TRACKS_SCHEMA};
+use crate::msgs::EvalEvents;
 use mcap::records::Record;
 use prost::Message as _;
 
@@ -49,70 +45,12 @@ fn summary(file: &mut File) -> Option<Summary> {
         .filter(|s| !s.chunk_indexes.is_empty() && !s.channels.is_empty())
 }
 
-/// Decodes the messages of one channel into boxes, with the message's stamp and frame id.
-enum Decoder {
-    Detections(DetectionSource),
-    Tracks(Encoding),
-    Ros2Tracks(ros2_vision::VisionLayout),
-    AutowareTracks(KinematicsOrder),
-}
-
-impl Decoder {
-    fn for_channel(file: &str, layer: Layer, c: &Channel<'_>) -> Result<Decoder> {
-        let (name, enc, data) = c
-            .schema
-            .as_ref()
-            .map(|s| (s.name.as_str(), s.encoding.as_str(), &s.data[..]))
-            .unwrap_or_default();
-        let me = c.message_encoding.as_str();
-        let source = || DetectionSource::for_channel(name, enc, data, me);
-        let what = || format!("{file}: topic {} ({layer} layer)", c.topic);
-        if layer == Layer::Detections {
-            return source()
-                .map(Decoder::Detections)
-                .map_err(|why| anyhow::anyhow!("{}: {why}", what()));
-        }
-        if let Some(order) = autoware_tracks::layout_for_channel(name, enc, data, me) {
-            return order
-                .map(Decoder::AutowareTracks)
-                .map_err(|why| anyhow::anyhow!("{}: {why}", what()));
-        }
-        if ros2_vision::SCHEMA_NAMES.contains(&name) {
-            return match source() {
-                Ok(DetectionSource::Ros2Vision(l)) => Ok(Decoder::Ros2Tracks(l)),
-                Ok(_) => unreachable!("a ROS 2 schema name gives a ROS 2 source"),
-                Err(why) => bail!("{}: {why}", what()),
-            };
-        }
-        match (name == TRACKS_SCHEMA, Encoding::from_message_encoding(me)) {
-            (true, Some(e)) => Ok(Decoder::Tracks(e)),
-            _ => bail!(
-                "{}: schema '{name}' / encoding '{me}', expected {TRACKS_SCHEMA} (protobuf or \
-                 json), ROS 2 vision_msgs/msg/Detection3DArray or Autoware TrackedObjects tracks",
-                what()
-            ),
-        }
-    }
-
-    /// `(stamp, frame_id, boxes)` of one message.
-    fn decode(&self, h: &MessageHeader, data: &[u8]) -> Result<(u64, String, Vec<LabelledBox>)> {
-        Ok(match self {
-            Decoder::Detections(s) => {
-                let m = s.decode(data)?;
-                let stamp = stamp_or_log_time(m.stamp, h.log_time);
-                let boxes = m.detections.into_iter().map(drawn_detection).collect();
-                (stamp, m.frame_id, boxes)
-            }
-            Decoder::Tracks(e) => tracks(msgs::decode::<Tracks3D>(data, *e)?, h),
-            Decoder::Ros2Tracks(l) => tracks(ros2_tracks::decode_tracks(data, *l)?, h),
-            Decoder::AutowareTracks(o) => tracks(autoware_tracks::decode_tracks(data, *o)?, h),
-        })
-    }
-}
-
-fn tracks(m: Tracks3D, h: &MessageHeader) -> (u64, String, Vec<LabelledBox>) {
-    let boxes = m.tracks.into_iter().map(drawn_track).collect();
-    (tracks_stamp(m.stamp, h.log_time), m.frame_id, boxes)
+/// The decoder of a layer's channel (the one decoder of box channels, [`Decoder`]).
+fn decoder(file: &str, layer: Layer, c: &Channel<'_>) -> Result<Decoder> {
+    let schema = c.schema.as_ref().map_or(("", "", &[][..]), |s| {
+        (s.name.as_str(), s.encoding.as_str(), &s.data[..])
+    });
+    Decoder::for_channel(file, &layer.request(&c.topic), schema, &c.message_encoding)
 }
 
 /// Runs an indexed read of `channels` (log-time `order`, optional inclusive bounds), calling `f`
@@ -164,10 +102,13 @@ fn span(
                 .with_order(order)
                 .include_topics([topic.as_str()]);
             indexed(file, summary, opts, |h, data| {
-                let (stamp, _, _) = decoders[&h.channel_id]
-                    .1
-                    .decode(h, data)
-                    .with_context(|| ctx(h))?;
+                let Some((_, decoder)) = decoders.get(&h.channel_id) else {
+                    return Ok(true);
+                };
+                let stamp = decoder
+                    .decode(data, h.log_time)
+                    .with_context(|| ctx(h))?
+                    .stamp;
                 let (a, b) = span.unwrap_or((stamp, stamp));
                 if span.is_none() || stamp < a {
                     offset = stamp as i128 - h.log_time as i128;
@@ -183,8 +124,8 @@ fn span(
 /// The layers of `path` for a window of `[from_s, to_s]` seconds after the first frame: every
 /// asked-for topic's presence and the first and last frame stamps over them
 /// ([`FileLayers::span`]), and the frames of the `drawn` layers in the window (a little more:
-/// the caller selects by stamp). Falls back to reading the whole file when it has no chunk
-/// indexes.
+/// the caller selects by stamp; none when no layer is drawn or the file has none of the drawn
+/// ones). Falls back to reading the whole file when it has no chunk indexes.
 pub fn read_window(
     path: &Path,
     wanted: &[(Layer, String)],
@@ -202,7 +143,7 @@ pub fn read_window(
     let mut decoders: BTreeMap<u16, (usize, Decoder)> = BTreeMap::new();
     for (i, (layer, topic)) in wanted.iter().enumerate() {
         for c in summary.channels.values().filter(|c| &c.topic == topic) {
-            decoders.insert(c.id, (i, Decoder::for_channel(&name, *layer, c)?));
+            decoders.insert(c.id, (i, decoder(&name, *layer, c)?));
         }
     }
     let present: Vec<&String> = wanted
@@ -233,17 +174,17 @@ pub fn read_window(
             frame_ids: BTreeSet::new(),
         })
         .collect();
-    if let Some((t0, _)) = span {
+    // The drawn layers the file has: an empty list would read every channel.
+    let drawn_topics: Vec<&str> = (wanted.iter())
+        .filter(|(l, t)| drawn.contains(l) && topics.contains(t))
+        .map(|(_, t)| t.as_str())
+        .collect();
+    if let (Some((t0, _)), false) = (span, drawn_topics.is_empty()) {
         let at =
             |s: f64| (t0 as i128 + (s * 1e9) as i128 - offset).clamp(0, u64::MAX as i128) as u64;
         let mut opts = IndexedReaderOptions::new()
             .with_order(ReadOrder::File)
-            .include_topics(
-                wanted
-                    .iter()
-                    .filter(|(l, _)| drawn.contains(l))
-                    .map(|(_, t)| t.as_str()),
-            );
+            .include_topics(drawn_topics);
         if let Some(f) = from_s {
             opts = opts.starting_at(at(f).saturating_sub(SLACK_NS));
         }
@@ -251,13 +192,15 @@ pub fn read_window(
             opts = opts.ending_at(at(t).saturating_add(SLACK_NS));
         }
         indexed(&mut file, &summary, opts, |h, data| {
-            let (i, decoder) = &decoders[&h.channel_id];
-            let (stamp, frame_id, boxes) = decoder.decode(h, data).with_context(|| ctx(h))?;
-            let lf = layers
-                .iter_mut()
-                .find(|l| l.topic == wanted[*i].1)
-                .expect("present");
-            let frame: Frame = (stamp, boxes);
+            let Some((i, decoder)) = decoders.get(&h.channel_id) else {
+                return Ok(true);
+            };
+            let Some(lf) = layers.iter_mut().find(|l| l.topic == wanted[*i].1) else {
+                return Ok(true);
+            };
+            let (f, frame_id) =
+                (decoder.decode_with_frame_id(data, h.log_time)).with_context(|| ctx(h))?;
+            let frame: Frame = (f.stamp, drawn_boxes(f.boxes));
             lf.frames.push(frame);
             lf.log_times.push(h.log_time);
             lf.frame_ids.insert(frame_id);
@@ -342,4 +285,119 @@ fn check_events_schema(name: &str, c: &Channel<'_>) -> Result<()> {
         );
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mcapio::writer::{AtomicOutput, OutputOptions};
+    use crate::msgs::{
+        encode_into, Detection3D, Detections3D, Track3D, Tracks3D, DESCRIPTOR_SET,
+        DETECTIONS_SCHEMA, TRACKS_SCHEMA,
+    };
+
+    /// A chunked log with detections, tracks and a tracks topic nobody asks for (`/other`),
+    /// one message each at log times 1, 2 and 3 s.
+    fn write_log(path: &Path) {
+        let mut out = AtomicOutput::create(path, &OutputOptions::default()).unwrap();
+        let w = &mut out.writer;
+        let none = BTreeMap::new();
+        let det = w
+            .add_schema(DETECTIONS_SCHEMA, "protobuf", DESCRIPTOR_SET)
+            .unwrap();
+        let tr = w
+            .add_schema(TRACKS_SCHEMA, "protobuf", DESCRIPTOR_SET)
+            .unwrap();
+        let channels = [
+            w.add_channel(det, "/detections", "protobuf", &none)
+                .unwrap(),
+            w.add_channel(tr, "/tracks", "protobuf", &none).unwrap(),
+            w.add_channel(tr, "/other", "protobuf", &none).unwrap(),
+        ];
+        for (k, channel_id) in channels.into_iter().enumerate() {
+            let log_time = (k as u64 + 1) * 1_000_000_000;
+            let mut buf = Vec::new();
+            if k == 0 {
+                let detections = vec![Detection3D::default()];
+                encode_into(
+                    &Detections3D {
+                        detections,
+                        ..Default::default()
+                    },
+                    &mut buf,
+                );
+            } else {
+                let tracks = vec![Track3D {
+                    id: 7,
+                    ..Default::default()
+                }];
+                let frame_id = "map".to_string();
+                encode_into(
+                    &Tracks3D {
+                        tracks,
+                        frame_id,
+                        ..Default::default()
+                    },
+                    &mut buf,
+                );
+            }
+            let header = MessageHeader {
+                channel_id,
+                sequence: 0,
+                log_time,
+                publish_time: log_time,
+            };
+            w.write_to_known_channel(&header, &buf).unwrap();
+        }
+        out.commit().unwrap();
+    }
+
+    fn wanted(layers: &[Layer]) -> Vec<(Layer, String)> {
+        (layers.iter())
+            .map(|l| (*l, l.default_topic().to_string()))
+            .collect()
+    }
+
+    #[test]
+    fn a_window_reads_only_the_drawn_layers_the_file_has() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let all = wanted(&Layer::ALL);
+        let read = read_window(&path, &all, &[Layer::Tracks], None, None).unwrap();
+        assert_eq!(
+            read.span,
+            Some((1_000_000_000, 2_000_000_000)),
+            "indexed read"
+        );
+        let tracks = read.get(Layer::Tracks).unwrap();
+        assert_eq!(tracks.frames.len(), 1);
+        assert_eq!(tracks.frames[0].1[0].id, 7);
+        assert_eq!(tracks.frame_ids, BTreeSet::from(["map".to_string()]));
+        assert!(read.get(Layer::Detections).unwrap().frames.is_empty());
+        assert!(
+            read.get(Layer::GroundTruth).is_none(),
+            "the file has no truth"
+        );
+        assert!(read.topics.contains("/other"));
+    }
+
+    #[test]
+    fn a_window_of_no_layers_is_empty_not_a_panic() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let all = wanted(&Layer::ALL);
+        // Nothing drawn, a drawn layer the file lacks, nothing asked for.
+        for (wanted, drawn) in [
+            (all.clone(), vec![]),
+            (all.clone(), vec![Layer::GroundTruth]),
+            (vec![], Layer::ALL.to_vec()),
+        ] {
+            let read = read_window(&path, &wanted, &drawn, Some(0.0), None).unwrap();
+            assert!(read.layers.iter().all(|l| l.frames.is_empty()), "{drawn:?}");
+            assert_eq!(read.layers.len(), wanted.len().min(2), "{drawn:?}");
+            assert_eq!(read.topics.len(), 3);
+        }
+    }
 }

@@ -171,7 +171,7 @@ fn window_events(tracked: &Path, events: &Path, from_s: f64, to_s: f64) -> usize
         .iter()
         .map(|l| (*l, l.default_topic().to_string()))
         .collect();
-    // (The tracks are read too: `read_window` reads every topic when asked to draw none.)
+    // (Only the first stamp is used here; the tracks layer is read with it.)
     let read = read_window(tracked, &topics, &[Layer::Tracks], None, None).unwrap();
     let t0 = read.first_stamp().unwrap();
     let at = |s: f64| (t0 as f64 + s * 1e9) as u64;

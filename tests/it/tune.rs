@@ -877,3 +877,38 @@ fn the_protocol_follows_the_logs() {
     assert_eq!(mixed.status.code(), Some(2), "{}", said(&mixed));
     assert!(said(&mixed).contains("give --protocol"), "{}", said(&mixed));
 }
+
+/// Tune reads detections through the one decoder of box channels: a ROS 2
+/// `vision_msgs/msg/Detection3DArray` channel (here the tracks `track --tracks-format ros2`
+/// writes) gives, as detections, the boxes it gives as tracks.
+#[test]
+fn tune_reads_ros2_detections() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = common::repo("sample_logs/city.mcap");
+    let ros = dir.path().join("ros2.mcap");
+    let s = |p: &Path| p.to_str().unwrap().to_string();
+    common::probmot_ok(&[
+        "track",
+        &s(&input),
+        "-o",
+        &s(&ros),
+        "--tracks-format",
+        "ros2",
+        "--quiet",
+    ]);
+    let log = TuneLog::load(&ros, "/ground_truth", "/tracks").unwrap();
+    let tracks = probmot::mcapio::recording::tracks_topic(&ros, "/tracks").unwrap();
+    let frames: Vec<_> = log.frames.iter().filter(|f| f.has_detections).collect();
+    assert_eq!(frames.len(), tracks.len());
+    let boxes: usize = frames.iter().map(|f| f.detections.len()).sum();
+    assert!(boxes > 100, "{boxes}");
+    for (f, (stamp, t)) in frames.iter().zip(&tracks) {
+        assert_eq!(f.stamp, *stamp);
+        assert_eq!(f.detections.len(), t.len());
+        for (d, t) in f.detections.iter().zip(t) {
+            assert_eq!(&*d.label, t.label.as_str());
+            let c = t.center.as_ref().unwrap();
+            assert!((d.bbox.center[0] - c.x).abs() < 1e-9);
+        }
+    }
+}

@@ -8,10 +8,9 @@ use mcap::records::Record;
 use serde::{Deserialize, Serialize};
 
 use crate::mcapio::reader::has_metadata;
-use crate::mcapio::recording::tracks_stamp;
-use crate::mcapio::topic::for_each_message;
+use crate::mcapio::recording::for_each_tracks_frame_with;
 use crate::mcapio::writer::{check_output_path, write_file_atomic};
-use crate::msgs::{self, Track3D, Tracks3D};
+use crate::msgs::Track3D;
 use crate::tracker::config::NUSCENES_CLASSES;
 
 use super::plan::{scene_samples, table};
@@ -131,12 +130,11 @@ pub(crate) fn read_export_input(path: &Path, topic: &str) -> Result<ExportInput>
     let mut scene = None;
     let mut samples = None;
     let mut frames = Vec::new();
-    for_each_message(
+    for_each_tracks_frame_with(
         path,
         topic,
-        msgs::TRACKS_SCHEMA,
-        |header, m: Tracks3D| {
-            frames.push((tracks_stamp(m.stamp, header.log_time), m.tracks));
+        |stamp, tracks, _| {
+            frames.push((stamp, tracks));
             Ok(())
         },
         |rec| {
