@@ -1,10 +1,10 @@
 //! The arguments of `probmot eval`, as the library's [`EvalOptions`], and the bar over bytes
 //! read that the commands reading files share.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressStyle;
 
 use super::means_arg::MeansArg;
 use probmot::eval::job::{self, EvalOptions};
@@ -183,18 +183,6 @@ pub struct EvalArgs {
     /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
     #[arg(long, short)]
     pub(super) quiet: bool,
-}
-
-/// A bar over the total size of `files` (hidden unless `show`), for commands that read them.
-pub(super) fn bytes_bar(files: &[&Path], show: bool) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    let total = files
-        .iter()
-        .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
-        .sum();
-    ProgressBar::new(total).with_style(reading_style())
 }
 
 /// The style of a bar over bytes read.

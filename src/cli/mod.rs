@@ -96,16 +96,6 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     }
 }
 
-/// A spinner with `message` for work whose length is not known ahead (hidden unless `show`).
-pub fn spinner(show: bool, message: &str) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    let bar = indicatif::ProgressBar::new_spinner().with_message(message.to_string());
-    bar.enable_steady_tick(std::time::Duration::from_millis(120));
-    bar
-}
-
 /// A spinner for the library's progress events: drawn (unless hidden) from the first message,
 /// with that message, until the work is done.
 pub struct Spinner {
