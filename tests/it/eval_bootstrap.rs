@@ -212,6 +212,14 @@ fn bootstrap_intervals_do_not_depend_on_the_threads() {
         car["ci95"][1].as_f64().unwrap(),
     );
     assert!(lo < hi, "{car}");
+    // HOTA has its interval too, around its value on all the data.
+    let hota = &one["overall"]["hota"];
+    let (v, lo, hi) = (
+        hota["value"].as_f64().unwrap(),
+        hota["ci95"][0].as_f64().unwrap(),
+        hota["ci95"][1].as_f64().unwrap(),
+    );
+    assert!(lo < v && v < hi, "{hota}");
 }
 
 #[test]
