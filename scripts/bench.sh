@@ -7,7 +7,10 @@
 # figures that go into BENCHMARKS.md. Usage: scripts/bench.sh [WORKDIR]   (default: a temporary
 # directory); `scripts/bench.sh copy [WORKDIR]` runs only the comparison with the copy.
 # BENCH_DENSE="FRAMES OBJECTS" changes the dense log (default "600 200"; the size of the
-# log of issue #39 is "20000 200"), BENCH_DENSE_REPS the rounds (default 15).
+# log of issue #39 is "20000 200"), BENCH_DENSE_REPS the rounds (default 15). BENCH_ISSUE39=1
+# runs exactly the measurement of issue #39's acceptance: its log (`simulate --scenario city
+# --frames 20000 --objects 200`, default rate and seed), zstd outputs only, 5 rounds unless
+# BENCH_DENSE_REPS says otherwise: `BENCH_ISSUE39=1 scripts/bench.sh copy`.
 #
 # `scripts/bench.sh long [WORKDIR]` measures instead every command that reads a whole log
 # (track, eval, eval --protocol kitti, info, fit, plot, export kitti) on long dense logs, side by
@@ -124,7 +127,13 @@ fi
 # `--compression none` separate compressing the output from everything else. Three outputs:
 # the copy (`--no-track`), `--no-scene` (the tracks channel only) and the default outputs.
 read -r dense_frames dense_objects <<< "${BENCH_DENSE:-600 200}"
-"$bin" simulate --scenario city --frames "$dense_frames" --objects "$dense_objects" --rate 2 --seed 3 -o "$work/dense.mcap" >/dev/null
+sim_args=(--rate 2 --seed 3)
+compressions=(zstd none)
+if [ "${BENCH_ISSUE39:-0}" = 1 ]; then
+  dense_frames=20000 dense_objects=200 sim_args=() compressions=(zstd)
+  : "${BENCH_DENSE_REPS:=5}"
+fi
+"$bin" simulate --scenario city --frames "$dense_frames" --objects "$dense_objects" "${sim_args[@]}" -o "$work/dense.mcap" >/dev/null
 run() { # run NAME ARGS...: appends "wall cpu" (seconds) of one run to $work/NAME.s
   local name=$1; shift
   python3 - "$@" >> "$work/$name.s" <<'PY'
@@ -141,9 +150,9 @@ PY
 col() { awk -v c="$1" '{print $c}' "$work/$2.s" | median; }
 outputs=(copy noscene track)
 declare -A flags=([copy]=--no-track [noscene]=--no-scene [track]=)
-for c in zstd none; do for o in "${outputs[@]}"; do : > "$work/$o-$c.s"; done; done
+for c in "${compressions[@]}"; do for o in "${outputs[@]}"; do : > "$work/$o-$c.s"; done; done
 for i in $(seq "${BENCH_DENSE_REPS:-15}"); do
-  for c in zstd none; do
+  for c in "${compressions[@]}"; do
     for o in "${outputs[@]}"; do
       # shellcheck disable=SC2086 # an empty flag is no argument
       run "$o-$c" "$bin" track "$work/dense.mcap" -o "$work/dense.$o.$c.mcap" ${flags[$o]} --quiet --compression "$c"
@@ -152,7 +161,7 @@ for i in $(seq "${BENCH_DENSE_REPS:-15}"); do
 done
 size() { stat -c %s "$1"; }
 echo "dense log ($dense_frames frames x $dense_objects objects, $(size "$work/dense.mcap") bytes), medians of ${BENCH_DENSE_REPS:-15} alternating runs (wall s / cpu s):"
-for c in zstd none; do
+for c in "${compressions[@]}"; do
   echo "  --compression $c: copy (--no-track) $(col 1 "copy-$c") / $(col 2 "copy-$c"), --no-scene $(col 1 "noscene-$c") / $(col 2 "noscene-$c"), track $(col 1 "track-$c") / $(col 2 "track-$c")"
 done
 for o in track noscene; do
