@@ -7,7 +7,9 @@ use anyhow::Result;
 use clap::Args;
 use probmot::fit::files::{fit_files, num, FitFilesOptions};
 
-use super::config_cmd::PresetArg;
+use probmot::tracker::Preset;
+
+use super::choice::choice;
 use super::show_progress;
 
 /// Fit per-class noise (Q, R, P0) from logs with ground truth and detections, and write a
@@ -55,11 +57,11 @@ pub struct FitArgs {
     #[arg(
         long,
         visible_alias = "preset",
-        value_enum,
+        value_parser = choice::<Preset>(),
         value_name = "NAME",
         conflicts_with = "base_config"
     )]
-    base_preset: Option<PresetArg>,
+    base_preset: Option<Preset>,
     /// Base config file (JSON, as printed by `probmot config`); `--base` as in `tune`.
     #[arg(long, visible_alias = "base", value_name = "FILE")]
     base_config: Option<PathBuf>,
@@ -82,7 +84,7 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
     let defaults = FitFilesOptions::default();
     let o = FitFilesOptions {
         base_config: a.base_config.clone(),
-        base_preset: a.base_preset.map_or(defaults.base_preset, |p| p.0),
+        base_preset: a.base_preset.unwrap_or(defaults.base_preset),
         dt_nominal: a.dt_nominal,
         fold_yaw: a.fold_yaw,
         min_samples: a.min_samples,

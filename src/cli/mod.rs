@@ -1,5 +1,6 @@
 //! Command-line parsing and the subcommands' front ends.
 
+mod choice;
 mod config_cmd;
 mod eval_args;
 mod eval_cmd;
@@ -7,7 +8,6 @@ mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
 mod layer_topics;
-mod means_arg;
 mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;
