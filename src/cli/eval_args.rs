@@ -1,10 +1,8 @@
-//! The arguments of `probmot eval`, as the library's [`EvalOptions`], and the bar over bytes
-//! read that the commands reading files share.
+//! The arguments of `probmot eval`, as the library's [`EvalOptions`].
 
 use std::path::PathBuf;
 
 use clap::Args;
-use indicatif::ProgressStyle;
 
 use super::choice::choice;
 use probmot::eval::job::{EvalOptions, Gate, Protocol};
@@ -164,14 +162,6 @@ pub struct EvalArgs {
     /// No progress bar (it is shown on a terminal only, on stderr). Example: --quiet
     #[arg(long, short)]
     pub(super) quiet: bool,
-}
-
-/// The style of a bar over bytes read.
-pub(super) fn reading_style() -> ProgressStyle {
-    ProgressStyle::with_template(
-        "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
-    )
-    .expect("valid template")
 }
 
 impl EvalArgs {

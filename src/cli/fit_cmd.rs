@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use probmot::fit::files::{fit_files, num, FitFilesOptions};
+use probmot::fit::files::{fit_files, FitFilesOptions};
 
 use probmot::tracker::Preset;
 
@@ -91,7 +91,10 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
         truth_topic: a.truth_topic.clone(),
         detections_topic: a.detections_topic.clone(),
     };
-    let bar = super::reading_bar(show_progress(a.quiet || a.json));
+    let bar = super::bar(
+        show_progress(a.quiet || a.json),
+        super::style(super::READING),
+    );
     let fit = fit_files(&a.inputs, &a.output, &o, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
     let report = fit?.report;
@@ -104,27 +107,6 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(ExitCode::SUCCESS);
     }
-    print!("{}", report.table());
-    let period = (report.period)
-        .map(|p| format!("{:.4} s", p.median_s))
-        .unwrap_or_else(|| "unknown".into());
-    println!(
-        "{} log(s), {} frames, frame period {period}, dt_nominal {} s (Q x {}); variances: {}; \
-         config yaw: {}",
-        report.logs.len(),
-        report.frames,
-        report.dt_nominal,
-        num(Some(report.q_scale)),
-        report.variance,
-        if a.fold_yaw { "folded" } else { "wrapped" },
-    );
-    let fitted = report.classes.iter().filter(|c| c.applied).count();
-    if fitted < report.classes.len() {
-        println!(
-            "* kept the base values (fewer than {} pairs)",
-            a.min_samples
-        );
-    }
-    println!("wrote {} ({fitted} class(es) fitted)", a.output.display());
+    print!("{}", report.text(&a.output));
     Ok(ExitCode::SUCCESS)
 }

@@ -5,7 +5,6 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use probmot::sim::{simulate_file, Scenario, SimOptions};
 
 use super::choice::choice;
@@ -64,7 +63,9 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
         rate_hz: a.rate,
         ego_frame: a.ego_frame,
     };
-    let bar = frames_bar(show_progress(a.quiet || a.json));
+    let template = "{spinner} simulating [{bar:30}] {pos}/{len} frames, {elapsed}";
+    let frames = super::style(template).progress_chars("=> ");
+    let bar = super::bar(show_progress(a.quiet || a.json), frames);
     let s = simulate_file(&opts, &a.output, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
     let s = s?;
@@ -81,18 +82,4 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// A bar over the frames to write, its length set by the library (hidden unless `show`).
-fn frames_bar(show: bool) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    ProgressBar::new(0).with_style(
-        ProgressStyle::with_template(
-            "{spinner} simulating [{bar:30}] {pos}/{len} frames, {elapsed}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    )
 }

@@ -5,7 +5,6 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
 use probmot::eval::kitti::MeanScores;
 use probmot::tracker::levers::Coast;
 use probmot::tune::files::{tune_files, BaseChoice, TuneFilesOptions};
@@ -201,15 +200,8 @@ impl TuneArgs {
 
 /// Runs `probmot tune`.
 pub fn run(a: TuneArgs) -> Result<ExitCode> {
-    let pb = match super::show_progress(a.quiet) {
-        true => ProgressBar::new(0).with_style(
-            ProgressStyle::with_template(
-                "{spinner} [{bar:30}] {pos} configs of at most {len}, {elapsed} {msg}",
-            )
-            .expect("valid template"),
-        ),
-        false => ProgressBar::hidden(),
-    };
+    let template = "{spinner} [{bar:30}] {pos} configs of at most {len}, {elapsed} {msg}";
+    let pb = super::bar(super::show_progress(a.quiet), super::style(template));
     let warn = |w: &str| pb.suspend(|| eprintln!("warning: {w}"));
     let r = tune_files(&a.inputs, &a.output, &a.options(), &warn, &|e| {
         super::show_on_bar(&pb, e)
