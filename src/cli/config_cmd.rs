@@ -5,13 +5,14 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::builder::PossibleValue;
 use clap::{Args, ValueEnum};
 use probmot::pipeline::overrides::{base_config, Overrides};
 use probmot::pipeline::per_class::PerClass;
 use probmot::tracker::ctrv::Motion;
 use probmot::tracker::levers::Coast;
 use probmot::tracker::{DistanceKind, MatcherKind, Preset, TrackerConfig};
+
+use super::choice::choice;
 
 /// Print a built-in preset as JSON, or load, validate and print a config file.
 ///
@@ -30,58 +31,6 @@ pub struct ConfigArgs {
     /// List the built-in presets with a line on each.
     #[arg(long)]
     list: bool,
-}
-
-/// A built-in preset on the command line; the choices and their help come from the registry
-/// [`Preset`], so every help text lists all presets.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct PresetArg(pub Preset);
-
-impl ValueEnum for PresetArg {
-    fn value_variants<'a>() -> &'a [Self] {
-        const ALL: [PresetArg; Preset::ALL.len()] = {
-            let mut out = [PresetArg(Preset::ALL[0]); Preset::ALL.len()];
-            let mut i = 0;
-            while i < out.len() {
-                out[i] = PresetArg(Preset::ALL[i]);
-                i += 1;
-            }
-            out
-        };
-        &ALL
-    }
-
-    fn to_possible_value(&self) -> Option<PossibleValue> {
-        Some(
-            PossibleValue::new(self.0.name())
-                .help(self.0.description())
-                .aliases(self.0.aliases()),
-        )
-    }
-}
-
-/// Distance choices on the command line.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum DistanceArg {
-    /// Mahalanobis distance with the innovation covariance (the paper).
-    Mahalanobis,
-    /// Oriented 3D IoU (AB3DMOT).
-    Iou3d,
-    /// Generalized 3D IoU.
-    Giou3d,
-    /// BEV centre distance, metres.
-    Center,
-    /// 3D centre distance, metres (AB3DMOT's dist_3d).
-    Dist3d,
-}
-
-/// Matcher choices on the command line.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum MatcherArg {
-    /// Greedy, Algorithm 1 of the paper.
-    Greedy,
-    /// Optimal assignment.
-    Hungarian,
 }
 
 /// Covariance choices on the command line.
@@ -106,17 +55,17 @@ pub struct TrackerArgs {
     )]
     pub config: Option<PathBuf>,
     /// Built-in preset (default nuscenes-chiu2019). Example: --preset ab3dmot-kitti
-    #[arg(long, value_enum, value_name = "NAME", help_heading = "Tracker")]
-    pub preset: Option<PresetArg>,
+    #[arg(long, value_parser = choice::<Preset>(), value_name = "NAME", help_heading = "Tracker")]
+    pub preset: Option<Preset>,
     /// Override the distance of every class.
-    #[arg(long, value_enum, help_heading = "Ablations")]
-    pub distance: Option<DistanceArg>,
+    #[arg(long, value_parser = choice::<DistanceKind>(), help_heading = "Ablations")]
+    pub distance: Option<DistanceKind>,
     /// Override the gate of every class (max distance, or min IoU for IoU kinds).
     #[arg(long, help_heading = "Ablations")]
     pub threshold: Option<f64>,
     /// Override the matcher of every class.
-    #[arg(long, value_enum, help_heading = "Ablations")]
-    pub matcher: Option<MatcherArg>,
+    #[arg(long, value_parser = choice::<MatcherKind>(), help_heading = "Ablations")]
+    pub matcher: Option<MatcherKind>,
     /// Turn off the angular velocity in the motion model.
     #[arg(long, help_heading = "Ablations")]
     pub no_angular_velocity: bool,
@@ -137,13 +86,9 @@ pub struct TrackerArgs {
     pub score_floor: Option<f64>,
     /// Motion model of every class: cv (constant velocity, the paper) or ctrv (coordinated
     /// turn; turns the yaw rate on). See docs/tune.md. Example: --motion ctrv
-    #[arg(
-        long,
-        value_enum,
-        help_heading = "Levers",
-        conflicts_with = "no_angular_velocity"
-    )]
-    pub motion: Option<MotionArg>,
+    #[arg(long, value_parser = choice::<Motion>(), help_heading = "Levers",
+          conflicts_with = "no_angular_velocity")]
+    pub motion: Option<Motion>,
     /// Drop a detection whose 3D IoU with a higher-scoring detection of its class exceeds this,
     /// before association (every class). Example: --nms-iou 0.1
     #[arg(long, value_name = "IOU", help_heading = "Levers")]
@@ -156,8 +101,8 @@ pub struct TrackerArgs {
     /// Which coasted frames (predictions without a detection) every class reports: all (the
     /// paper, up to max_age), gaps (only those a later match bridges) or none. Offline: the
     /// output waits a few frames to know. Example: --coast gaps
-    #[arg(long, value_enum, help_heading = "Levers")]
-    pub coast: Option<CoastArg>,
+    #[arg(long, value_parser = choice::<Coast>(), help_heading = "Levers")]
+    pub coast: Option<Coast>,
     /// Offline: once a track reaches min_hits, also report its earlier frames (every class),
     /// so tracks start at their first detection; `--backfill false` turns it off (e.g. in the
     /// kitti-pointrcnn preset). Example: --backfill
@@ -175,41 +120,10 @@ pub struct TrackerArgs {
     pub two_point_speed: Option<PerClass>,
 }
 
-/// Coasted-frame reporting on the command line.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum CoastArg {
-    /// Every coasted frame up to max_age (the paper).
-    All,
-    /// Only coasted frames followed by a match of the same track.
-    Gaps,
-    /// Only frames with a matched detection.
-    None,
-}
-
-impl CoastArg {
-    /// The library's value.
-    pub fn mode(self) -> Coast {
-        match self {
-            CoastArg::All => Coast::All,
-            CoastArg::Gaps => Coast::Gaps,
-            CoastArg::None => Coast::None,
-        }
-    }
-}
-
-/// Motion models on the command line.
-#[derive(Debug, Clone, Copy, ValueEnum)]
-pub enum MotionArg {
-    /// Constant velocity (the paper).
-    Cv,
-    /// Coordinated turn (an extended Kalman filter; needs the yaw rate, which it turns on).
-    Ctrv,
-}
-
 impl TrackerArgs {
     /// The configuration these flags describe, validated ([`Overrides`] holds the rules).
     pub fn resolve(&self) -> Result<TrackerConfig> {
-        let mut cfg = base_config(self.config.as_deref(), self.preset.map(|p| p.0))?;
+        let mut cfg = base_config(self.config.as_deref(), self.preset)?;
         self.overrides().apply(&mut cfg)?;
         Ok(cfg)
     }
@@ -217,31 +131,19 @@ impl TrackerArgs {
     /// The override flags as the library's [`Overrides`].
     fn overrides(&self) -> Overrides {
         Overrides {
-            distance: self.distance.map(|d| match d {
-                DistanceArg::Mahalanobis => DistanceKind::Mahalanobis,
-                DistanceArg::Iou3d => DistanceKind::Iou3d,
-                DistanceArg::Giou3d => DistanceKind::Giou3d,
-                DistanceArg::Center => DistanceKind::Center,
-                DistanceArg::Dist3d => DistanceKind::Dist3d,
-            }),
+            distance: self.distance,
             threshold: self.threshold,
-            matcher: self.matcher.map(|m| match m {
-                MatcherArg::Greedy => MatcherKind::Greedy,
-                MatcherArg::Hungarian => MatcherKind::Hungarian,
-            }),
+            matcher: self.matcher,
             no_angular_velocity: self.no_angular_velocity,
             default_covariance: matches!(self.covariance, Some(CovarianceArg::Default)),
             dt_nominal: self.dt_nominal,
             min_hits: self.min_hits,
             max_age: self.max_age,
             score_floor: self.score_floor,
-            motion: self.motion.map(|m| match m {
-                MotionArg::Cv => Motion::Cv,
-                MotionArg::Ctrv => Motion::Ctrv,
-            }),
+            motion: self.motion,
             nms_iou: self.nms_iou,
             birth_score: self.birth_score,
-            coast: self.coast.map(CoastArg::mode),
+            coast: self.coast,
             backfill: self.backfill,
             two_point_speed: self.two_point_speed.clone(),
         }

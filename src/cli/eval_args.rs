@@ -1,36 +1,15 @@
-//! The arguments of `probmot eval`, as the library's [`EvalOptions`], and the bar over bytes
-//! read that the commands reading files share.
+//! The arguments of `probmot eval`, as the library's [`EvalOptions`].
 
 use std::path::PathBuf;
 
-use clap::{Args, ValueEnum};
-use indicatif::ProgressStyle;
+use clap::Args;
 
-use super::means_arg::MeansArg;
-use probmot::eval::job::{self, EvalOptions};
+use super::choice::choice;
+use probmot::eval::job::{EvalOptions, Gate, Protocol};
+use probmot::eval::kitti::MeanScores;
 use probmot::eval::legend::SECTIONS;
 use probmot::eval::range::RangeFilter;
 use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
-
-/// The rule of the regression gate (--max-drop).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Gate {
-    /// The fall is larger than --max-drop and its paired 95 % interval lies below 0.
-    Interval,
-    /// The fall is larger than --max-drop.
-    Point,
-}
-
-/// Evaluation protocols.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Protocol {
-    /// nuScenes tracking benchmark (AMOTA, AMOTP, MOTA, ...; 2 m centre distance).
-    Nuscenes,
-    /// KITTI 3D MOT as evaluated by AB3DMOT (sAMOTA, AMOTA, AMOTP, MOTA, ...; 3D IoU matching,
-    /// KITTI's ignore rules for truncated/occluded ground truth, DontCare regions, small boxes
-    /// and the neighbouring classes Van and Person_sitting).
-    Kitti,
-}
 
 /// Score tracks against ground truth with the nuScenes tracking metrics or the KITTI 3D MOT
 /// metrics (AB3DMOT's evaluation), optionally against a baseline run, as a regression gate.
@@ -73,7 +52,7 @@ pub struct EvalArgs {
     #[arg(long, default_value = "/tracks")]
     pub(super) tracks_topic: String,
     /// Protocol.
-    #[arg(long, value_enum, default_value_t = Protocol::Nuscenes)]
+    #[arg(long, value_parser = choice::<Protocol>(), default_value = "nuscenes")]
     pub(super) protocol: Protocol,
     /// Classes to evaluate, comma separated (default: the seven nuScenes classes; for kitti:
     /// car, pedestrian, cyclist).
@@ -88,8 +67,8 @@ pub struct EvalArgs {
     /// and what it cost). every-pass-py312: the same with Python 3.12's compensated sum (the
     /// reference run on a current Python; it barely drifts). once: from the track's own
     /// scores. Example: --means once
-    #[arg(long, value_enum, value_name = "WHEN")]
-    pub(super) means: Option<MeansArg>,
+    #[arg(long, value_parser = choice::<MeanScores>(), value_name = "WHEN")]
+    pub(super) means: Option<MeanScores>,
     /// Another tracked version of the same log(s) to compare with (same truth; paired like
     /// --tracks).
     #[arg(long, value_name = "OTHER", num_args = 1..)]
@@ -107,7 +86,7 @@ pub struct EvalArgs {
     pub(super) per_class: bool,
     /// The rule of --max-drop: `interval` (the fall must also lie outside the noise: the whole
     /// 95 % interval of the change below 0) or `point` (the fall alone). Example: --gate point
-    #[arg(long, value_enum, default_value_t = Gate::Interval, requires = "max_drop")]
+    #[arg(long, value_parser = choice::<Gate>(), default_value = "interval", requires = "max_drop")]
     pub(super) gate: Gate,
     /// Bootstrap with N resamples: each compared metric (nuscenes AMOTA, AMOTP, MOTA, IDS; kitti
     /// sAMOTA, AMOTA, MOTA; and HOTA, DetA, AssA: kitti's of both similarities) per class and
@@ -185,14 +164,6 @@ pub struct EvalArgs {
     pub(super) quiet: bool,
 }
 
-/// The style of a bar over bytes read.
-pub(super) fn reading_style() -> ProgressStyle {
-    ProgressStyle::with_template(
-        "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
-    )
-    .expect("valid template")
-}
-
 impl EvalArgs {
     /// The library's options.
     pub(super) fn options(&self) -> EvalOptions {
@@ -201,20 +172,14 @@ impl EvalArgs {
             tracks: self.tracks.clone(),
             truth_topic: self.truth_topic.clone(),
             tracks_topic: self.tracks_topic.clone(),
-            protocol: match self.protocol {
-                Protocol::Nuscenes => job::Protocol::Nuscenes,
-                Protocol::Kitti => job::Protocol::Kitti,
-            },
+            protocol: self.protocol,
             classes: self.classes.clone(),
             iou: self.iou,
-            means: self.means.map(MeansArg::means),
+            means: self.means,
             baseline: self.baseline.clone(),
             max_drop: self.max_drop,
             per_class: self.per_class,
-            gate: match self.gate {
-                Gate::Interval => job::Gate::Interval,
-                Gate::Point => job::Gate::Point,
-            },
+            gate: self.gate,
             bootstrap: self.bootstrap.map(|n| n as usize),
             seed: self.seed,
             block: self.block,

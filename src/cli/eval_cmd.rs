@@ -9,8 +9,8 @@ use probmot::eval::job::evaluate;
 use probmot::eval::legend;
 use probmot::pipeline::progress::Progress;
 
-use super::eval_args::{reading_style, EvalArgs};
-use super::show_progress;
+use super::eval_args::EvalArgs;
+use super::{show_progress, style, READING};
 
 /// Runs `probmot eval`.
 pub fn run(a: EvalArgs) -> Result<ExitCode> {
@@ -19,10 +19,7 @@ pub fn run(a: EvalArgs) -> Result<ExitCode> {
         print!("{}", legend::text(&legend::SECTIONS));
         return Ok(ExitCode::SUCCESS);
     }
-    let bar = match show_progress(a.quiet || a.json) {
-        true => ProgressBar::new(0).with_style(reading_style()),
-        false => ProgressBar::hidden(),
-    };
+    let bar = super::bar(show_progress(a.quiet || a.json), style(READING));
     let report = evaluate(&a.options(), &|e| on_bar(&bar, e));
     bar.finish_and_clear();
     let report = report?;
@@ -43,7 +40,7 @@ pub fn run(a: EvalArgs) -> Result<ExitCode> {
 fn on_bar(bar: &ProgressBar, e: Progress<'_>) {
     match e {
         Progress::Length(n) => {
-            bar.set_style(reading_style());
+            bar.set_style(style(READING));
             bar.set_length(n);
         }
         Progress::Message(m) => {

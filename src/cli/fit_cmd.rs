@@ -5,9 +5,11 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-use probmot::fit::files::{fit_files, num, FitFilesOptions};
+use probmot::fit::files::{fit_files, FitFilesOptions};
 
-use super::config_cmd::PresetArg;
+use probmot::tracker::Preset;
+
+use super::choice::choice;
 use super::show_progress;
 
 /// Fit per-class noise (Q, R, P0) from logs with ground truth and detections, and write a
@@ -55,11 +57,11 @@ pub struct FitArgs {
     #[arg(
         long,
         visible_alias = "preset",
-        value_enum,
+        value_parser = choice::<Preset>(),
         value_name = "NAME",
         conflicts_with = "base_config"
     )]
-    base_preset: Option<PresetArg>,
+    base_preset: Option<Preset>,
     /// Base config file (JSON, as printed by `probmot config`); `--base` as in `tune`.
     #[arg(long, visible_alias = "base", value_name = "FILE")]
     base_config: Option<PathBuf>,
@@ -82,14 +84,17 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
     let defaults = FitFilesOptions::default();
     let o = FitFilesOptions {
         base_config: a.base_config.clone(),
-        base_preset: a.base_preset.map_or(defaults.base_preset, |p| p.0),
+        base_preset: a.base_preset.unwrap_or(defaults.base_preset),
         dt_nominal: a.dt_nominal,
         fold_yaw: a.fold_yaw,
         min_samples: a.min_samples,
         truth_topic: a.truth_topic.clone(),
         detections_topic: a.detections_topic.clone(),
     };
-    let bar = super::reading_bar(show_progress(a.quiet || a.json));
+    let bar = super::bar(
+        show_progress(a.quiet || a.json),
+        super::style(super::READING),
+    );
     let fit = fit_files(&a.inputs, &a.output, &o, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
     let report = fit?.report;
@@ -102,27 +107,6 @@ pub fn run(a: FitArgs) -> Result<ExitCode> {
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(ExitCode::SUCCESS);
     }
-    print!("{}", report.table());
-    let period = (report.period)
-        .map(|p| format!("{:.4} s", p.median_s))
-        .unwrap_or_else(|| "unknown".into());
-    println!(
-        "{} log(s), {} frames, frame period {period}, dt_nominal {} s (Q x {}); variances: {}; \
-         config yaw: {}",
-        report.logs.len(),
-        report.frames,
-        report.dt_nominal,
-        num(Some(report.q_scale)),
-        report.variance,
-        if a.fold_yaw { "folded" } else { "wrapped" },
-    );
-    let fitted = report.classes.iter().filter(|c| c.applied).count();
-    if fitted < report.classes.len() {
-        println!(
-            "* kept the base values (fewer than {} pairs)",
-            a.min_samples
-        );
-    }
-    println!("wrote {} ({fitted} class(es) fitted)", a.output.display());
+    print!("{}", report.text(&a.output));
     Ok(ExitCode::SUCCESS)
 }

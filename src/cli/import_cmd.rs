@@ -283,7 +283,7 @@ pub fn run_import(a: ImportArgs) -> Result<ExitCode> {
 pub fn run_export(a: ExportArgs) -> Result<ExitCode> {
     match a.format {
         ExportFormat::Kitti(k) => {
-            let bar = super::reading_bar(super::show_progress(a.quiet));
+            let bar = super::bar(super::show_progress(a.quiet), super::style(super::READING));
             let s = export_kitti_file(&k.input, &k.topic, &k.output, &|e| {
                 super::show_on_bar(&bar, e)
             });

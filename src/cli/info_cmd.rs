@@ -33,7 +33,10 @@ pub struct InfoArgs {
 }
 
 pub fn run(a: InfoArgs) -> Result<ExitCode> {
-    let bar = super::reading_bar(show_progress(a.quiet || a.json));
+    let bar = super::bar(
+        show_progress(a.quiet || a.json),
+        super::style(super::READING),
+    );
     let info = recording_info(&a.file, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
     let info = info?;

@@ -1,5 +1,6 @@
 //! Command-line parsing and the subcommands' front ends.
 
+mod choice;
 mod config_cmd;
 mod eval_args;
 mod eval_cmd;
@@ -7,7 +8,6 @@ mod fit_cmd;
 mod import_cmd;
 mod info_cmd;
 mod layer_topics;
-mod means_arg;
 mod plot_cmd;
 mod simulate_cmd;
 mod track_cmd;
@@ -18,6 +18,8 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressStyle};
+use probmot::pipeline::progress::Progress;
 
 /// probmot: probabilistic 3D multi-object tracking for MCAP drive recordings.
 ///
@@ -96,52 +98,43 @@ pub fn run(cli: Cli) -> Result<ExitCode> {
     }
 }
 
-/// A spinner for the library's progress events: drawn (unless hidden) from the first message,
-/// with that message, until the work is done.
-pub struct Spinner {
-    /// The spinner (hidden when not shown).
-    pub bar: indicatif::ProgressBar,
+/// The template of a bar over bytes read.
+pub const READING: &str =
+    "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}";
+
+/// The style of `template`.
+pub fn style(template: &str) -> ProgressStyle {
+    ProgressStyle::with_template(template).expect("valid template")
 }
 
-impl Spinner {
-    /// A spinner, drawn only when `show`.
-    pub fn new(show: bool) -> Spinner {
-        let bar = match show {
-            true => indicatif::ProgressBar::new_spinner(),
-            false => indicatif::ProgressBar::hidden(),
-        };
-        Spinner { bar }
+/// A bar in `style`, its length set by the library's progress events (hidden unless `show`).
+pub fn bar(show: bool, style: ProgressStyle) -> ProgressBar {
+    match show {
+        true => ProgressBar::new(0).with_style(style),
+        false => ProgressBar::hidden(),
     }
+}
 
-    /// Shows a progress event: a message starts the spinner with it, done clears it.
-    pub fn show(&self, e: probmot::pipeline::progress::Progress<'_>) {
-        use probmot::pipeline::progress::Progress;
-        match e {
-            Progress::Message(m) => {
-                self.bar.set_message(m.to_string());
-                if !self.bar.is_hidden() {
-                    self.bar
-                        .enable_steady_tick(std::time::Duration::from_millis(120));
-                }
+/// A spinner for the library's progress events ([`show_on_spinner`]), hidden unless `show`.
+pub fn spinner(show: bool) -> ProgressBar {
+    match show {
+        true => ProgressBar::new_spinner(),
+        false => ProgressBar::hidden(),
+    }
+}
+
+/// Shows a progress event on a spinner: a message starts it with that message, done clears it.
+pub fn show_on_spinner(bar: &ProgressBar, e: Progress<'_>) {
+    match e {
+        Progress::Message(m) => {
+            bar.set_message(m.to_string());
+            if !bar.is_hidden() {
+                bar.enable_steady_tick(std::time::Duration::from_millis(120));
             }
-            Progress::Done => self.bar.finish_and_clear(),
-            _ => {}
         }
+        Progress::Done => bar.finish_and_clear(),
+        _ => {}
     }
-}
-
-/// A bar over bytes read, its length set by the library's progress events (hidden unless
-/// `show`).
-pub fn reading_bar(show: bool) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    indicatif::ProgressBar::new(0).with_style(
-        indicatif::ProgressStyle::with_template(
-            "{spinner} reading {wide_bar} {binary_bytes}/{binary_total_bytes} ETA {eta}",
-        )
-        .expect("valid template"),
-    )
 }
 
 /// Whether progress bars should be drawn: stderr is a terminal and not `--quiet`.
@@ -151,8 +144,7 @@ pub fn show_progress(quiet: bool) -> bool {
 }
 
 /// Shows a progress event of the library on an indicatif bar.
-pub fn show_on_bar(bar: &indicatif::ProgressBar, e: probmot::pipeline::progress::Progress<'_>) {
-    use probmot::pipeline::progress::Progress;
+pub fn show_on_bar(bar: &ProgressBar, e: Progress<'_>) {
     match e {
         Progress::Length(n) => bar.set_length(n),
         Progress::Position(n) => bar.set_position(n),

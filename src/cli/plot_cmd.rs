@@ -141,34 +141,16 @@ impl PlotArgs {
 }
 
 pub fn run(a: PlotArgs) -> Result<ExitCode> {
-    let spinner = super::Spinner::new(super::show_progress(a.quiet));
-    let warn = |w: &str| spinner.bar.suspend(|| eprintln!("warning: {w}"));
-    let s = plot_file(&a.file, &a.output, &a.options()?, &warn, &|e| {
-        spinner.show(e)
+    let spinner = super::spinner(super::show_progress(a.quiet));
+    let warn = |w: &str| spinner.suspend(|| eprintln!("warning: {w}"));
+    let o = a.options()?;
+    let s = plot_file(&a.file, &a.output, &o, &warn, &|e| {
+        super::show_on_spinner(&spinner, e)
     });
-    spinner.bar.finish_and_clear();
+    spinner.finish_and_clear();
     let s = s?;
     if !a.quiet {
-        println!(
-            "{}: {}x{} px, {} panel(s) ({}), {} frames from {:.2} to {:.2} s, {} boxes{}",
-            a.output.display(),
-            a.width,
-            a.height,
-            s.layers.len(),
-            s.layers
-                .iter()
-                .map(|l| l.name())
-                .collect::<Vec<_>>()
-                .join(", "),
-            s.frames,
-            s.window_s.0,
-            s.window_s.1,
-            s.boxes,
-            match a.events {
-                Some(_) => format!(", {} events marked", s.marks),
-                None => String::new(),
-            }
-        );
+        println!("{}", s.line(&a.output, &o));
     }
     Ok(ExitCode::SUCCESS)
 }

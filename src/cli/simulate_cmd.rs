@@ -4,11 +4,10 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::builder::PossibleValue;
-use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
+use clap::Args;
 use probmot::sim::{simulate_file, Scenario, SimOptions};
 
+use super::choice::choice;
 use super::show_progress;
 
 /// Write a deterministic synthetic drive with `/detections` and `/ground_truth`.
@@ -23,8 +22,8 @@ use super::show_progress;
 #[command(verbatim_doc_comment)]
 pub struct SimulateArgs {
     /// Which drive.
-    #[arg(long, value_enum)]
-    scenario: ScenarioArg,
+    #[arg(long, value_parser = choice::<Scenario>())]
+    scenario: Scenario,
     /// Random seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -55,35 +54,18 @@ pub struct SimulateArgs {
     quiet: bool,
 }
 
-/// A scenario on the command line; the choices and their help come from [`Scenario`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-struct ScenarioArg(Scenario);
-
-impl ValueEnum for ScenarioArg {
-    fn value_variants<'a>() -> &'a [Self] {
-        const ALL: [ScenarioArg; 3] = [
-            ScenarioArg(Scenario::ALL[0]),
-            ScenarioArg(Scenario::ALL[1]),
-            ScenarioArg(Scenario::ALL[2]),
-        ];
-        &ALL
-    }
-
-    fn to_possible_value(&self) -> Option<PossibleValue> {
-        Some(PossibleValue::new(self.0.name()).help(self.0.description()))
-    }
-}
-
 pub fn run(a: SimulateArgs) -> Result<ExitCode> {
     let opts = SimOptions {
-        scenario: a.scenario.0,
+        scenario: a.scenario,
         seed: a.seed,
         frames: a.frames,
         objects: a.objects,
         rate_hz: a.rate,
         ego_frame: a.ego_frame,
     };
-    let bar = frames_bar(show_progress(a.quiet || a.json));
+    let template = "{spinner} simulating [{bar:30}] {pos}/{len} frames, {elapsed}";
+    let frames = super::style(template).progress_chars("=> ");
+    let bar = super::bar(show_progress(a.quiet || a.json), frames);
     let s = simulate_file(&opts, &a.output, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
     let s = s?;
@@ -100,18 +82,4 @@ pub fn run(a: SimulateArgs) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// A bar over the frames to write, its length set by the library (hidden unless `show`).
-fn frames_bar(show: bool) -> ProgressBar {
-    if !show {
-        return ProgressBar::hidden();
-    }
-    ProgressBar::new(0).with_style(
-        ProgressStyle::with_template(
-            "{spinner} simulating [{bar:30}] {pos}/{len} frames, {elapsed}",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    )
 }

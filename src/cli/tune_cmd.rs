@@ -4,14 +4,14 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Result;
-use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
+use clap::Args;
+use probmot::eval::kitti::MeanScores;
+use probmot::tracker::levers::Coast;
 use probmot::tune::files::{tune_files, BaseChoice, TuneFilesOptions};
 use probmot::tune::text::loss_warning;
 use probmot::tune::{Protocol, SearchLimits};
 
-use super::config_cmd::CoastArg;
-use super::means_arg::MeansArg;
+use super::choice::choice;
 
 /// Tune per-class tracker settings on logs with ground truth and detections, cross-validated.
 ///
@@ -59,8 +59,8 @@ pub struct TuneArgs {
     /// Protocol whose headline metric is maximised: kitti (sAMOTA) or nuscenes (AMOTA).
     /// Default: kitti when every log was written by `probmot import kitti`, nuscenes when none
     /// was (logs of both kinds need it given).
-    #[arg(long, value_enum)]
-    protocol: Option<ProtocolArg>,
+    #[arg(long, value_parser = choice::<Protocol>())]
+    protocol: Option<Protocol>,
     /// KITTI: minimum 3D IoU of a match (as `probmot eval --iou`).
     #[arg(long, default_value_t = 0.25, value_name = "IOU")]
     iou: f64,
@@ -70,8 +70,8 @@ pub struct TuneArgs {
     /// equal to their own means (see `probmot eval --means`), noise a search would chase.
     /// every-pass-py312: as the reference does on Python 3.12+. The held-out table is always
     /// scored as the reference does on Python 3.11. Example: --search-means every-pass
-    #[arg(long, value_enum, value_name = "WHEN")]
-    search_means: Option<MeansArg>,
+    #[arg(long, value_parser = choice::<MeanScores>(), value_name = "WHEN")]
+    search_means: Option<MeanScores>,
     /// Number of cross-validation folds; 0 or 1: no cross-validation, only the final tune.
     #[arg(long, default_value_t = 2, value_name = "K")]
     folds: usize,
@@ -89,8 +89,8 @@ pub struct TuneArgs {
     preset: Option<String>,
     /// Set the base's coasted-frame reporting for every class, as `track --coast` (all, gaps,
     /// none); classes that are not searched keep it. Example: --coast gaps
-    #[arg(long, value_enum)]
-    coast: Option<CoastArg>,
+    #[arg(long, value_parser = choice::<Coast>())]
+    coast: Option<Coast>,
     /// Set backfill on (or with `false` off) for every class of the base, as
     /// `track --backfill`.
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
@@ -163,12 +163,6 @@ pub struct TuneArgs {
     quiet: bool,
 }
 
-#[derive(Debug, Clone, Copy, ValueEnum)]
-enum ProtocolArg {
-    Kitti,
-    Nuscenes,
-}
-
 impl TuneArgs {
     /// The library's options from the flags.
     fn options(&self) -> TuneFilesOptions {
@@ -176,15 +170,12 @@ impl TuneArgs {
             base: BaseChoice {
                 file: self.base.clone(),
                 preset: self.preset.clone(),
-                coast: self.coast.map(CoastArg::mode),
+                coast: self.coast,
                 backfill: self.backfill,
             },
-            protocol: self.protocol.map(|p| match p {
-                ProtocolArg::Kitti => Protocol::Kitti,
-                ProtocolArg::Nuscenes => Protocol::Nuscenes,
-            }),
+            protocol: self.protocol,
             iou: self.iou,
-            search_means: self.search_means.map(MeansArg::means),
+            search_means: self.search_means,
             folds: self.folds,
             limits: SearchLimits {
                 budget: self.budget,
@@ -209,15 +200,8 @@ impl TuneArgs {
 
 /// Runs `probmot tune`.
 pub fn run(a: TuneArgs) -> Result<ExitCode> {
-    let pb = match super::show_progress(a.quiet) {
-        true => ProgressBar::new(0).with_style(
-            ProgressStyle::with_template(
-                "{spinner} [{bar:30}] {pos} configs of at most {len}, {elapsed} {msg}",
-            )
-            .expect("valid template"),
-        ),
-        false => ProgressBar::hidden(),
-    };
+    let template = "{spinner} [{bar:30}] {pos} configs of at most {len}, {elapsed} {msg}";
+    let pb = super::bar(super::show_progress(a.quiet), super::style(template));
     let warn = |w: &str| pb.suspend(|| eprintln!("warning: {w}"));
     let r = tune_files(&a.inputs, &a.output, &a.options(), &warn, &|e| {
         super::show_on_bar(&pb, e)

@@ -66,19 +66,15 @@ pub fn run(a: VizArgs) -> Result<ExitCode> {
         from_s: a.from,
         to_s: a.to,
     };
-    let spinner = super::Spinner::new(super::show_progress(a.quiet));
+    let spinner = super::spinner(super::show_progress(a.quiet));
     let warn = |w: &str| eprintln!("warning: {w}");
-    let s = rrd_file(&a.file, &a.output, &o, &warn, &|e| spinner.show(e));
-    spinner.bar.finish_and_clear();
+    let s = rrd_file(&a.file, &a.output, &o, &warn, &|e| {
+        super::show_on_spinner(&spinner, e)
+    });
+    spinner.finish_and_clear();
     let s = s?;
     if !a.quiet {
-        println!(
-            "{}: {} frames, {} track ids, {} bytes",
-            a.output.display(),
-            s.frames,
-            s.track_ids,
-            s.bytes
-        );
+        println!("{}", s.line(&a.output));
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -196,4 +196,36 @@ impl FitReport {
         }
         s
     }
+
+    /// What `probmot fit` prints: the table, a summary line, and the config written to `output`.
+    pub fn text(&self, output: &Path) -> String {
+        let mut s = self.table();
+        let period = (self.period)
+            .map(|p| format!("{:.4} s", p.median_s))
+            .unwrap_or_else(|| "unknown".into());
+        let yaw = match self.yaw_mode {
+            YawMode::Folded => "folded",
+            YawMode::Wrapped => "wrapped",
+        };
+        let _ = writeln!(
+            s,
+            "{} log(s), {} frames, frame period {period}, dt_nominal {} s (Q x {}); variances: \
+             {}; config yaw: {yaw}",
+            self.logs.len(),
+            self.frames,
+            self.dt_nominal,
+            num(Some(self.q_scale)),
+            self.variance,
+        );
+        let fitted = self.classes.iter().filter(|c| c.applied).count();
+        if fitted < self.classes.len() {
+            let _ = writeln!(
+                s,
+                "* kept the base values (fewer than {} pairs)",
+                self.min_samples
+            );
+        }
+        let _ = writeln!(s, "wrote {} ({fitted} class(es) fitted)", output.display());
+        s
+    }
 }

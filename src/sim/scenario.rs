@@ -20,6 +20,18 @@ pub enum Scenario {
     City,
 }
 
+impl crate::tracker::choice::Choice for Scenario {
+    const VALUES: &'static [Self] = &Scenario::ALL;
+
+    fn name(self) -> &'static str {
+        Scenario::name(self)
+    }
+
+    fn description(self) -> &'static str {
+        Scenario::description(self)
+    }
+}
+
 impl Scenario {
     /// Every scenario, in the order the help lists them.
     pub const ALL: [Scenario; 3] = [Scenario::TurningCar, Scenario::Pedestrians, Scenario::City];

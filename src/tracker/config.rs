@@ -54,6 +54,50 @@ pub enum MatcherKind {
     Hungarian,
 }
 
+impl super::choice::Choice for DistanceKind {
+    const VALUES: &'static [Self] = &[
+        DistanceKind::Mahalanobis,
+        DistanceKind::Iou3d,
+        DistanceKind::Giou3d,
+        DistanceKind::Center,
+        DistanceKind::Dist3d,
+    ];
+
+    fn name(self) -> &'static str {
+        DistanceKind::name(self)
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            DistanceKind::Mahalanobis => {
+                "Mahalanobis distance with the innovation covariance (the paper)"
+            }
+            DistanceKind::Iou3d => "Oriented 3D IoU (AB3DMOT)",
+            DistanceKind::Giou3d => "Generalized 3D IoU",
+            DistanceKind::Center => "BEV centre distance, metres",
+            DistanceKind::Dist3d => "3D centre distance, metres (AB3DMOT's dist_3d)",
+        }
+    }
+}
+
+impl super::choice::Choice for MatcherKind {
+    const VALUES: &'static [Self] = &[MatcherKind::Greedy, MatcherKind::Hungarian];
+
+    fn name(self) -> &'static str {
+        match self {
+            MatcherKind::Greedy => "greedy",
+            MatcherKind::Hungarian => "hungarian",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            MatcherKind::Greedy => "Greedy, Algorithm 1 of the paper",
+            MatcherKind::Hungarian => "Optimal assignment",
+        }
+    }
+}
+
 /// The point of a box whose position the filter follows.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

@@ -46,6 +46,26 @@ impl Motion {
     }
 }
 
+impl super::choice::Choice for Motion {
+    const VALUES: &'static [Self] = &[Motion::Cv, Motion::Ctrv];
+
+    fn name(self) -> &'static str {
+        match self {
+            Motion::Cv => "cv",
+            Motion::Ctrv => "ctrv",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Motion::Cv => "Constant velocity (the paper)",
+            Motion::Ctrv => {
+                "Coordinated turn (an extended Kalman filter; needs the yaw rate, which it turns on)"
+            }
+        }
+    }
+}
+
 /// Below this turn angle the series are used instead of the closed forms.
 const SMALL_TURN: f64 = 1e-2;
 

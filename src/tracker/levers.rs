@@ -49,6 +49,26 @@ impl Coast {
     }
 }
 
+impl super::choice::Choice for Coast {
+    const VALUES: &'static [Self] = &[Coast::All, Coast::Gaps, Coast::None];
+
+    fn name(self) -> &'static str {
+        match self {
+            Coast::All => "all",
+            Coast::Gaps => "gaps",
+            Coast::None => "none",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Coast::All => "Every coasted frame up to max_age (the paper)",
+            Coast::Gaps => "Only coasted frames followed by a match of the same track",
+            Coast::None => "Only frames with a matched detection",
+        }
+    }
+}
+
 /// The options beyond the paper of one class. Every field's default is "off".
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

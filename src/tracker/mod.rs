@@ -9,6 +9,7 @@
 pub mod angle;
 pub mod bounds;
 pub mod boxes;
+pub mod choice;
 pub mod confidence;
 pub mod config;
 pub mod ctrv;
@@ -27,6 +28,7 @@ pub mod two_point;
 pub mod two_stage;
 
 pub use boxes::{Box3, ClassId, Detection};
+pub use choice::Choice;
 pub use config::{BoxOrigin, ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
 pub use lookback::Lookback;
 pub use presets::Preset;

@@ -22,6 +22,22 @@ pub enum Preset {
     KittiPointrcnn,
 }
 
+impl super::choice::Choice for Preset {
+    const VALUES: &'static [Self] = &Preset::ALL;
+
+    fn name(self) -> &'static str {
+        Preset::name(self)
+    }
+
+    fn description(self) -> &'static str {
+        Preset::description(self)
+    }
+
+    fn aliases(self) -> Vec<&'static str> {
+        Preset::aliases(self).collect()
+    }
+}
+
 /// Old names still accepted: `(alias, preset)`.
 const ALIASES: [(&str, Preset); 1] = [("ab3dmot", Preset::Ab3dmot2019)];
 

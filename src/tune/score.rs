@@ -24,6 +24,22 @@ pub enum Protocol {
     Nuscenes,
 }
 
+impl crate::tracker::choice::Choice for Protocol {
+    const VALUES: &'static [Self] = &[Protocol::Kitti, Protocol::Nuscenes];
+
+    fn name(self) -> &'static str {
+        match self {
+            Protocol::Kitti => "kitti",
+            Protocol::Nuscenes => "nuscenes",
+        }
+    }
+
+    /// None: the option's own help names both.
+    fn description(self) -> &'static str {
+        ""
+    }
+}
+
 /// Protocol and its parameters.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Scoring {

@@ -118,6 +118,29 @@ pub struct PlotSummary {
     pub marks: usize,
 }
 
+impl PlotSummary {
+    /// The line `probmot plot` prints: the picture written to `output` with options `o`.
+    pub fn line(&self, output: &Path, o: &PlotFileOptions) -> String {
+        let layers: Vec<&str> = self.layers.iter().map(|l| l.name()).collect();
+        let marks = match o.events {
+            Some(_) => format!(", {} events marked", self.marks),
+            None => String::new(),
+        };
+        format!(
+            "{}: {}x{} px, {} panel(s) ({}), {} frames from {:.2} to {:.2} s, {} boxes{marks}",
+            output.display(),
+            o.width,
+            o.height,
+            self.layers.len(),
+            layers.join(", "),
+            self.frames,
+            self.window_s.0,
+            self.window_s.1,
+            self.boxes,
+        )
+    }
+}
+
 /// Largest accepted side, pixels (a 16k x 16k RGB picture is 768 MiB in memory).
 const MAX_SIDE: u32 = 16_384;
 

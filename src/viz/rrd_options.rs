@@ -17,6 +17,17 @@ pub struct RrdSummary {
     pub undrawable: Vec<(String, u64)>,
 }
 
+impl RrdSummary {
+    /// The line `probmot viz` prints: the recording written to `output`.
+    pub fn line(&self, output: &std::path::Path) -> String {
+        let (frames, ids, bytes) = (self.frames, self.track_ids, self.bytes);
+        format!(
+            "{}: {frames} frames, {ids} track ids, {bytes} bytes",
+            output.display()
+        )
+    }
+}
+
 /// What to read from an MCAP file for a recording ([`super::rrd_file::rrd_file`]); the
 /// defaults are `probmot viz`'s.
 #[derive(Debug, Clone)]

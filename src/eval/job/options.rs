@@ -26,6 +26,50 @@ pub enum Protocol {
     Kitti,
 }
 
+impl crate::tracker::choice::Choice for Gate {
+    const VALUES: &'static [Self] = &[Gate::Interval, Gate::Point];
+
+    fn name(self) -> &'static str {
+        match self {
+            Gate::Interval => "interval",
+            Gate::Point => "point",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Gate::Interval => {
+                "The fall is larger than --max-drop and its paired 95 % interval lies below 0"
+            }
+            Gate::Point => "The fall is larger than --max-drop",
+        }
+    }
+}
+
+impl crate::tracker::choice::Choice for Protocol {
+    const VALUES: &'static [Self] = &[Protocol::Nuscenes, Protocol::Kitti];
+
+    fn name(self) -> &'static str {
+        match self {
+            Protocol::Nuscenes => "nuscenes",
+            Protocol::Kitti => "kitti",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            Protocol::Nuscenes => {
+                "nuScenes tracking benchmark (AMOTA, AMOTP, MOTA, ...; 2 m centre distance)"
+            }
+            Protocol::Kitti => {
+                "KITTI 3D MOT as evaluated by AB3DMOT (sAMOTA, AMOTA, AMOTP, MOTA, ...; 3D IoU \
+                 matching, KITTI's ignore rules for truncated/occluded ground truth, DontCare \
+                 regions, small boxes and the neighbouring classes Van and Person_sitting)"
+            }
+        }
+    }
+}
+
 /// The options of one evaluation (`probmot eval`): the logs, the protocol and its filters, the
 /// baseline and the gate, the bootstrap, what to report.
 #[derive(Debug, Clone, PartialEq)]

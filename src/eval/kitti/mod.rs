@@ -122,6 +122,36 @@ pub enum MeanScores {
     Once,
 }
 
+impl crate::tracker::choice::Choice for MeanScores {
+    const VALUES: &'static [Self] = &[
+        MeanScores::EveryPass,
+        MeanScores::EveryPassCompensated,
+        MeanScores::Once,
+    ];
+
+    fn name(self) -> &'static str {
+        match self {
+            MeanScores::EveryPass => "every-pass",
+            MeanScores::EveryPassCompensated => "every-pass-py312",
+            MeanScores::Once => "once",
+        }
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            MeanScores::EveryPass => {
+                "At every threshold, from the previous means, summed left to right (the \
+                 reference as run on Python 3.11 or older: the official numbers)"
+            }
+            MeanScores::EveryPassCompensated => {
+                "At every threshold, from the previous means, with Python 3.12's compensated \
+                 sum (the reference run on a current Python)"
+            }
+            MeanScores::Once => "Once per track",
+        }
+    }
+}
+
 impl MeanScores {
     /// Whether the means are computed again at every threshold, as the reference does.
     pub fn every_pass(self) -> bool {
