@@ -27,7 +27,7 @@ pub fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
 pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     if let Some(i) = inputs.iter().find(|i| i.is_dir()) {
         // A folder that is no bag gets the bag reader's words (name its files instead).
-        super::rosbag_dir::bag_mcap(i)?;
+        super::rosbag_dir::open_bag(i)?;
         bail!(
             "{}: a rosbag2 bag directory; track a bag directory with -o OUT_BAG_DIR, one at \
              a time",

@@ -6,7 +6,7 @@
 //! [`super::frame_schedule::Replan`] of the single pass, not an error.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
-use std::io::{Read, Seek};
+use std::ops::ControlFlow;
 
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
@@ -16,7 +16,7 @@ use super::progress::Progress;
 use super::stamp_check::{LogSpan, StampWindow};
 use super::track_options::TrackOptions;
 use super::track_records::{check_count, note_stamp, undecodable};
-use crate::mcapio::reader::{read_records_from, read_summary_records_from, McapInput};
+use crate::mcapio::source::RecordSource;
 use crate::msgs;
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::{self, DetectionSource};
@@ -35,10 +35,7 @@ pub(super) enum PassPlan {
 
 impl PassPlan {
     /// The plan for `input` from its summary section alone (reads its start and its end).
-    pub(super) fn decide<R: Read + Seek>(
-        input: &mut McapInput<R>,
-        opts: &TrackOptions,
-    ) -> PassPlan {
+    pub(super) fn decide<I: RecordSource>(input: &mut I, opts: &TrackOptions) -> PassPlan {
         if opts.no_track {
             return PassPlan::CopyOnly;
         }
@@ -171,16 +168,15 @@ impl Scan {
 
 /// The first pass of two: the detection channels and every detection message's stamp (and
 /// the transforms), from the start of `input`.
-pub(super) fn scan<R: Read + Seek>(
-    input: &mut McapInput<R>,
+pub(super) fn scan<I: RecordSource>(
+    input: &mut I,
     opts: &TrackOptions,
     progress: &dyn Fn(Progress<'_>),
 ) -> Result<Scan> {
-    input.rewind()?;
-    let file = input.name.clone();
+    let file = input.name().to_string();
     let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    read_records_from(input, |rec, stats| {
+    input.read_while(&mut |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
             Record::Schema { header, data } => s.on_schema(header, &data),
@@ -212,7 +208,7 @@ pub(super) fn scan<R: Read + Seek>(
             }
             _ => {}
         }
-        Ok(())
+        Ok(ControlFlow::Continue(()))
     })?;
     s.finish(opts, &file)?;
     Ok(s)
@@ -222,13 +218,9 @@ pub(super) fn scan<R: Read + Seek>(
 /// two passes: no readable summary (or one without channels), a transform channel (ego motion
 /// looks ahead in time), several detection channels without message counts, or a channel
 /// choice that fails (the first pass then reports it from the data section).
-fn one_pass_plan<R: Read + Seek>(
-    input: &mut McapInput<R>,
-    opts: &TrackOptions,
-) -> Option<(Scan, Schedule)> {
-    let file = &input.name.clone();
-    let Some((Record::Header(header), records)) = read_summary_records_from(&mut input.source)
-    else {
+fn one_pass_plan<I: RecordSource>(input: &mut I, opts: &TrackOptions) -> Option<(Scan, Schedule)> {
+    let file = &input.name().to_string();
+    let Some((Record::Header(header), records)) = input.summary() else {
         return None;
     };
     let mut plan = Scan {
