@@ -6,8 +6,8 @@ use std::process::ExitCode;
 use anyhow::Result;
 use clap::Args;
 use probmot::msgs::detection_source::{is_detection_schema, SUPPORTED};
-use probmot::pipeline::info::{duration, file_info_progress, iso8601};
-use probmot::pipeline::rosbag_dir::resolve_input;
+use probmot::pipeline::info::{duration, iso8601, path_info};
+use probmot::pipeline::rosbag_dir::input_files;
 
 use super::eval_args::bytes_bar;
 use super::show_progress;
@@ -59,10 +59,12 @@ fn rel(ns: u64, start: u64) -> String {
     format!("+{}", duration(ns.saturating_sub(start)))
 }
 
-pub fn run(mut a: InfoArgs) -> Result<ExitCode> {
-    a.file = resolve_input(&a.file)?;
-    let bar = bytes_bar(&[a.file.as_path()], show_progress(a.quiet || a.json));
-    let info = file_info_progress(&a.file, &|n| bar.inc(n))?;
+pub fn run(a: InfoArgs) -> Result<ExitCode> {
+    // A bag directory is one drive: all its files.
+    let files = input_files(&a.file)?;
+    let files: Vec<&std::path::Path> = files.iter().map(|p| p.as_path()).collect();
+    let bar = bytes_bar(&files, show_progress(a.quiet || a.json));
+    let info = path_info(&a.file, &|n| bar.inc(n))?;
     bar.finish_and_clear();
     if a.json {
         println!("{}", serde_json::to_string_pretty(&info)?);

@@ -7,7 +7,12 @@ use std::path::Path;
 use anyhow::Result;
 use mcap::records::Record;
 
-use crate::mcapio::reader::{read_records_from, McapInput};
+use std::ops::ControlFlow;
+
+use super::bag_source::BagSource;
+use super::rosbag_dir::open_bag;
+use crate::mcapio::reader::{read_records_while, McapInput};
+use crate::mcapio::source::{OnRecord, RecordSource};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_source::{
     is_default_candidate, is_detection_schema, scenes_left_out, DetectionSource,
@@ -81,17 +86,43 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
     file_info_from(&mut McapInput::open(path)?, progress)
 }
 
+/// [`file_info_progress`] of a file or of a rosbag2 bag directory: a bag's files (split or
+/// compressed) are read as one drive, its schema and channel ids as one numbering
+/// ([`super::bag_source`]).
+pub fn path_info(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
+    let Some(bag) = open_bag(path)? else {
+        return file_info_progress(path, progress);
+    };
+    let mut source = BagSource {
+        name: path.display().to_string(),
+        files: bag.files,
+        compression: bag.compression,
+    };
+    let name = source.name.clone();
+    info_of(name, |f| source.read_while(f), progress)
+}
+
 /// [`file_info_progress`] of any input (a file, bytes in memory), named by its name.
 pub fn file_info_from<R: Read>(
     input: &mut McapInput<R>,
     progress: &dyn Fn(u64),
 ) -> Result<FileSummary> {
+    let name = input.name.clone();
+    info_of(name, |f| read_records_while(input, f), progress)
+}
+
+/// The summary of the records `read` hands to its callback, from an input named `name`.
+fn info_of(
+    name: String,
+    read: impl FnOnce(&mut OnRecord<'_>) -> Result<()>,
+    progress: &dyn Fn(u64),
+) -> Result<FileSummary> {
     let mut st = InfoState {
         out: FileSummary {
-            path: input.name.clone(),
+            path: name.clone(),
             ..Default::default()
         },
-        file: input.name.clone(),
+        file: name,
         schemas: HashMap::new(),
         channels: BTreeMap::new(),
         sources: HashMap::new(),
@@ -99,7 +130,7 @@ pub fn file_info_from<R: Read>(
         transforms: TransformCollector::new(),
     };
     let mut reported = 0u64;
-    read_records_from(input, |rec, stats| {
+    read(&mut |rec, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         match rec {
@@ -117,7 +148,7 @@ pub fn file_info_from<R: Read>(
             Record::Metadata(_) => st.out.metadata += 1,
             _ => {}
         }
-        Ok(())
+        Ok(ControlFlow::Continue(()))
     })?;
     Ok(st.finish())
 }

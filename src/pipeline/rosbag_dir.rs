@@ -166,6 +166,14 @@ pub fn resolve_input(path: &Path) -> Result<PathBuf> {
     Ok(bag_mcap(path)?.unwrap_or_else(|| path.to_path_buf()))
 }
 
+/// The files a read of `path` goes through: a bag directory's files, or `path` itself.
+pub fn input_files(path: &Path) -> Result<Vec<PathBuf>> {
+    Ok(match open_bag(path)? {
+        Some(bag) => bag.files,
+        None => vec![path.to_path_buf()],
+    })
+}
+
 /// Refuses an output bag directory that exists and is not empty (as `ros2 bag record` does).
 pub fn check_output_dir(dir: &Path) -> Result<()> {
     if dir.exists() {

@@ -205,3 +205,34 @@ fn a_damaged_file_of_a_split_bag_is_named_and_leaves_no_output() {
     assert!(stderr.contains("split_1.mcap"), "{stderr}");
     assert_eq!(entries(d), ["drive", "drive.jsonl", "split"]);
 }
+
+/// `info` on a split bag describes the whole drive; `--out-dir` takes a bag directory as one
+/// input (beside a file), its output a bag directory of the same name.
+#[test]
+fn info_and_out_dir_take_a_split_bag_as_one_drive() {
+    if !have_rosbags("info_and_out_dir_take_a_split_bag_as_one_drive") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = drive(d, &["--ego"]);
+    let split = d.join("split");
+    python("scripts/split_bag.py", &[&whole, &split], &["--parts", "3"]);
+    let info = probmot_ok(&["info", split.to_str().unwrap(), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(info["messages"], 120, "{info}");
+    assert_eq!(info["channels"].as_array().unwrap().len(), 2, "{info}");
+    let out = d.join("out");
+    let log = repo("sample_logs/city.mcap");
+    let (s, l, o) = (
+        split.to_str().unwrap(),
+        log.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    probmot_ok(&["track", s, l, "--out-dir", o, "--jobs", "2", "--quiet"]);
+    assert_eq!(entries(&out), ["city.mcap", "split"]);
+    assert_eq!(files(&out.join("split")).len(), 3);
+    let alone = d.join("alone");
+    track(&split, &alone);
+    assert!(tracks_of(&out.join("split")) == tracks_of(&alone));
+}
