@@ -8,12 +8,10 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use probmot::mcapio::destination::{destination, Destination};
 use probmot::mcapio::writer::{check_output_path, OutputCompression};
+use probmot::pipeline::bag_track::track_path;
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::many::{out_dir_outputs, track_many};
-use probmot::pipeline::rosbag_dir;
-use probmot::pipeline::track::{
-    track_file, SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS,
-};
+use probmot::pipeline::track::{SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
 use probmot::pipeline::tracks_format::TracksFormat;
 
 use super::config_cmd::TrackerArgs;
@@ -54,7 +52,8 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 /// Examples:
 ///   probmot track drive.mcap -o drive.tracked.mcap
 ///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks: see --tracks-format)
-///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out)
+///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out; a split
+///                                                 bag is one drive)
 ///   probmot track autoware_bag/ -o tracked_bag/  (Autoware: TrackedObjects on
 ///                                                 /perception/object_recognition/tracking/objects)
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
@@ -64,8 +63,9 @@ use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct TrackArgs {
-    /// Input MCAP file(s), or one rosbag2 bag directory (metadata.yaml + one .mcap file; the
-    /// output -o is then a new bag directory with an updated metadata.yaml).
+    /// Input MCAP file(s), or one rosbag2 bag directory (metadata.yaml + its .mcap files, split
+    /// or compressed as .mcap.zstd: tracked as one drive; the output -o is then a new bag
+    /// directory split the same way, with its own metadata.yaml).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Output file (one input); a new bag directory when the input is a bag directory.
@@ -217,8 +217,7 @@ fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
             if a.inputs.len() != 1 {
                 bail!("-o takes one input; use --out-dir DIR for several inputs");
             }
-            // A bag directory's output is a new bag directory, checked (and created) by
-            // rosbag_dir::prepare_output before any work.
+            // A bag directory's output is a new bag directory, checked by track_bag.
             if !a.inputs[0].is_dir() {
                 check_output_path(Some(&a.inputs[0]), out)?;
             }
@@ -296,27 +295,14 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
                 ProgressBar::hidden()
             };
             // A bag directory in: a bag directory out, with its metadata.yaml.
-            let bag = rosbag_dir::bag_mcap(&a.inputs[0])?;
-            let (input, out) = match &bag {
-                Some(mcap) => (mcap.clone(), rosbag_dir::prepare_output(out, mcap)?),
-                None => (a.inputs[0].clone(), out.clone()),
-            };
-            let s = track_file(&input, &out, &opts, &|e| super::show_on_bar(&bar, e));
-            if let (Err(_), Some(dir)) = (&s, out.parent().filter(|_| bag.is_some())) {
-                // Leave no empty bag directory behind (fails harmlessly when not empty).
-                let _ = std::fs::remove_dir(dir);
-            }
-            let s = s?;
-            if let (Some(_), Some(dir)) = (&bag, out.parent()) {
-                rosbag_dir::write_metadata(dir, &out)?;
-            }
-            let out = &out;
+            let s = track_path(&a.inputs[0], out, &opts, &|e| super::show_on_bar(&bar, e))?;
             bar.finish_and_clear();
             for w in &s.warnings {
                 eprintln!("warning: {w}");
             }
             if let Some(rrd) = &a.rerun {
-                write_recording(&a, out, rrd, &s.tracks_topic)?;
+                let tracked = probmot::pipeline::rosbag_dir::resolve_input(out)?;
+                write_recording(&a, &tracked, rrd, &s.tracks_topic)?;
             }
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&s)?);

@@ -9,6 +9,8 @@ pub mod labelled_box;
 pub mod reader;
 pub mod recording;
 pub mod sink;
+pub mod source;
+pub mod split_sink;
 pub mod topic;
 mod validate;
 pub mod writer;

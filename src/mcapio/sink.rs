@@ -33,6 +33,12 @@ pub trait RecordSink {
     fn attach(&mut self, a: &mcap::Attachment) -> Result<()>;
     /// Writes a metadata record.
     fn write_metadata(&mut self, m: &Metadata) -> Result<()>;
+    /// The input moves on to its next file (a split rosbag2 bag): the records that follow go to
+    /// the next output file, if the sink writes one per input file; by default one output
+    /// takes them all.
+    fn next_part(&mut self) -> Result<()> {
+        Ok(())
+    }
     /// Forgets everything written so far: the output starts again, empty (when a single pass
     /// over the input turns out to need two).
     fn restart(&mut self) -> Result<()>;

@@ -7,8 +7,13 @@ use std::path::Path;
 use anyhow::Result;
 use mcap::records::Record;
 
+use std::ops::ControlFlow;
+
+use super::bag_source::BagSource;
 use super::progress::{Progress, ProgressFn};
-use crate::mcapio::reader::{read_records_from, McapInput};
+use super::rosbag_dir::open_bag;
+use crate::mcapio::reader::{read_records_while, McapInput};
+use crate::mcapio::source::{OnRecord, RecordSource};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_source::{
     is_default_candidate, is_detection_schema, scenes_left_out, DetectionSource,
@@ -82,13 +87,31 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
     file_info_from(&mut McapInput::open(path)?, progress)
 }
 
-/// [`file_info`] of a recording's path (a rosbag directory resolved to its MCAP file), as
-/// `probmot info` reads it. Progress: bytes read of the file's size.
+/// [`file_info_progress`] of a file or of a rosbag2 bag directory: a bag's files (split or
+/// compressed) are read as one drive, its schema and channel ids as one numbering
+/// ([`super::bag_source`]).
+pub fn path_info(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
+    let Some(bag) = open_bag(path)? else {
+        return file_info_progress(path, progress);
+    };
+    let mut source = BagSource {
+        name: path.display().to_string(),
+        files: bag.files,
+        compression: bag.compression,
+    };
+    let name = source.name.clone();
+    info_of(name, |f| source.read_while(f), progress)
+}
+
+/// [`path_info`] as `probmot info` reads it: a file, or a rosbag2 bag directory as one drive.
+/// Progress: bytes read of the total size of its files.
 pub fn recording_info(path: &Path, progress: ProgressFn<'_>) -> Result<FileSummary> {
-    let path = super::rosbag_dir::resolve_input(path)?;
-    let size = std::fs::metadata(&path).map_or(0, |m| m.len());
+    let size = super::rosbag_dir::input_files(path)?
+        .iter()
+        .map(|p| std::fs::metadata(p).map_or(0, |m| m.len()))
+        .sum();
     progress(Progress::Length(size));
-    let info = file_info_progress(&path, &|n| progress(Progress::Advance(n)))?;
+    let info = path_info(path, &|n| progress(Progress::Advance(n)))?;
     progress(Progress::Done);
     Ok(info)
 }
@@ -98,12 +121,22 @@ pub fn file_info_from<R: Read>(
     input: &mut McapInput<R>,
     progress: &dyn Fn(u64),
 ) -> Result<FileSummary> {
+    let name = input.name.clone();
+    info_of(name, |f| read_records_while(input, f), progress)
+}
+
+/// The summary of the records `read` hands to its callback, from an input named `name`.
+fn info_of(
+    name: String,
+    read: impl FnOnce(&mut OnRecord<'_>) -> Result<()>,
+    progress: &dyn Fn(u64),
+) -> Result<FileSummary> {
     let mut st = InfoState {
         out: FileSummary {
-            path: input.name.clone(),
+            path: name.clone(),
             ..Default::default()
         },
-        file: input.name.clone(),
+        file: name,
         schemas: HashMap::new(),
         channels: BTreeMap::new(),
         sources: HashMap::new(),
@@ -111,7 +144,7 @@ pub fn file_info_from<R: Read>(
         transforms: TransformCollector::new(),
     };
     let mut reported = 0u64;
-    read_records_from(input, |rec, stats| {
+    read(&mut |rec, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         match rec {
@@ -129,7 +162,7 @@ pub fn file_info_from<R: Read>(
             Record::Metadata(_) => st.out.metadata += 1,
             _ => {}
         }
-        Ok(())
+        Ok(ControlFlow::Continue(()))
     })?;
     Ok(st.finish())
 }

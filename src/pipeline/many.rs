@@ -8,8 +8,10 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use anyhow::{bail, Context, Result};
 use rayon::prelude::*;
 
+use super::bag_track::track_path;
 use super::progress::no_progress;
-use super::track::{track_file, TrackOptions, TrackSummary};
+use super::rosbag_dir::{check_output_dir, open_bag};
+use super::track::{TrackOptions, TrackSummary};
 use crate::mcapio::destination::resolved_file;
 use crate::mcapio::writer::{check_output_path, refuse_outputs_onto_inputs};
 
@@ -22,17 +24,13 @@ pub fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
 }
 
 /// The outputs of `inputs` in `dir` (created when missing), each checked with
-/// [`check_output_path`]; refuses directory inputs (bags are tracked one at a time) and two
-/// inputs of the same file name.
+/// [`check_output_path`] (a rosbag2 bag directory is one input, its output a new bag directory
+/// of the same name); refuses two inputs of the same name, and folders that are no bag.
 pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    if let Some(i) = inputs.iter().find(|i| i.is_dir()) {
+    for i in inputs.iter().filter(|i| i.is_dir()) {
         // A folder that is no bag gets the bag reader's words (name its files instead).
-        super::rosbag_dir::bag_mcap(i)?;
-        bail!(
-            "{}: a rosbag2 bag directory; track a bag directory with -o OUT_BAG_DIR, one at \
-             a time",
-            i.display()
-        );
+        open_bag(i)?;
+        check_output_dir(&output_in(dir, i)?)?;
     }
     if dir.exists() && !dir.is_dir() {
         bail!("--out-dir {} exists and is not a directory", dir.display());
@@ -48,10 +46,16 @@ pub fn out_dir_outputs(dir: &Path, inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
         if outputs.contains(&o) || !files.insert(file) {
             bail!("two inputs would both be written to {}", o.display());
         }
-        check_output_path(Some(i), &o)?;
+        if !i.is_dir() {
+            check_output_path(Some(i), &o)?;
+        }
         outputs.push(o);
     }
-    refuse_outputs_onto_inputs(&outputs, inputs)?;
+    let files = |v: &[PathBuf]| -> Vec<PathBuf> {
+        let pairs = inputs.iter().zip(v).filter(|(i, _)| !i.is_dir());
+        pairs.map(|(_, p)| p.clone()).collect()
+    };
+    refuse_outputs_onto_inputs(&files(&outputs), &files(inputs))?;
     Ok(outputs)
 }
 
@@ -85,7 +89,8 @@ pub fn run_many<T: Send>(
     }))
 }
 
-/// Tracks every input into its output ([`track_file`], without per-file progress) on `jobs`
+/// Tracks every input into its output ([`track_path`]: a file, or a bag directory as one
+/// drive; without per-file progress) on `jobs`
 /// threads; see [`run_many`].
 pub fn track_many(
     inputs: &[PathBuf],
@@ -94,7 +99,7 @@ pub fn track_many(
     jobs: usize,
     on_done: &(dyn Fn(usize) + Sync),
 ) -> Result<Vec<Result<TrackSummary>>> {
-    let job = |input: &Path, output: &Path| track_file(input, output, opts, &no_progress);
+    let job = |input: &Path, output: &Path| track_path(input, output, opts, &no_progress);
     run_many(inputs, outputs, jobs, &job, on_done)
 }
 
@@ -163,11 +168,12 @@ mod tests {
             "{e}"
         );
         std::fs::write(folder.join("metadata.yaml"), b"").unwrap();
+        let bag_out = out_dir_outputs(&out, std::slice::from_ref(&folder)).unwrap();
+        assert_eq!(bag_out, [out.join("logs")], "a bag is one input");
+        std::fs::create_dir(out.join("logs")).unwrap();
+        std::fs::write(out.join("logs/x"), b"").unwrap();
         let e = out_dir_outputs(&out, &[folder]).unwrap_err().to_string();
-        assert!(
-            e.contains("a rosbag2 bag directory; track a bag directory with -o"),
-            "{e}"
-        );
+        assert!(e.contains("exists"), "{e}");
         let file = dir.path().join("file");
         std::fs::write(&file, b"").unwrap();
         let e = out_dir_outputs(&file, &inputs).unwrap_err().to_string();

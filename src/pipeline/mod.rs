@@ -1,5 +1,8 @@
 //! The jobs behind the subcommands, built on the tracker core and the MCAP adapters.
 
+pub mod bag_metadata;
+pub mod bag_source;
+pub mod bag_track;
 pub mod detections;
 pub mod ego;
 pub mod frame_schedule;

@@ -1,14 +1,15 @@
 //! rosbag2 bag directories (as `ros2 bag record -s mcap` writes them: a folder with
-//! `metadata.yaml` and the `.mcap` file; a folder without `metadata.yaml` is refused): `track BAG_DIR -o OUT_DIR` tracks the bag's MCAP file
-//! and writes OUT_DIR as a bag directory of its own, with a `metadata.yaml` that lists every
-//! topic of the output, the tracks topic included.
+//! `metadata.yaml` and the bag's `.mcap` files, one or several when the recording was split,
+//! each maybe compressed whole as `.mcap.zstd`; a folder without `metadata.yaml` is refused):
+//! [`open_bag`] finds the files, [`write_metadata`] writes the `metadata.yaml` of an output
+//! bag. `track BAG_DIR -o OUT_DIR` ([`super::bag_track`]) tracks the files as one drive.
 //!
-//! The new `metadata.yaml` is written from the output file's MCAP summary (channels, schemas,
+//! The new `metadata.yaml` is written from the output files' MCAP summaries (channels, schemas,
 //! statistics), in the layout of rosbag2 metadata version 5 (ROS 2 Humble; newer rosbag2
 //! versions read it too): per topic its name, type (schema name), serialization_format (message
 //! encoding), offered_qos_profiles (the channel's metadata value, as rosbag2 stores it) and
-//! message count. Only single-file MCAP bags are read; a split bag or a sqlite3 (`.db3`) bag is
-//! refused with what to do instead.
+//! message count; per file its name, starting time, duration and message count. A sqlite3
+//! (`.db3`) bag is refused with what to do instead.
 
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
@@ -17,12 +18,39 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
+use super::bag_metadata::{read_metadata, FileCompression};
 use crate::mcapio::reader::read_summary_records;
 
-/// The MCAP file of a bag directory, or `None` when `path` is not a directory. A directory is a
-/// bag only with rosbag2's `metadata.yaml`: a folder of logs is not one log, and taking it for a
-/// bag would make `-o` a directory without a word.
-pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
+/// A rosbag2 bag: its directory, its files in recording order, their compression.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Bag {
+    /// The bag directory.
+    pub dir: PathBuf,
+    /// Its storage files, in recording order.
+    pub files: Vec<PathBuf>,
+    /// Whether each file is compressed whole.
+    pub compression: FileCompression,
+}
+
+impl Bag {
+    /// The name of file `i` once decompressed (`drive_0.mcap.zstd` → `drive_0.mcap`): the name
+    /// of its output file.
+    pub fn output_name(&self, i: usize) -> Result<String> {
+        let f = &self.files[i];
+        let name = (f.file_name().and_then(|n| n.to_str()))
+            .with_context(|| format!("{}: file name is not UTF-8", f.display()))?;
+        Ok(match self.compression {
+            FileCompression::Zstd => name.strip_suffix(".zstd").unwrap_or(name).to_string(),
+            FileCompression::None => name.to_string(),
+        })
+    }
+}
+
+/// The bag at `path`, or `None` when `path` is not a directory. A directory is a bag only with
+/// rosbag2's `metadata.yaml`: a folder of logs is not one log, and taking it for a bag would make
+/// `-o` a directory without a word. Its files are those `metadata.yaml` lists
+/// (`relative_file_paths`), or with a `metadata.yaml` that lists none, its one `.mcap` file.
+pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
     if !path.is_dir() {
         return Ok(None);
     }
@@ -32,49 +60,122 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
         std::fs::read_dir(path).with_context(|| format!("cannot read {}", path.display()))?
     {
         let p = entry?.path();
+        let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
         match p.extension().and_then(|e| e.to_str()) {
             Some("mcap") => mcaps.push(p),
+            _ if name.ends_with(".mcap.zstd") => mcaps.push(p),
             Some("db3") => db3 = true,
-            _ => metadata |= p.file_name().is_some_and(|n| n == "metadata.yaml"),
+            _ => metadata |= name == "metadata.yaml",
         }
     }
     mcaps.sort();
     let dir = path.display();
-    match mcaps.len() {
-        0 if db3 => bail!(
-            "{dir}: a rosbag2 bag with sqlite3 storage (.db3); probmot reads MCAP storage: convert \
-             it with `ros2 bag convert` to storage_id mcap, or record with `ros2 bag record -s mcap`"
-        ),
-        0 => bail!("{dir}: a directory without an .mcap file"),
-        1 if !metadata => bail!(
-            "{dir}: a directory with one .mcap file but no metadata.yaml, so not a rosbag2 bag: \
-             name the file instead ({}); a bag whose recording was cut gets its metadata.yaml \
-             back with `ros2 bag reindex`",
-            mcaps[0].display()
-        ),
-        n if !metadata => bail!(
-            "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 bag: \
-             name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` tracks them \
-             all, `fit` and `tune` take them all as `{dir}/*.mcap`; `info`, `plot` and `viz` \
-             read one file, `eval --truth {dir}` the folder)"
-        ),
-        1 => Ok(mcaps.pop()),
-        n => bail!(
-            "{dir}: a bag split into {n} .mcap files; probmot tracks one file at a time: run \
-             `probmot track` on each .mcap file (tracks then restart at each split)"
-        ),
+    let sqlite = || {
+        anyhow::anyhow!(
+            "{dir}: a rosbag2 bag with sqlite3 storage (.db3); probmot reads MCAP storage: \
+             convert it with `ros2 bag convert` to storage_id mcap, or record with `ros2 bag \
+             record -s mcap`"
+        )
+    };
+    if !metadata {
+        match mcaps.len() {
+            0 if db3 => return Err(sqlite()),
+            0 => bail!("{dir}: a directory without an .mcap file"),
+            1 => bail!(
+                "{dir}: a directory with one .mcap file but no metadata.yaml, so not a rosbag2 \
+                 bag: name the file instead ({}); a bag whose recording was cut gets its \
+                 metadata.yaml back with `ros2 bag reindex`",
+                mcaps[0].display()
+            ),
+            n => bail!(
+                "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 \
+                 bag: name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` \
+                 tracks them all, `fit` and `tune` take them all as `{dir}/*.mcap`; `info`, \
+                 `plot` and `viz` read one file, `eval --truth {dir}` the folder)"
+            ),
+        }
     }
+    let md = read_metadata(path)?;
+    if md.storage == "sqlite3" || (md.files.is_empty() && mcaps.is_empty() && db3) {
+        return Err(sqlite());
+    }
+    if !md.storage.is_empty() && md.storage != "mcap" {
+        bail!(
+            "{dir}: storage_identifier {:?}; probmot reads mcap storage",
+            md.storage
+        );
+    }
+    let files = if md.files.is_empty() {
+        match mcaps.len() {
+            0 => bail!("{dir}: a directory without an .mcap file"),
+            1 => mcaps,
+            n => bail!(
+                "{dir}: metadata.yaml lists no files (relative_file_paths) and the directory \
+                 has {n} .mcap files; `ros2 bag reindex {dir}` writes the list"
+            ),
+        }
+    } else {
+        let mut files = Vec::new();
+        for f in &md.files {
+            // As rosbag2 does: the file name, in the bag directory.
+            let name = Path::new(f).file_name().unwrap_or(f.as_ref());
+            let p = path.join(name);
+            if !p.is_file() {
+                bail!("{dir}: metadata.yaml lists {f}, which is not in the directory");
+            }
+            files.push(p);
+        }
+        files
+    };
+    let bag = Bag {
+        dir: path.to_path_buf(),
+        files,
+        compression: md.compression,
+    };
+    Ok(Some(bag))
+}
+
+/// The MCAP file of a one-file bag, or `None` when `path` is not a directory: what the commands
+/// that read one file (`plot`, `viz`, `fit`, `tune`, `export`) open. A split or compressed bag
+/// is refused with what to do.
+pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
+    let Some(mut bag) = open_bag(path)? else {
+        return Ok(None);
+    };
+    let dir = path.display();
+    if bag.compression != FileCompression::None {
+        bail!(
+            "{dir}: a bag of compressed files (compression_mode file); this command reads an \
+             MCAP file: `probmot track {dir} -o OUT_BAG` writes an uncompressed bag"
+        );
+    }
+    if bag.files.len() > 1 {
+        bail!(
+            "{dir}: a bag split into {} files; this command reads one file: name one of them \
+             ({}), or track the whole drive with `probmot track {dir} -o OUT_BAG`",
+            bag.files.len(),
+            bag.files[0].display()
+        );
+    }
+    Ok(bag.files.pop())
 }
 
 /// `path`, or for a bag directory its MCAP file: what the commands that read one file at a time
-/// (`info`, `plot`, `viz`, `fit`, `tune`, `export`) open.
+/// (`plot`, `viz`, `fit`, `tune`, `export`) open.
 pub fn resolve_input(path: &Path) -> Result<PathBuf> {
     Ok(bag_mcap(path)?.unwrap_or_else(|| path.to_path_buf()))
 }
 
-/// Creates the output bag directory (it must not exist, or be empty, as for `ros2 bag record`)
-/// and returns the path of its MCAP file (named after the input's).
-pub fn prepare_output(dir: &Path, input_mcap: &Path) -> Result<PathBuf> {
+/// The files a read of `path` goes through: a bag directory's files, or `path` itself.
+pub fn input_files(path: &Path) -> Result<Vec<PathBuf>> {
+    Ok(match open_bag(path)? {
+        Some(bag) => bag.files,
+        None => vec![path.to_path_buf()],
+    })
+}
+
+/// Refuses an output bag directory that exists and is not empty (as `ros2 bag record` does).
+pub fn check_output_dir(dir: &Path) -> Result<()> {
     if dir.exists() {
         let empty = dir.is_dir()
             && std::fs::read_dir(dir)
@@ -89,11 +190,7 @@ pub fn prepare_output(dir: &Path, input_mcap: &Path) -> Result<PathBuf> {
             );
         }
     }
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let name = input_mcap
-        .file_name()
-        .with_context(|| format!("{} has no file name", input_mcap.display()))?;
-    Ok(dir.join(name))
+    Ok(())
 }
 
 /// One topic of the metadata.
@@ -110,14 +207,21 @@ fn quoted(s: &str) -> String {
     serde_json::to_string(s).expect("a string serializes")
 }
 
-/// Writes `dir/metadata.yaml` for the bag's MCAP file `mcap` (inside `dir`), from its summary.
-pub fn write_metadata(dir: &Path, mcap: &Path) -> Result<()> {
+/// One file of the metadata: name, starting time, duration, message count.
+struct FileEntry {
+    name: String,
+    start: u64,
+    duration: u64,
+    count: u64,
+}
+
+/// Adds the topics and counts of the MCAP file `mcap`'s summary to `topics`; returns its entry.
+fn add_file(mcap: &Path, topics: &mut BTreeMap<u16, Topic>) -> Result<FileEntry> {
     let file = mcap.display();
     let Some((_, records)) = read_summary_records(mcap) else {
         bail!("{file}: no readable summary section to write metadata.yaml from");
     };
     let mut schemas: HashMap<u16, String> = HashMap::new();
-    let mut topics: BTreeMap<u16, Topic> = BTreeMap::new();
     let mut stats = None;
     for rec in records {
         match rec {
@@ -125,18 +229,13 @@ pub fn write_metadata(dir: &Path, mcap: &Path) -> Result<()> {
                 schemas.insert(header.id, header.name);
             }
             Record::Channel(c) => {
-                let topic = Topic {
+                topics.entry(c.id).or_insert_with(|| Topic {
                     name: c.topic,
                     msgtype: schemas.get(&c.schema_id).cloned().unwrap_or_default(),
                     serialization: c.message_encoding,
-                    qos: c
-                        .metadata
-                        .get("offered_qos_profiles")
-                        .cloned()
-                        .unwrap_or_default(),
+                    qos: (c.metadata.get("offered_qos_profiles").cloned()).unwrap_or_default(),
                     count: 0,
-                };
-                topics.insert(c.id, topic);
+                });
             }
             Record::Statistics(s) => stats = Some(s),
             _ => {}
@@ -145,24 +244,42 @@ pub fn write_metadata(dir: &Path, mcap: &Path) -> Result<()> {
     let stats = stats.with_context(|| format!("{file}: no statistics record"))?;
     for (id, n) in &stats.channel_message_counts {
         if let Some(t) = topics.get_mut(id) {
-            t.count = *n;
+            t.count += *n;
         }
     }
-    let (start, duration) = if stats.message_count == 0 {
-        (0, 0)
-    } else {
-        let d = stats.message_end_time - stats.message_start_time;
-        (stats.message_start_time, d)
+    let (start, duration) = match stats.message_count {
+        0 => (0, 0),
+        _ => (
+            stats.message_start_time,
+            stats.message_end_time - stats.message_start_time,
+        ),
     };
-    let name = mcap
-        .file_name()
-        .and_then(|n| n.to_str())
+    let name = (mcap.file_name().and_then(|n| n.to_str()))
         .with_context(|| format!("{file}: file name is not UTF-8"))?;
+    Ok(FileEntry {
+        name: name.to_string(),
+        start,
+        duration,
+        count: stats.message_count,
+    })
+}
+
+/// Writes `dir/metadata.yaml` for the bag's MCAP files `mcaps` (inside `dir`, in recording
+/// order), from their summaries. The files are plain MCAP files (`compression_mode` empty).
+pub fn write_metadata(dir: &Path, mcaps: &[PathBuf]) -> Result<()> {
+    let mut topics: BTreeMap<u16, Topic> = BTreeMap::new();
+    let files: Vec<FileEntry> = (mcaps.iter())
+        .map(|m| add_file(m, &mut topics))
+        .collect::<Result<_>>()?;
+    let counted = files.iter().filter(|f| f.count > 0);
+    let start = counted.clone().map(|f| f.start).min().unwrap_or(0);
+    let end = counted.map(|f| f.start + f.duration).max().unwrap_or(0);
+    let count: u64 = files.iter().map(|f| f.count).sum();
     let mut y = String::from("rosbag2_bagfile_information:\n  version: 5\n");
     y.push_str("  storage_identifier: mcap\n");
-    let _ = writeln!(y, "  duration:\n    nanoseconds: {duration}");
+    let _ = writeln!(y, "  duration:\n    nanoseconds: {}", end - start);
     let _ = writeln!(y, "  starting_time:\n    nanoseconds_since_epoch: {start}");
-    let _ = writeln!(y, "  message_count: {}", stats.message_count);
+    let _ = writeln!(y, "  message_count: {count}");
     y.push_str("  topics_with_message_count:\n");
     for t in topics.values() {
         let _ = writeln!(y, "    - topic_metadata:");
@@ -177,14 +294,21 @@ pub fn write_metadata(dir: &Path, mcap: &Path) -> Result<()> {
         let _ = writeln!(y, "      message_count: {}", t.count);
     }
     y.push_str("  compression_format: \"\"\n  compression_mode: \"\"\n");
-    let _ = writeln!(y, "  relative_file_paths:\n    - {}", quoted(name));
-    let _ = writeln!(y, "  files:\n    - path: {}", quoted(name));
-    let _ = writeln!(
-        y,
-        "      starting_time:\n        nanoseconds_since_epoch: {start}"
-    );
-    let _ = writeln!(y, "      duration:\n        nanoseconds: {duration}");
-    let _ = writeln!(y, "      message_count: {}", stats.message_count);
+    y.push_str("  relative_file_paths:\n");
+    for f in &files {
+        let _ = writeln!(y, "    - {}", quoted(&f.name));
+    }
+    y.push_str("  files:\n");
+    for f in &files {
+        let _ = writeln!(y, "    - path: {}", quoted(&f.name));
+        let _ = writeln!(
+            y,
+            "      starting_time:\n        nanoseconds_since_epoch: {}",
+            f.start
+        );
+        let _ = writeln!(y, "      duration:\n        nanoseconds: {}", f.duration);
+        let _ = writeln!(y, "      message_count: {}", f.count);
+    }
     let path = dir.join("metadata.yaml");
     let tmp = dir.join(".metadata.yaml.tmp");
     std::fs::write(&tmp, y).with_context(|| format!("cannot write {}", tmp.display()))?;
@@ -197,18 +321,36 @@ mod tests {
     use super::*;
 
     #[test]
-    fn bag_mcap_finds_the_one_file_and_refuses_others() {
+    fn open_bag_finds_the_listed_files_and_refuses_others() {
         let d = tempfile::tempdir().unwrap();
-        assert!(bag_mcap(&d.path().join("x.mcap")).unwrap().is_none());
-        let e = bag_mcap(d.path()).unwrap_err().to_string();
+        assert!(open_bag(&d.path().join("x.mcap")).unwrap().is_none());
+        let e = open_bag(d.path()).unwrap_err().to_string();
         assert!(e.contains("without an .mcap"), "{e}");
         std::fs::write(d.path().join("b_0.db3"), b"").unwrap();
-        let e = bag_mcap(d.path()).unwrap_err().to_string();
+        let e = open_bag(d.path()).unwrap_err().to_string();
         assert!(e.contains("ros2 bag convert"), "{e}");
         std::fs::write(d.path().join("b_0.mcap"), b"").unwrap();
-        std::fs::write(d.path().join("metadata.yaml"), b"").unwrap();
+        std::fs::write(d.path().join("metadata.yaml"), b"x: 1").unwrap();
+        let e = format!("{:#}", open_bag(d.path()).unwrap_err());
+        assert!(
+            e.contains("metadata.yaml") && e.contains("rosbag2_bagfile"),
+            "{e}"
+        );
+        let minimal = "rosbag2_bagfile_information:\n";
+        std::fs::write(d.path().join("metadata.yaml"), minimal).unwrap();
         assert_eq!(bag_mcap(d.path()).unwrap(), Some(d.path().join("b_0.mcap")));
         std::fs::write(d.path().join("b_1.mcap"), b"").unwrap();
+        let e = open_bag(d.path()).unwrap_err().to_string();
+        assert!(e.contains("lists no files"), "{e}");
+        let listed = "rosbag2_bagfile_information:\n  relative_file_paths:\n  - b_1.mcap\n  - \
+                      b_0.mcap\n  - b_2.mcap\n";
+        std::fs::write(d.path().join("metadata.yaml"), listed).unwrap();
+        let e = open_bag(d.path()).unwrap_err().to_string();
+        assert!(e.contains("lists b_2.mcap"), "{e}");
+        std::fs::write(d.path().join("metadata.yaml"), &listed[..listed.len() - 13]).unwrap();
+        let bag = open_bag(d.path()).unwrap().unwrap();
+        let order = [d.path().join("b_1.mcap"), d.path().join("b_0.mcap")];
+        assert_eq!(bag.files, order, "in the order metadata.yaml lists them");
         let e = bag_mcap(d.path()).unwrap_err().to_string();
         assert!(e.contains("split into 2"), "{e}");
     }
@@ -217,10 +359,11 @@ mod tests {
     fn output_directory_must_be_new_or_empty() {
         let d = tempfile::tempdir().unwrap();
         let out = d.path().join("out");
-        let m = prepare_output(&out, Path::new("/x/in_0.mcap")).unwrap();
-        assert_eq!(m, out.join("in_0.mcap"));
-        std::fs::write(&m, b"").unwrap();
-        assert!(prepare_output(&out, Path::new("/x/in_0.mcap")).is_err());
+        check_output_dir(&out).unwrap();
+        std::fs::create_dir(&out).unwrap();
+        check_output_dir(&out).unwrap();
+        std::fs::write(out.join("x"), b"").unwrap();
+        assert!(check_output_dir(&out).is_err());
     }
 
     #[test]

@@ -13,7 +13,6 @@
 //! its chunks are compressed on other threads while this one reads and tracks.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
-use std::io::{Read, Seek, SeekFrom};
 use std::ops::ControlFlow;
 use std::path::Path;
 use std::time::Instant;
@@ -30,8 +29,9 @@ use super::track_records::RecordSession;
 use super::track_session::{SessionOptions, TrackSession};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::background::BackgroundOutput;
-use crate::mcapio::reader::{read_records_while, McapInput};
+use crate::mcapio::reader::McapInput;
 use crate::mcapio::sink::RecordSink;
+use crate::mcapio::source::RecordSource;
 use crate::mcapio::writer::{check_output_path, OutputOptions};
 use crate::msgs::detection_source::{self, DetectionSource};
 pub use crate::msgs::track_encode::{fill_track3d, to_track3d};
@@ -72,13 +72,13 @@ pub fn track_file(
 /// profile (made once; a single pass that turns out to need two restarts it). Returns the sink,
 /// for the caller to finish, and the summary (its `output` and `wall_time_s` left to the
 /// caller).
-pub fn track_input<R: Read + Seek, S: RecordSink>(
-    input: &mut McapInput<R>,
+pub fn track_input<I: RecordSource, S: RecordSink>(
+    input: &mut I,
     opts: &TrackOptions,
     progress: &dyn Fn(Progress<'_>),
     open: impl FnOnce(String) -> Result<S>,
 ) -> Result<(S, TrackSummary)> {
-    let size = input.source.seek(SeekFrom::End(0)).unwrap_or(0);
+    let size = input.byte_len();
     let mut out = Output::Unopened(open);
     let single = match PassPlan::decide(input, opts) {
         PassPlan::CopyOnly => Some((None, Schedule::Known(Vec::new()))),
@@ -121,7 +121,7 @@ pub fn track_input<R: Read + Seek, S: RecordSink>(
         // (Only a file changed between the passes can make the tracking pass replan.)
         ControlFlow::Break(replan) => bail!(
             "{}: the file changed while it was read ({replan:?} in the second pass)",
-            input.name
+            input.name()
         ),
     }
 }
@@ -196,30 +196,6 @@ fn open_output(output: &Path, opts: &TrackOptions, profile: String) -> Result<Ba
     } else {
         BackgroundOutput::create_inline(output, &out_opts)
     }
-}
-
-/// Adds the tracks channel and the extra channels when there are detections (`ids`).
-fn add_tracks_channels(
-    out: &mut impl RecordSink,
-    opts: &TrackOptions,
-    ids: Option<(u16, u16)>,
-    format: TracksFormat,
-    extra: &ExtraOutputs,
-) -> Result<()> {
-    let tracks_topic = opts.tracks_topic_for(format);
-    if let Some((schema_id, channel_id)) = ids {
-        let (name, schema_encoding, data, message_encoding) = format.schema();
-        out.add_schema_with_id(schema_id, name, schema_encoding, data)?;
-        out.add_channel_with_id(
-            channel_id,
-            schema_id,
-            tracks_topic,
-            message_encoding,
-            &format.channel_metadata(),
-        )?;
-        extra.add_channels(out, schema_id)?;
-    }
-    Ok(())
 }
 
 /// What the output's channels come from: the detection channels chosen in the scan, the ids free
@@ -299,8 +275,8 @@ fn check_tracks_topic(
 /// The pass that copies every record and tracks: `plan` is the detection-channel choice (from
 /// the first pass or the summary; `None` with `--no-track`), `base` the progress already made.
 /// Returns the output, and the summary or the [`Replan`] that stopped a single pass.
-fn run_pass<R: Read + Seek, S: RecordSink, F: FnOnce(String) -> Result<S>>(
-    input: &mut McapInput<R>,
+fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
+    input: &mut I,
     out: Output<S, F>,
     opts: &TrackOptions,
     progress: &dyn Fn(Progress<'_>),
@@ -308,7 +284,7 @@ fn run_pass<R: Read + Seek, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     schedule: Schedule,
     base: u64,
 ) -> Result<(S, ControlFlow<Replan, TrackSummary>)> {
-    let file = input.name.clone();
+    let file = input.name().to_string();
     let mut summary = TrackSummary {
         input: file.clone(),
         ..Default::default()
@@ -350,8 +326,7 @@ fn run_pass<R: Read + Seek, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     };
     let extra = ExtraOutputs::new(&request, &file, scan_ids.as_ref(), ids)?;
 
-    let mut out = out.start(profile)?;
-    add_tracks_channels(&mut out, opts, ids, format, &extra)?;
+    let out = out.start(profile)?;
 
     let options = SessionOptions {
         name: file.clone(),
@@ -378,10 +353,11 @@ fn run_pass<R: Read + Seek, S: RecordSink, F: FnOnce(String) -> Result<S>>(
         summary,
         progress,
         base,
+        headers: 0,
     };
-    input.rewind()?;
+    session.add_tracks_channels()?;
     let mut replan = None;
-    read_records_while(input, |rec, stats| {
+    input.read_while(&mut |rec, stats| {
         let flow = session.on_record(rec, stats.bytes_read)?;
         replan = flow.break_value();
         Ok(flow.map_break(|_| ()))

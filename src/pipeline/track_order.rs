@@ -91,6 +91,12 @@ impl LogTimeOrder {
         self.flush(out, self.bound())
     }
 
+    /// Writes every held message, whatever tracks are still to come (the end of one file of a
+    /// split bag: its messages stay in its output file).
+    pub(super) fn flush_all(&mut self, out: &mut impl RecordSink) -> Result<()> {
+        self.flush(out, u64::MAX)
+    }
+
     /// Writes the held messages, in file order, while their log time is at most `upto`.
     fn flush(&mut self, out: &mut impl RecordSink, upto: u64) -> Result<()> {
         while let Some(&(header, start, end)) = self.held.front() {

@@ -6,17 +6,17 @@
 //! [`super::frame_schedule::Replan`] of the single pass, not an error.
 
 use std::collections::{BTreeMap, HashMap, HashSet};
-use std::io::{Read, Seek};
+use std::ops::ControlFlow;
 
 use anyhow::{bail, Context, Result};
-use mcap::records::{MessageHeader, Record};
+use mcap::records::Record;
 
 use super::frame_schedule::{Schedule, Streaming};
 use super::progress::Progress;
 use super::stamp_check::{LogSpan, StampWindow};
 use super::track_options::TrackOptions;
 use super::track_records::{check_count, note_stamp, undecodable};
-use crate::mcapio::reader::{read_records_from, read_summary_records_from, McapInput};
+use crate::mcapio::source::RecordSource;
 use crate::msgs;
 use crate::msgs::detection_frame::stamp_or_log_time;
 use crate::msgs::detection_source::{self, DetectionSource};
@@ -35,10 +35,7 @@ pub(super) enum PassPlan {
 
 impl PassPlan {
     /// The plan for `input` from its summary section alone (reads its start and its end).
-    pub(super) fn decide<R: Read + Seek>(
-        input: &mut McapInput<R>,
-        opts: &TrackOptions,
-    ) -> PassPlan {
+    pub(super) fn decide<I: RecordSource>(input: &mut I, opts: &TrackOptions) -> PassPlan {
         if opts.no_track {
             return PassPlan::CopyOnly;
         }
@@ -52,8 +49,6 @@ impl PassPlan {
 /// Result of the first pass.
 #[derive(Default)]
 pub(super) struct Scan {
-    /// The input's name, for error messages.
-    pub(super) file: String,
     pub(super) profile: String,
     pub(super) schema_ids: HashSet<u16>,
     /// `(name, encoding, data)` of every schema.
@@ -87,7 +82,12 @@ impl Scan {
 
     /// A channel record: chooses it as detections (by topic, or by schema by default) and
     /// registers it with the transform sources. Returns whether it is a transform source.
-    fn on_channel(&mut self, c: &mcap::records::Channel, opts: &TrackOptions) -> Result<bool> {
+    fn on_channel(
+        &mut self,
+        c: &mcap::records::Channel,
+        opts: &TrackOptions,
+        file: &str,
+    ) -> Result<bool> {
         self.channel_ids.insert(c.id);
         self.topics.insert(c.topic.clone());
         let (schema_name, schema_enc, schema_data) =
@@ -113,7 +113,7 @@ impl Scan {
                 }
                 // Chosen by topic: the user asked for it, so it is an error.
                 Err(why) if !opts.detection_topics.is_empty() => {
-                    bail!("{}: channel {} (topic {}): {why}", self.file, c.id, c.topic)
+                    bail!("{file}: channel {} (topic {}): {why}", c.id, c.topic)
                 }
                 // Chosen by default: left out, and reported below.
                 Err(why) => {
@@ -125,36 +125,9 @@ impl Scan {
         Ok(transform)
     }
 
-    /// A message of the first pass: the transforms, and a detection message's stamp (`last`:
-    /// the newest stamp of each detection channel so far).
-    fn on_message(
-        &mut self,
-        header: &MessageHeader,
-        data: &[u8],
-        opts: &TrackOptions,
-        last: &mut HashMap<u16, u64>,
-    ) -> Result<()> {
-        let file = &self.file;
-        self.transforms.on_message(file, header, data);
-        let Some((source, topic)) = self.det_channels.get(&header.channel_id) else {
-            return Ok(());
-        };
-        let (msg_stamp, count) = source
-            .stamp_and_count(data)
-            .with_context(|| undecodable(file, topic, header, source))?;
-        check_count(count, opts, file, topic, header)?;
-        let stamp = stamp_or_log_time(msg_stamp, header.log_time);
-        note_stamp(last, header, stamp, topic, &mut self.stamps_backwards);
-        self.entries.push((stamp, self.entries.len() as u64));
-        self.entry_channels.push(header.channel_id);
-        self.log_span.note(header.log_time);
-        Ok(())
-    }
-
     /// After every channel is known: leaves out SceneUpdates beside other detection channels
     /// (by default), and checks that there is something readable and every named topic exists.
-    fn finish(&mut self, opts: &TrackOptions) -> Result<()> {
-        let file = &self.file;
+    fn finish(&mut self, opts: &TrackOptions, file: &str) -> Result<()> {
         if opts.detection_topics.is_empty() {
             let left_out = detection_source::scenes_left_out(
                 self.det_channels.iter().map(|(id, (src, _))| (*id, src)),
@@ -195,35 +168,49 @@ impl Scan {
 
 /// The first pass of two: the detection channels and every detection message's stamp (and
 /// the transforms), from the start of `input`.
-pub(super) fn scan<R: Read + Seek>(
-    input: &mut McapInput<R>,
+pub(super) fn scan<I: RecordSource>(
+    input: &mut I,
     opts: &TrackOptions,
     progress: &dyn Fn(Progress<'_>),
 ) -> Result<Scan> {
-    input.rewind()?;
-    let mut s = Scan {
-        file: input.name.clone(),
-        ..Scan::default()
-    };
+    let file = input.name().to_string();
+    let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    read_records_from(input, |rec, stats| {
+    input.read_while(&mut |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
             Record::Schema { header, data } => s.on_schema(header, &data),
             Record::Channel(c) => {
-                s.on_channel(&c, opts)?;
+                s.on_channel(&c, opts, &file)?;
             }
             Record::Message { header, data } => {
-                s.on_message(&header, &data, opts, &mut last_stamp)?;
+                s.transforms.on_message(&file, &header, &data);
+                if let Some((source, topic)) = s.det_channels.get(&header.channel_id) {
+                    let (msg_stamp, count) = source
+                        .stamp_and_count(&data)
+                        .with_context(|| undecodable(&file, topic, &header, source))?;
+                    check_count(count, opts, &file, topic, &header)?;
+                    let stamp = stamp_or_log_time(msg_stamp, header.log_time);
+                    note_stamp(
+                        &mut last_stamp,
+                        &header,
+                        stamp,
+                        topic,
+                        &mut s.stamps_backwards,
+                    );
+                    s.entries.push((stamp, s.entries.len() as u64));
+                    s.entry_channels.push(header.channel_id);
+                    s.log_span.note(header.log_time);
+                }
                 if s.entries.len().is_multiple_of(256) {
                     progress(Progress::Position(stats.bytes_read));
                 }
             }
             _ => {}
         }
-        Ok(())
+        Ok(ControlFlow::Continue(()))
     })?;
-    s.finish(opts)?;
+    s.finish(opts, &file)?;
     Ok(s)
 }
 
@@ -231,19 +218,15 @@ pub(super) fn scan<R: Read + Seek>(
 /// two passes: no readable summary (or one without channels), a transform channel (ego motion
 /// looks ahead in time), several detection channels without message counts, or a channel
 /// choice that fails (the first pass then reports it from the data section).
-fn one_pass_plan<R: Read + Seek>(
-    input: &mut McapInput<R>,
-    opts: &TrackOptions,
-) -> Option<(Scan, Schedule)> {
-    let mut plan = Scan {
-        file: input.name.clone(),
-        ..Scan::default()
-    };
-    let Some((Record::Header(header), records)) = read_summary_records_from(&mut input.source)
-    else {
+fn one_pass_plan<I: RecordSource>(input: &mut I, opts: &TrackOptions) -> Option<(Scan, Schedule)> {
+    let file = &input.name().to_string();
+    let Some((Record::Header(header), records)) = input.summary() else {
         return None;
     };
-    plan.profile = header.profile;
+    let mut plan = Scan {
+        profile: header.profile,
+        ..Default::default()
+    };
     let mut summary_channels = HashMap::new();
     let mut counts = None;
     for rec in records {
@@ -252,7 +235,7 @@ fn one_pass_plan<R: Read + Seek>(
             Record::Channel(c) => {
                 // A transform channel (ego motion looks ahead in time), or an error that the
                 // first pass will report with the data section's records.
-                if plan.on_channel(&c, opts).unwrap_or(true) {
+                if plan.on_channel(&c, opts, file).unwrap_or(true) {
                     return None;
                 }
                 summary_channels.insert(c.id, (c.topic, c.schema_id));
@@ -261,7 +244,7 @@ fn one_pass_plan<R: Read + Seek>(
             _ => {}
         }
     }
-    if summary_channels.is_empty() || plan.finish(opts).is_err() {
+    if summary_channels.is_empty() || plan.finish(opts, file).is_err() {
         return None;
     }
     if plan.det_channels.len() > 1 && counts.is_none() {

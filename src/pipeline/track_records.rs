@@ -113,6 +113,8 @@ pub(super) struct RecordSession<'a, S: RecordSink> {
     pub(super) progress: &'a dyn Fn(Progress<'_>),
     /// Progress already made before this pass (bytes).
     pub(super) base: u64,
+    /// Header records met: each after the first starts the next file of a split bag.
+    pub(super) headers: u32,
 }
 
 impl<S: RecordSink> RecordSession<'_, S> {
@@ -122,7 +124,13 @@ impl<S: RecordSink> RecordSession<'_, S> {
     pub fn on_record(&mut self, rec: Record<'_>, bytes_read: u64) -> Result<ControlFlow<Replan>> {
         let file = self.file;
         match rec {
-            Record::Header(_) | Record::Footer(_) | Record::DataEnd(_) => {}
+            Record::Header(_) => {
+                self.headers += 1;
+                if self.headers > 1 {
+                    self.next_part()?;
+                }
+            }
+            Record::Footer(_) | Record::DataEnd(_) => {}
             Record::Schema { header, data } if header.id != 0 => {
                 if let replan @ ControlFlow::Break(_) = self.schedule.on_schema(header.id) {
                     return Ok(replan);
@@ -188,6 +196,31 @@ impl<S: RecordSink> RecordSession<'_, S> {
             _ => {}
         }
         Ok(ControlFlow::Continue(()))
+    }
+
+    /// Adds the tracks channel and the extra channels when there are detections.
+    pub(super) fn add_tracks_channels(&mut self) -> Result<()> {
+        let Some((schema_id, channel_id)) = self.ids else {
+            return Ok(());
+        };
+        let (name, schema_encoding, data, message_encoding) = self.format.schema();
+        let topic = self.opts.tracks_topic_for(self.format);
+        let out = &mut self.out;
+        out.add_schema_with_id(schema_id, name, schema_encoding, data)?;
+        let metadata = self.format.channel_metadata();
+        out.add_channel_with_id(channel_id, schema_id, topic, message_encoding, &metadata)?;
+        self.extra.add_channels(out, schema_id)
+    }
+
+    /// The next file of a split bag starts: every held input message goes to the file it came
+    /// from (before tracks still to come, which go to the next file), and the next output file
+    /// gets the tracks channels.
+    fn next_part(&mut self) -> Result<()> {
+        self.order.flush_all(&mut self.out)?;
+        self.out
+            .next_part()
+            .with_context(|| format!("{}: starting output file {}", self.file, self.headers))?;
+        self.add_tracks_channels()
     }
 
     /// A detection message of `source` on the topic `topic_idx`: decoded, checked, moved into
@@ -453,6 +486,7 @@ mod tests {
             summary: TrackSummary::default(),
             progress: &no_progress,
             base: 0,
+            headers: 0,
         };
         let schema = Record::Schema {
             header: SchemaHeader {

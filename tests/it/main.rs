@@ -36,6 +36,7 @@ mod ros2_tf_fixture;
 mod ros2_tracks_read;
 mod scene_update;
 mod special_outputs;
+mod split_bags;
 mod third_party_reader;
 mod track_e2e;
 mod track_log_order;

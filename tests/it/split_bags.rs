@@ -1,0 +1,238 @@
+//! Split and file-compressed rosbag2 bags (issue #35): a bag of several files is one drive.
+//!
+//! The bags are written by an independent writer, PyPI `rosbags`: scripts/make_autoware_bag.py
+//! writes a drive, scripts/split_bag.py rewrites it split into files (each written by rosbags'
+//! Writer, the later ones declaring their topics in another order, so with other ids), or
+//! compressed whole with zstd. The tracked bags are read back whole by rosbags' AnyReader
+//! (scripts/check_autoware_bag.py, which also compares metadata.yaml's counts with what it
+//! reads).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use crate::common::*;
+
+const TRACKING_TOPIC: &str = "/perception/object_recognition/tracking/objects";
+
+fn have_rosbags(test: &str) -> bool {
+    if python_has("rosbags, numpy") {
+        return true;
+    }
+    skip(
+        test,
+        "python3 cannot import rosbags (pip install -r scripts/requirements.txt)",
+    );
+    false
+}
+
+/// Runs a Python script of scripts/ with `args`; panics with its stderr when it fails.
+fn python(script: &str, args: &[&Path], flags: &[&str]) -> Vec<u8> {
+    let out = Command::new("python3")
+        .arg(repo(script))
+        .args(args)
+        .args(flags)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{script}: {err}");
+    out.stdout
+}
+
+/// The drive of scripts/make_autoware_bag.py (`flags`) in `d/drive`, its truth in
+/// `d/drive.jsonl`.
+fn drive(d: &Path, flags: &[&str]) -> PathBuf {
+    let bag = d.join("drive");
+    let truth = python("scripts/make_autoware_bag.py", &[&bag], flags);
+    std::fs::write(d.join("drive.jsonl"), truth).unwrap();
+    bag
+}
+
+/// The MCAP files of a bag directory, in name order (the order of a split).
+fn files(bag: &Path) -> Vec<PathBuf> {
+    let mut f: Vec<PathBuf> = std::fs::read_dir(bag)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .collect();
+    f.sort();
+    f
+}
+
+/// `(log_time, bytes)` of every tracks message of the bag, file after file.
+fn tracks_of(bag: &Path) -> Vec<(u64, Vec<u8>)> {
+    (files(bag).iter())
+        .flat_map(|f| messages(f))
+        .filter(|m| m.topic == TRACKING_TOPIC)
+        .map(|m| (m.log_time, m.data))
+        .collect()
+}
+
+/// Per file: the `(topic, log_time)` of its messages other than the tracks, sorted.
+fn input_messages(bag: &Path) -> Vec<Vec<(String, u64)>> {
+    (files(bag).iter())
+        .map(|f| {
+            let mut m: Vec<(String, u64)> = (messages(f).into_iter())
+                .filter(|m| m.topic != TRACKING_TOPIC)
+                .map(|m| (m.topic, m.log_time))
+                .collect();
+            m.sort();
+            m
+        })
+        .collect()
+}
+
+fn track(input: &Path, out: &Path) -> serde_json::Value {
+    let (i, o) = (input.to_str().unwrap(), out.to_str().unwrap());
+    let run = probmot_ok(&["track", i, "-o", o, "--json"]);
+    serde_json::from_slice(&run.stdout).unwrap()
+}
+
+/// rosbags reads the tracked bag whole: 60 tracks messages, one UUID per object.
+fn check_with_rosbags(out: &Path, d: &Path) {
+    let truth = d.join("drive.jsonl");
+    let text = python(
+        "scripts/check_autoware_bag.py",
+        &[out],
+        &[
+            "--messages",
+            "60",
+            "--ids",
+            "5",
+            "--truth",
+            truth.to_str().unwrap(),
+        ],
+    );
+    let text = String::from_utf8_lossy(&text);
+    assert!(text.contains("5 UUIDs"), "{text}");
+}
+
+/// A drive split in two files (ego motion on /tf, so two passes) and in three (no /tf: one
+/// pass over the files' summaries) tracks exactly as unsplit: the same tracks messages, byte
+/// for byte; each output file holds the messages of its input file; rosbags reads the output
+/// bag whole.
+#[test]
+fn a_split_bag_tracks_exactly_as_the_unsplit_bag() {
+    if !have_rosbags("a_split_bag_tracks_exactly_as_the_unsplit_bag") {
+        return;
+    }
+    for (flags, parts, passes) in [(&["--ego"][..], "2", 2), (&[][..], "3", 1)] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let whole = drive(d, flags);
+        let split = d.join("split");
+        python(
+            "scripts/split_bag.py",
+            &[&whole, &split],
+            &["--parts", parts],
+        );
+        let (out_whole, out_split) = (d.join("tracked_whole"), d.join("tracked_split"));
+        track(&whole, &out_whole);
+        let s = track(&split, &out_split);
+        assert_eq!(s["passes"], passes, "{s}");
+        assert_eq!(s["tracks_born"], 5, "{s}");
+        let expected = tracks_of(&out_whole);
+        assert_eq!(expected.len(), 60);
+        assert!(
+            tracks_of(&out_split) == expected,
+            "tracks differ once split"
+        );
+        let n: usize = parts.parse().unwrap();
+        assert_eq!(files(&out_split).len(), n);
+        assert_eq!(input_messages(&out_split), input_messages(&split));
+        check_with_rosbags(&out_split, d);
+        let yaml = std::fs::read_to_string(out_split.join("metadata.yaml")).unwrap();
+        assert!(yaml.contains("split_1.mcap") && yaml.contains(TRACKING_TOPIC));
+    }
+}
+
+/// A bag compressed file by file (`.mcap.zstd`) tracks as the plain bag; the output is plain
+/// MCAP files that rosbags reads, and the input is left as it was.
+#[test]
+fn a_file_compressed_bag_tracks_and_its_output_opens_in_rosbags() {
+    if !have_rosbags("a_file_compressed_bag_tracks_and_its_output_opens_in_rosbags") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = drive(d, &["--ego"]);
+    let zbag = d.join("zbag");
+    let flags = ["--parts", "2", "--compress"];
+    python("scripts/split_bag.py", &[&whole, &zbag], &flags);
+    let before: Vec<Vec<u8>> = (std::fs::read_dir(&zbag).unwrap())
+        .map(|e| std::fs::read(e.unwrap().path()).unwrap())
+        .collect();
+    let (out_whole, out_z) = (d.join("tracked_whole"), d.join("tracked_z"));
+    track(&whole, &out_whole);
+    track(&zbag, &out_z);
+    assert!(tracks_of(&out_z) == tracks_of(&out_whole));
+    assert_eq!(
+        entries(&out_z),
+        ["metadata.yaml", "zbag_0.mcap", "zbag_1.mcap"]
+    );
+    let yaml = std::fs::read_to_string(out_z.join("metadata.yaml")).unwrap();
+    assert!(yaml.contains("compression_mode: \"\""), "{yaml}");
+    check_with_rosbags(&out_z, d);
+    let after: Vec<Vec<u8>> = (std::fs::read_dir(&zbag).unwrap())
+        .map(|e| std::fs::read(e.unwrap().path()).unwrap())
+        .collect();
+    assert!(before == after, "the input bag changed");
+}
+
+/// A damaged second file: the error names it, and neither the output bag nor its partial
+/// directory is left behind.
+#[test]
+fn a_damaged_file_of_a_split_bag_is_named_and_leaves_no_output() {
+    if !have_rosbags("a_damaged_file_of_a_split_bag_is_named_and_leaves_no_output") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = drive(d, &[]);
+    let split = d.join("split");
+    python("scripts/split_bag.py", &[&whole, &split], &["--parts", "2"]);
+    let second = split.join("split_1.mcap");
+    let bytes = std::fs::read(&second).unwrap();
+    std::fs::write(&second, &bytes[..bytes.len() / 2]).unwrap();
+    let out = d.join("tracked");
+    let run = probmot(&[
+        "track",
+        split.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains("split_1.mcap"), "{stderr}");
+    assert_eq!(entries(d), ["drive", "drive.jsonl", "split"]);
+}
+
+/// `info` on a split bag describes the whole drive; `--out-dir` takes a bag directory as one
+/// input (beside a file), its output a bag directory of the same name.
+#[test]
+fn info_and_out_dir_take_a_split_bag_as_one_drive() {
+    if !have_rosbags("info_and_out_dir_take_a_split_bag_as_one_drive") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = drive(d, &["--ego"]);
+    let split = d.join("split");
+    python("scripts/split_bag.py", &[&whole, &split], &["--parts", "3"]);
+    let info = probmot_ok(&["info", split.to_str().unwrap(), "--json"]);
+    let info: serde_json::Value = serde_json::from_slice(&info.stdout).unwrap();
+    assert_eq!(info["messages"], 120, "{info}");
+    assert_eq!(info["channels"].as_array().unwrap().len(), 2, "{info}");
+    let out = d.join("out");
+    let log = repo("sample_logs/city.mcap");
+    let (s, l, o) = (
+        split.to_str().unwrap(),
+        log.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    probmot_ok(&["track", s, l, "--out-dir", o, "--jobs", "2", "--quiet"]);
+    assert_eq!(entries(&out), ["city.mcap", "split"]);
+    assert_eq!(files(&out.join("split")).len(), 3);
+    let alone = d.join("alone");
+    track(&split, &alone);
+    assert!(tracks_of(&out.join("split")) == tracks_of(&alone));
+}
