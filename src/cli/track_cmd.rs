@@ -5,15 +5,16 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use probmot::mcapio::destination::{destination, Destination};
 use probmot::mcapio::writer::{check_output_path, OutputCompression};
 use probmot::pipeline::bag_track::track_path;
 use probmot::pipeline::ego::EgoOptions;
-use probmot::pipeline::many::{out_dir_outputs, track_many};
-use probmot::pipeline::track::{SceneOutput, TrackOptions, TrackSummary, DEFAULT_MAX_DETECTIONS};
+use probmot::pipeline::many::{out_dir_outputs, track_many, ManyReport};
+use probmot::pipeline::track::{SceneOutput, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::pipeline::tracks_format::TracksFormat;
 
+use super::choice::choice;
 use super::config_cmd::TrackerArgs;
 use super::show_progress;
 use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
@@ -98,8 +99,8 @@ pub struct TrackArgs {
     /// or its detections are ROS 2 messages, else probmot. With ros2 or autoware, --scene-topic
     /// and --tracks-frame ego are refused. See docs/ros2.md.
     /// Example: probmot track bag.mcap -o out.mcap --tracks-format probmot
-    #[arg(long, value_enum, value_name = "FORMAT")]
-    tracks_format: Option<TracksFormatArg>,
+    #[arg(long, value_parser = choice::<TracksFormat>(), value_name = "FORMAT")]
+    tracks_format: Option<TracksFormat>,
     #[command(flatten)]
     tracker: TrackerArgs,
     /// Copy the log without tracking (measures the cost of plain I/O).
@@ -155,17 +156,6 @@ pub struct TrackArgs {
     json: bool,
 }
 
-/// `--tracks-format`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
-enum TracksFormatArg {
-    /// probmot.Tracks3D (protobuf).
-    Probmot,
-    /// vision_msgs/msg/Detection3DArray (ROS 2, CDR).
-    Ros2,
-    /// autoware_perception_msgs/msg/TrackedObjects (Autoware, CDR).
-    Autoware,
-}
-
 /// Frames the tracks are written in.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 enum TracksFrame {
@@ -175,38 +165,8 @@ enum TracksFrame {
     Ego,
 }
 
-fn bar_style() -> ProgressStyle {
-    ProgressStyle::with_template(
-        "{spinner} {msg:<24} [{bar:30}] {binary_bytes}/{binary_total_bytes} {binary_bytes_per_sec} ETA {eta}",
-    )
-    .expect("valid template")
-    .progress_chars("=> ")
-}
-
-fn print_summary(s: &TrackSummary) {
-    let classes: Vec<String> = s
-        .detections
-        .per_label
-        .iter()
-        .map(|(l, n)| format!("{l} {n}"))
-        .collect();
-    let total: u64 = s.detections.per_label.values().sum();
-    println!(
-        "{}: {} frames, {} detections ({}), {} tracks born, {} confirmed, mean track length {} frames, {} boxes skipped, {} messages copied, {:.2} s ({} {})",
-        s.output,
-        s.frames,
-        total,
-        if classes.is_empty() { "none".to_string() } else { classes.join(", ") },
-        s.tracks_born,
-        s.tracks_confirmed,
-        s.mean_track_length.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
-        s.detections.total_skipped() + s.ego.boxes_without_transform,
-        s.messages_copied,
-        s.wall_time_s,
-        s.passes,
-        if s.passes == 1 { "pass" } else { "passes" }
-    );
-}
+/// The template of the bar of one file.
+const FILE_BAR: &str = "{spinner} {msg:<24} [{bar:30}] {binary_bytes}/{binary_total_bytes} {binary_bytes_per_sec} ETA {eta}";
 
 /// Checks every output path before any work, creating `--out-dir` when it does not exist; returns
 /// the `--out-dir` outputs (empty with `-o`).
@@ -262,11 +222,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
     let opts = TrackOptions {
         detection_topics: a.detections_topics.clone(),
         tracks_topic: a.tracks_topic.clone(),
-        tracks_format: a.tracks_format.map(|f| match f {
-            TracksFormatArg::Probmot => TracksFormat::Probmot,
-            TracksFormatArg::Ros2 => TracksFormat::Ros2,
-            TracksFormatArg::Autoware => TracksFormat::Autoware,
-        }),
+        tracks_format: a.tracks_format,
         config,
         no_track: a.no_track,
         strict: a.strict,
@@ -289,11 +245,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
     let progress = show_progress(a.quiet || a.json);
     match (&a.output, &a.out_dir) {
         (Some(out), None) => {
-            let bar = if progress {
-                ProgressBar::new(0).with_style(bar_style())
-            } else {
-                ProgressBar::hidden()
-            };
+            let bar = super::bar(progress, super::style(FILE_BAR).progress_chars("=> "));
             // A bag directory in: a bag directory out, with its metadata.yaml.
             let s = track_path(&a.inputs[0], out, &opts, &|e| super::show_on_bar(&bar, e))?;
             bar.finish_and_clear();
@@ -307,7 +259,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
             if a.json {
                 println!("{}", serde_json::to_string_pretty(&s)?);
             } else if !a.quiet {
-                print_summary(&s);
+                println!("{}", s.line());
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -354,8 +306,7 @@ fn run_many(
 ) -> Result<ExitCode> {
     let bar = if progress {
         ProgressBar::new(a.inputs.len() as u64).with_style(
-            ProgressStyle::with_template("{spinner} [{bar:30}] {pos}/{len} files {msg} ETA {eta}")
-                .expect("valid template")
+            super::style("{spinner} [{bar:30}] {pos}/{len} files {msg} ETA {eta}")
                 .progress_chars("=> "),
         )
     } else {
@@ -367,39 +318,29 @@ fn run_many(
     };
     let results = track_many(&a.inputs, outputs, opts, jobs, &on_done)?;
     bar.finish_and_clear();
-    let mut json = Vec::new();
+    let report = ManyReport {
+        inputs: &a.inputs,
+        results: &results,
+    };
     for (input, r) in a.inputs.iter().zip(&results) {
         match r {
             Ok(s) => {
                 for w in &s.warnings {
                     eprintln!("warning: {w}");
                 }
-                if a.json {
-                    json.push(serde_json::json!({"input": input, "ok": true, "summary": s}));
-                } else if !a.quiet {
-                    print_summary(s);
+                if !a.quiet && !a.json {
+                    println!("{}", s.line());
                 }
             }
-            Err(e) => {
-                eprintln!("error: {}: {e:#}", input.display());
-                json.push(
-                    serde_json::json!({"input": input, "ok": false, "error": format!("{e:#}")}),
-                );
-            }
+            Err(e) => eprintln!("error: {}: {e:#}", input.display()),
         }
     }
-    let n_failed = results.iter().filter(|r| r.is_err()).count();
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&json)?);
+        println!("{}", serde_json::to_string_pretty(&report.json())?);
     } else if !a.quiet {
-        println!(
-            "{} files: {} tracked, {} failed",
-            a.inputs.len(),
-            a.inputs.len() - n_failed,
-            n_failed
-        );
+        println!("{}", report.totals_line());
     }
-    Ok(if n_failed > 0 {
+    Ok(if report.failed() > 0 {
         ExitCode::from(2)
     } else {
         ExitCode::SUCCESS

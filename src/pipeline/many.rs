@@ -89,6 +89,37 @@ pub fn run_many<T: Send>(
     }))
 }
 
+/// The outcome of [`track_many`] per input, as `track --out-dir` reports it.
+pub struct ManyReport<'a> {
+    /// The inputs, in the order of `results`.
+    pub inputs: &'a [PathBuf],
+    /// One result per input.
+    pub results: &'a [Result<TrackSummary>],
+}
+
+impl ManyReport<'_> {
+    /// Number of inputs that failed.
+    pub fn failed(&self) -> usize {
+        self.results.iter().filter(|r| r.is_err()).count()
+    }
+
+    /// One JSON object per input: `{input, ok: true, summary}` or `{input, ok: false, error}`.
+    pub fn json(&self) -> serde_json::Value {
+        let one = |(input, r): (&PathBuf, &Result<TrackSummary>)| match r {
+            Ok(s) => serde_json::json!({"input": input, "ok": true, "summary": s}),
+            Err(e) => serde_json::json!({"input": input, "ok": false, "error": format!("{e:#}")}),
+        };
+        serde_json::Value::Array(self.inputs.iter().zip(self.results).map(one).collect())
+    }
+
+    /// The closing line: `N files: a tracked, b failed`.
+    pub fn totals_line(&self) -> String {
+        let n = self.inputs.len();
+        let failed = self.failed();
+        format!("{n} files: {} tracked, {failed} failed", n - failed)
+    }
+}
+
 /// Tracks every input into its output ([`track_path`]: a file, or a bag directory as one
 /// drive; without per-file progress) on `jobs`
 /// threads; see [`run_many`].

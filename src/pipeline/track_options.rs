@@ -153,3 +153,28 @@ pub struct TrackSummary {
     /// Wall time in seconds.
     pub wall_time_s: f64,
 }
+
+impl TrackSummary {
+    /// The one-line summary `track` prints (no trailing newline).
+    pub fn line(&self) -> String {
+        let classes: Vec<String> = (self.detections.per_label.iter())
+            .map(|(l, n)| format!("{l} {n}"))
+            .collect();
+        let total: u64 = self.detections.per_label.values().sum();
+        format!(
+            "{}: {} frames, {} detections ({}), {} tracks born, {} confirmed, mean track length {} frames, {} boxes skipped, {} messages copied, {:.2} s ({} {})",
+            self.output,
+            self.frames,
+            total,
+            if classes.is_empty() { "none".to_string() } else { classes.join(", ") },
+            self.tracks_born,
+            self.tracks_confirmed,
+            self.mean_track_length.map(|v| format!("{v:.1}")).unwrap_or_else(|| "-".into()),
+            self.detections.total_skipped() + self.ego.boxes_without_transform,
+            self.messages_copied,
+            self.wall_time_s,
+            self.passes,
+            if self.passes == 1 { "pass" } else { "passes" }
+        )
+    }
+}

@@ -27,6 +27,26 @@ pub enum TracksFormat {
     Autoware,
 }
 
+impl crate::tracker::choice::Choice for TracksFormat {
+    const VALUES: &'static [Self] = &[
+        TracksFormat::Probmot,
+        TracksFormat::Ros2,
+        TracksFormat::Autoware,
+    ];
+
+    fn name(self) -> &'static str {
+        TracksFormat::name(self)
+    }
+
+    fn description(self) -> &'static str {
+        match self {
+            TracksFormat::Probmot => "probmot.Tracks3D (protobuf)",
+            TracksFormat::Ros2 => "vision_msgs/msg/Detection3DArray (ROS 2, CDR)",
+            TracksFormat::Autoware => "autoware_perception_msgs/msg/TrackedObjects (Autoware, CDR)",
+        }
+    }
+}
+
 impl TracksFormat {
     /// The format of a run: the requested one, else Autoware's when any chosen detection channel
     /// carries Autoware's `DetectedObjects`, else ROS 2 when the input is a ROS 2 bag (MCAP
