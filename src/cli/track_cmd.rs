@@ -7,10 +7,10 @@ use anyhow::{bail, Result};
 use clap::Args;
 use indicatif::ProgressBar;
 use probmot::mcapio::destination::{destination, Destination};
-use probmot::mcapio::writer::{check_output_path, OutputCompression};
+use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::bag_track::track_path;
 use probmot::pipeline::ego::EgoOptions;
-use probmot::pipeline::many::{out_dir_outputs, track_many, ManyReport};
+use probmot::pipeline::many::{check_track_outputs, track_many, ManyReport};
 use probmot::pipeline::track::{SceneOutput, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::pipeline::tracks_format::TracksFormat;
 
@@ -168,27 +168,8 @@ enum TracksFrame {
 /// The template of the bar of one file.
 const FILE_BAR: &str = "{spinner} {msg:<24} [{bar:30}] {binary_bytes}/{binary_total_bytes} {binary_bytes_per_sec} ETA {eta}";
 
-/// Checks every output path before any work, creating `--out-dir` when it does not exist; returns
-/// the `--out-dir` outputs (empty with `-o`).
-fn check_outputs(a: &TrackArgs) -> Result<Vec<PathBuf>> {
-    match (&a.output, &a.out_dir) {
-        (None, Some(dir)) => out_dir_outputs(dir, &a.inputs),
-        (Some(out), None) => {
-            if a.inputs.len() != 1 {
-                bail!("-o takes one input; use --out-dir DIR for several inputs");
-            }
-            // A bag directory's output is a new bag directory, checked by track_bag.
-            if !a.inputs[0].is_dir() {
-                check_output_path(Some(&a.inputs[0]), out)?;
-            }
-            Ok(Vec::new())
-        }
-        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
-    }
-}
-
 pub fn run(a: TrackArgs) -> Result<ExitCode> {
-    let outputs = check_outputs(&a)?;
+    let outputs = check_track_outputs(&a.inputs, a.output.as_deref(), a.out_dir.as_deref())?;
     if let Some(rrd) = &a.rerun {
         if !cfg!(feature = "rerun") {
             bail!("--rerun: {NEEDS_FEATURE}");

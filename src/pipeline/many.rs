@@ -89,6 +89,29 @@ pub fn run_many<T: Send>(
     }))
 }
 
+/// Checks every output path of `track` before any work (`-o OUT` for one input, or `--out-dir
+/// DIR`, created when missing); returns the `--out-dir` outputs (empty with `-o`).
+pub fn check_track_outputs(
+    inputs: &[PathBuf],
+    output: Option<&Path>,
+    out_dir: Option<&Path>,
+) -> Result<Vec<PathBuf>> {
+    match (output, out_dir) {
+        (None, Some(dir)) => out_dir_outputs(dir, inputs),
+        (Some(out), None) => {
+            if inputs.len() != 1 {
+                bail!("-o takes one input; use --out-dir DIR for several inputs");
+            }
+            // A bag directory's output is a new bag directory, checked by track_bag.
+            if !inputs[0].is_dir() {
+                check_output_path(Some(&inputs[0]), out)?;
+            }
+            Ok(Vec::new())
+        }
+        _ => bail!("give an output: -o OUT.mcap (one input) or --out-dir DIR"),
+    }
+}
+
 /// The outcome of [`track_many`] per input, as `track --out-dir` reports it.
 pub struct ManyReport<'a> {
     /// The inputs, in the order of `results`.
