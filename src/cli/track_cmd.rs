@@ -5,7 +5,6 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::Args;
-use indicatif::ProgressBar;
 use probmot::mcapio::destination::{destination, Destination};
 use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::bag_track::track_path;
@@ -285,14 +284,9 @@ fn run_many(
     jobs: usize,
     progress: bool,
 ) -> Result<ExitCode> {
-    let bar = if progress {
-        ProgressBar::new(a.inputs.len() as u64).with_style(
-            super::style("{spinner} [{bar:30}] {pos}/{len} files {msg} ETA {eta}")
-                .progress_chars("=> "),
-        )
-    } else {
-        ProgressBar::hidden()
-    };
+    let files = super::style("{spinner} [{bar:30}] {pos}/{len} files {msg} ETA {eta}");
+    let bar = super::bar(progress, files.progress_chars("=> "));
+    bar.set_length(a.inputs.len() as u64);
     let on_done = |failed: usize| {
         bar.inc(1);
         bar.set_message(format!("({failed} failed)"));
