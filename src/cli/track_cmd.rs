@@ -5,18 +5,18 @@ use std::process::ExitCode;
 
 use anyhow::{bail, Result};
 use clap::Args;
-use probmot::mcapio::destination::{destination, Destination};
 use probmot::mcapio::writer::OutputCompression;
 use probmot::pipeline::bag_track::track_path;
 use probmot::pipeline::ego::EgoOptions;
 use probmot::pipeline::many::{check_track_outputs, track_many, ManyReport};
 use probmot::pipeline::track::{SceneOutput, TrackOptions, DEFAULT_MAX_DETECTIONS};
 use probmot::pipeline::tracks_format::TracksFormat;
+use probmot::viz::rrd_file::check_track_rerun;
 
 use super::choice::choice;
 use super::config_cmd::TrackerArgs;
 use super::show_progress;
-use super::viz_cmd::{check_rrd_output, NEEDS_FEATURE};
+use super::viz_cmd::NEEDS_FEATURE;
 
 /// Track the detections of MCAP recordings and write each back with a tracks channel added.
 ///
@@ -173,22 +173,11 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         if !cfg!(feature = "rerun") {
             bail!("--rerun: {NEEDS_FEATURE}");
         }
-        check_rrd_output(a.inputs.first().map(|p| p.as_path()), rrd)?;
-        if a.output.as_ref() == Some(rrd) {
-            bail!(
-                "--rerun {} is also the -o output; give two paths",
-                rrd.display()
-            );
-        }
-        if let Some(out) = &a.output {
-            if !matches!(destination(out)?, Destination::File(_)) {
-                bail!(
-                    "--rerun reads the tracked file back, and -o {} is not a file (a device, \
-                     pipe or standard output); write to a file",
-                    out.display()
-                );
-            }
-        }
+        check_track_rerun(
+            a.inputs.first().map(|p| p.as_path()),
+            a.output.as_deref(),
+            rrd,
+        )?;
     }
     if !(a.tf_tolerance.is_finite() && a.tf_tolerance >= 0.0) {
         bail!("--tf-tolerance must be a number of seconds >= 0");
@@ -261,13 +250,7 @@ fn write_recording(a: &TrackArgs, tracked: &Path, rrd: &Path, tracks_topic: &str
     let r = super::viz_cmd::track_recording(tracked, rrd, detections, tracks_topic)
         .context("--rerun")?;
     if !a.quiet && !a.json {
-        println!(
-            "{}: {} frames, {} track ids, {} bytes",
-            rrd.display(),
-            r.frames,
-            r.track_ids,
-            r.bytes
-        );
+        println!("{}", r.line(rrd));
     }
     Ok(())
 }

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Result;
 use clap::Args;
-pub use probmot::viz::rrd_file::{check_rrd_output, NEEDS_FEATURE};
+pub use probmot::viz::rrd_file::NEEDS_FEATURE;
 use probmot::viz::rrd_file::{rrd_file, VizOptions};
 
 use super::layer_topics::LayerTopics;

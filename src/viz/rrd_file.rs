@@ -7,6 +7,7 @@ use std::path::Path;
 use anyhow::{bail, Result};
 
 pub use super::rrd_options::{RrdSummary, VizOptions};
+use crate::mcapio::destination::{destination, Destination};
 use crate::mcapio::writer::check_output_path;
 use crate::pipeline::progress::{Progress, ProgressFn};
 use crate::pipeline::rosbag_dir::resolve_input;
@@ -28,6 +29,28 @@ pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {
         );
     }
     check_output_path(input, out)
+}
+
+/// Checks `track --rerun RRD` before any work: a `.rrd` path that is not the input, and not the
+/// `-o` output, which must be a regular file since the recording reads it back.
+pub fn check_track_rerun(input: Option<&Path>, output: Option<&Path>, rrd: &Path) -> Result<()> {
+    check_rrd_output(input, rrd)?;
+    if output == Some(rrd) {
+        bail!(
+            "--rerun {} is also the -o output; give two paths",
+            rrd.display()
+        );
+    }
+    if let Some(out) = output {
+        if !matches!(destination(out)?, Destination::File(_)) {
+            bail!(
+                "--rerun reads the tracked file back, and -o {} is not a file (a device, \
+                 pipe or standard output); write to a file",
+                out.display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Writes the Rerun recording of `file` (a rosbag directory resolved) to `output`, atomically.
