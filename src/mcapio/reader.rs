@@ -24,7 +24,7 @@ use std::io::{Cursor, Read, Seek, SeekFrom};
 use std::ops::ControlFlow;
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use mcap::records::{op, ChunkHeader, Record};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
@@ -59,6 +59,28 @@ impl McapInput<File> {
             name: path.display().to_string(),
             source,
         })
+    }
+
+    /// [`McapInput::open`] for a reader that seeks and reads its input more than once
+    /// (`track`: to the summary section, and back to the start for a second pass). A
+    /// directory, FIFO, pipe or device is refused by name before it is opened: a FIFO would
+    /// otherwise block the open, and a pipe on `/dev/stdin` fail with a puzzling "Bad magic
+    /// number" once its first bytes were consumed.
+    pub fn open_regular(path: &Path) -> Result<Self> {
+        let m =
+            std::fs::metadata(path).with_context(|| format!("cannot open {}", path.display()))?;
+        if !m.is_file() {
+            let what = match () {
+                _ if m.is_dir() => "a directory",
+                _ => "not seekable (a pipe, FIFO or device)",
+            };
+            bail!(
+                "{}: {what}: track reads its input more than once; give a regular file (e.g. \
+                 save the stream to a file first)",
+                path.display()
+            );
+        }
+        Self::open(path)
     }
 }
 
@@ -415,5 +437,35 @@ impl Fields<'_> {
 
     fn int_map(&mut self, entry_len: usize) -> bool {
         self.map_entries(|f| f.skip(entry_len))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (A FIFO and a pipe on /dev/stdin: `tests/it/hostile.rs`.)
+    #[test]
+    fn open_regular_refuses_a_directory_by_name_and_opens_a_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = McapInput::open_regular(dir.path())
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(
+            err.starts_with(&format!("{}: a directory", dir.path().display()))
+                && err.contains("give a regular file"),
+            "{err}"
+        );
+        let file = dir.path().join("f.mcap");
+        std::fs::write(&file, b"12345").unwrap();
+        let mut input = McapInput::open_regular(&file).unwrap();
+        assert_eq!(input.name, file.display().to_string());
+        let mut bytes = Vec::new();
+        input.source.read_to_end(&mut bytes).unwrap();
+        assert_eq!(bytes, b"12345");
+        let missing = dir.path().join("missing.mcap");
+        let err = McapInput::open_regular(&missing).err().unwrap().to_string();
+        assert_eq!(err, format!("cannot open {}", missing.display()));
     }
 }

@@ -19,7 +19,6 @@ pub mod rosbag_dir;
 pub mod stamp_check;
 pub mod track;
 mod track_frames;
-pub mod track_input;
 pub mod track_options;
 mod track_order;
 pub mod track_outputs;

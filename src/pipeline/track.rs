@@ -57,8 +57,7 @@ pub fn track_file(
 ) -> Result<TrackSummary> {
     let started = Instant::now();
     check_output_path(Some(input), output)?;
-    super::track_input::regular_input(input)?;
-    let mut source = McapInput::open(input)?;
+    let mut source = McapInput::open_regular(input)?;
     let open = |profile| open_output(output, opts, profile);
     let (out, mut summary) = track_input(&mut source, opts, progress, open)?;
     out.commit()?;
