@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
-/// Writes the messages of `input` (in file order) into the bag directory `out` (created), a new
+/// Writes the messages of `input` (in file order, with its profile) into the bag directory `out` (created), a new
 /// file starting at each of the message indices `starts` (ascending, within 1..messages):
 /// `out/NAME_0.mcap`, `out/NAME_1.mcap`, … where NAME is `out`'s name. Returns the files.
 pub fn split_mcap(input: &Path, out: &Path, starts: &[usize]) -> Vec<PathBuf> {
@@ -22,6 +22,10 @@ pub fn split_mcap(input: &Path, out: &Path, starts: &[usize]) -> Vec<PathBuf> {
         "ascending: {starts:?}"
     );
     assert!(starts.iter().all(|&s| 0 < s && s < messages.len()));
+    let profile = match mcap::read::LinearReader::new(&bytes).unwrap().next() {
+        Some(Ok(mcap::records::Record::Header(h))) => h.profile,
+        _ => String::new(),
+    };
     std::fs::create_dir(out).unwrap();
     let name = out.file_name().unwrap().to_str().unwrap().to_string();
     let bounds: Vec<usize> = (std::iter::once(0).chain(starts.iter().copied()))
@@ -30,18 +34,19 @@ pub fn split_mcap(input: &Path, out: &Path, starts: &[usize]) -> Vec<PathBuf> {
     let mut files = Vec::new();
     for (i, part) in bounds.windows(2).enumerate() {
         let path = out.join(format!("{name}_{i}.mcap"));
-        write_part(&path, &messages[part[0]..part[1]]);
+        write_part(&path, &profile, &messages[part[0]..part[1]]);
         files.push(path);
     }
     write_metadata(out, &files);
     files
 }
 
-/// One part: its own schema and channel records, ids in the order of first use.
-fn write_part(path: &Path, messages: &[mcap::Message]) {
+/// One part (with the input's `profile`): its own schema and channel records, ids in the order
+/// of first use.
+fn write_part(path: &Path, profile: &str, messages: &[mcap::Message]) {
     let file = BufWriter::new(std::fs::File::create(path).unwrap());
     let mut w = mcap::WriteOptions::new()
-        .profile("ros2")
+        .profile(profile)
         .library("probmot tests/it/common/split.rs")
         .create(file)
         .unwrap();
