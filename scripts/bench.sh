@@ -21,11 +21,19 @@
 # 2.9 GB, 3.8 GB tracked, twice that on disk during its runs), plus the boxes eval holds and its
 # bytes per box. Logs are generated in WORKDIR and deleted after their runs (BENCH_KEEP=1 keeps
 # them). The issue's run: BENCH_FRAMES="20000 200000" BENCH_REPS="3 1" scripts/bench.sh long.
+#
+# `scripts/bench.sh bags [WORKDIR]` measures a split rosbag2 bag against the same drive in one
+# file (issue #35): an hour-long ROS 2 drive (`simulate --scenario city --rate 10`, converted to
+# vision_msgs by scripts/make_ros2_fixture.py) written by rosbags (scripts/split_bag.py) as a bag
+# of one file and as a bag split in 60 files, each tracked BENCH_BAG_REPS times (default 5)
+# alternately: median wall time and peak RSS of each, and their ratios.
+# BENCH_BAG="FRAMES OBJECTS FILES" changes the drive (default "36000 40 60").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode=all
 if [ "${1:-}" = long ]; then mode=long; shift; fi
 if [ "${1:-}" = copy ]; then mode=copy; shift; fi
+if [ "${1:-}" = bags ]; then mode=bags; shift; fi
 work="${1:-$(mktemp -d)}"
 mkdir -p "$work"
 cargo build --release --quiet
@@ -88,6 +96,33 @@ long_logs() {
 if [ "$mode" = long ]; then
   : > "$work/eval-rss.txt"
   long_logs
+  exit 0
+fi
+
+# --- a split bag against the same drive in one file: wall time and peak RSS, alternating
+split_bags() {
+  local frames objects parts reps=${BENCH_BAG_REPS:-5}
+  read -r frames objects parts <<< "${BENCH_BAG:-36000 40 60}"
+  "$bin" simulate --scenario city --frames "$frames" --objects "$objects" --rate 10 -o "$work/drive.mcap" --quiet
+  python3 scripts/make_ros2_fixture.py "$work/drive.mcap" -o "$work/drive_ros2.mcap" >/dev/null
+  rm -rf "$work/one" "$work/split"
+  python3 scripts/split_bag.py "$work/drive_ros2.mcap" "$work/one" --parts 1 >/dev/null
+  python3 scripts/split_bag.py "$work/drive_ros2.mcap" "$work/split" --parts "$parts" >/dev/null
+  : > "$work/one.tm"; : > "$work/split.tm"
+  for _ in $(seq "$reps"); do
+    for b in one split; do
+      rm -rf "$work/$b.out"
+      timed "$b" "$bin" track "$work/$b" -o "$work/$b.out" --quiet
+    done
+  done
+  echo "drive of $frames frames at 10 Hz x $objects objects, ROS 2 vision_msgs ($(du -sh "$work/one" | cut -f1)), medians of $reps alternating runs:"
+  echo "  one file:      $(med one 1) s, peak RSS $(med one 2) kB"
+  echo "  $parts files: $(med split 1) s, peak RSS $(med split 2) kB"
+  echo "  split / one: time $(div "$(med split 1)" "$(med one 1)")x, peak RSS $(div "$(med split 2)" "$(med one 2)")x"
+  [ "${BENCH_KEEP:-0}" = 1 ] || rm -rf "$work/drive.mcap" "$work/drive_ros2.mcap" "$work/one" "$work/split" "$work/one.out" "$work/split.out"
+}
+if [ "$mode" = bags ]; then
+  split_bags
   exit 0
 fi
 

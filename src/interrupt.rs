@@ -1,5 +1,5 @@
-//! SIGINT, SIGTERM and SIGHUP (Ctrl-C, `kill`, a closed terminal): the partial files of the
-//! outputs being written are removed, one line says which outputs were left unwritten, and the
+//! SIGINT, SIGTERM and SIGHUP (Ctrl-C, `kill`, a closed terminal): the partial files and
+//! partial directories (a split bag's) of the outputs being written are removed, one line says which outputs were left unwritten, and the
 //! process exits with the conventional status 128 + signal number (130, 143, 129).
 //!
 //! The signals are received on a thread of their own (`signal-hook`'s iterator): the clean-up
@@ -10,6 +10,7 @@
 
 use std::path::PathBuf;
 
+use probmot::mcapio::partial_dir::abandon_partial_dirs;
 use probmot::mcapio::writer::{abandon_in_place, abandon_partials};
 
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
@@ -42,7 +43,7 @@ pub fn install() {
             .name("probmot-signals".into())
             .spawn(move || {
                 if let Some(sig) = signals.forever().next() {
-                    let unwritten = abandon_partials();
+                    let unwritten = unwritten(abandon_partials(), abandon_partial_dirs());
                     let partly = abandon_in_place();
                     // A progress bar may be drawn on the terminal's last line: clear it, so
                     // the message starts a line of its own.
@@ -57,6 +58,16 @@ pub fn install() {
             })
             .expect("start the signal thread");
     }
+}
+
+/// The outputs not written: the files, but those inside a partial directory (a split bag's)
+/// are named by the directory's destination.
+fn unwritten(files: Vec<PathBuf>, dirs: Vec<(PathBuf, PathBuf)>) -> Vec<PathBuf> {
+    let inside = |f: &PathBuf| dirs.iter().any(|(partial, _)| f.starts_with(partial));
+    let files = files.into_iter().filter(|f| !inside(f));
+    files
+        .chain(dirs.iter().map(|(_, dest)| dest.clone()))
+        .collect()
 }
 
 /// Whether `sig` is set to be ignored (inherited from the parent process).
@@ -114,6 +125,12 @@ mod tests {
             "probmot: interrupted by SIGTERM; not written (partial file removed): a.mcap, out/b.mcap"
         );
         assert!(message(SIGHUP, &[], &[]).contains("SIGHUP; no output was being written"));
+        let files = vec![
+            PathBuf::from("a.mcap"),
+            PathBuf::from(".bag.probmot-partial/b_0.mcap"),
+        ];
+        let dirs = vec![(PathBuf::from(".bag.probmot-partial"), PathBuf::from("bag"))];
+        assert_eq!(unwritten(files, dirs), ["a.mcap", "bag"].map(PathBuf::from));
         assert_eq!(
             message(SIGINT, &[], &[PathBuf::from("/dev/stdout")]),
             "probmot: interrupted by SIGINT; partly written (in place): /dev/stdout"

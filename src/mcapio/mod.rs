@@ -6,6 +6,7 @@ pub mod background;
 pub mod chunk_stream;
 pub mod destination;
 pub mod labelled_box;
+pub mod partial_dir;
 pub mod reader;
 pub mod recording;
 pub mod sink;

@@ -4,8 +4,8 @@
 //! frames completed while that file was read, and its own summary; and a `metadata.yaml`
 //! listing them ([`super::rosbag_dir::write_metadata`]).
 //!
-//! The output directory is written beside it as `.NAME.probmot-partial` and renamed at the end:
-//! an error leaves no half-written bag. Compressed input files (`.mcap.zstd`) are read as a
+//! The output directory is written beside it as `.NAME.probmot-partial` and renamed at the end
+//! ([`PartialDir`]): an error or an interrupt leaves no half-written bag. Compressed input files (`.mcap.zstd`) are read as a
 //! stream ([`super::bag_source`]); the output files are plain MCAP files with zstd-compressed
 //! chunks (see docs/ros2.md).
 
@@ -19,6 +19,7 @@ use super::progress::Progress;
 use super::rosbag_dir::{check_output_dir, open_bag, write_metadata, Bag};
 use super::track::{track_file, track_input};
 use super::track_options::{TrackOptions, TrackSummary};
+use crate::mcapio::partial_dir::PartialDir;
 use crate::mcapio::split_sink::SplitSink;
 use crate::mcapio::writer::OutputOptions;
 
@@ -36,16 +37,6 @@ pub fn track_path(
     }
 }
 
-/// The partial directory of the output bag `out`: `.NAME.probmot-partial` beside it.
-fn partial_dir(out: &Path) -> Result<PathBuf> {
-    let name = out
-        .file_name()
-        .with_context(|| format!("{}: no directory name", out.display()))?;
-    let parent = out.parent().filter(|p| !p.as_os_str().is_empty());
-    let partial = format!(".{}.probmot-partial", name.to_string_lossy());
-    Ok(parent.unwrap_or(Path::new(".")).join(partial))
-}
-
 /// Tracks the bag `bag` as one drive into the new bag directory `out` (it must not exist, or
 /// be empty). The output appears only when everything succeeded.
 pub fn track_bag(
@@ -56,23 +47,9 @@ pub fn track_bag(
 ) -> Result<TrackSummary> {
     let started = Instant::now();
     check_output_dir(out)?;
-    let partial = partial_dir(out)?;
-    if partial.exists() {
-        // Left by an interrupted run: it is ours by its name.
-        std::fs::remove_dir_all(&partial)
-            .with_context(|| format!("cannot remove {}", partial.display()))?;
-    }
-    std::fs::create_dir_all(&partial)
-        .with_context(|| format!("cannot create {}", partial.display()))?;
-    let result = write_bag(bag, &partial, opts, progress).and_then(|summary| {
-        std::fs::rename(&partial, out)
-            .with_context(|| format!("cannot rename {} to {}", partial.display(), out.display()))?;
-        Ok(summary)
-    });
-    if result.is_err() {
-        let _ = std::fs::remove_dir_all(&partial);
-    }
-    let mut summary = result?;
+    let partial = PartialDir::create(out)?;
+    let mut summary = write_bag(bag, partial.path(), opts, progress)?;
+    partial.persist()?;
     summary.output = out.display().to_string();
     summary.wall_time_s = started.elapsed().as_secs_f64();
     Ok(summary)

@@ -11,6 +11,7 @@ use std::process::{Child, Stdio};
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
+use crate::common::split::split_mcap;
 use crate::common::{bin, entries, probmot_ok, repo};
 
 /// A log long enough that tracking it takes seconds (debug build): 1,500 frames of the city.
@@ -89,6 +90,11 @@ fn signal(child: &Child, sig: i32) {
 /// signal and the unwritten outputs, nothing left in `out_dir`.
 fn check_interrupt(args: &[&str], out_dir: &Path, sig: i32, name: &str, outputs: &[&str]) {
     let child = start_track(args, out_dir);
+    check_interrupted(child, out_dir, sig, name, outputs);
+}
+
+/// As [`check_interrupt`], for the `track` run `child`.
+fn check_interrupted(child: Child, out_dir: &Path, sig: i32, name: &str, outputs: &[&str]) {
     signal(&child, sig);
     let out = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -148,6 +154,30 @@ fn sigint_sigterm_and_sighup_with_out_dir_leave_nothing() {
         ];
         check_interrupt(&args, dir.path(), sig, name, &["a.mcap", "b.mcap"]);
     }
+}
+
+/// A split bag tracked into a bag directory, interrupted once its first output file is
+/// complete: the partial directory goes with every file in it, and the line names the bag.
+#[test]
+fn sigint_while_tracking_a_split_bag_leaves_nothing() {
+    let inputs = tempfile::tempdir().unwrap();
+    let bag = inputs.path().join("bag");
+    let n = common::messages(long_log()).len();
+    split_mcap(long_log(), &bag, &[n / 3, 2 * n / 3]);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tracked");
+    let args = [bag.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let mut child = start_track(&args, dir.path());
+    let first = dir.path().join(".tracked.probmot-partial/bag_0.mcap");
+    let start = Instant::now();
+    while !first.exists() {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("track ended ({status}) before its first output file");
+        }
+        assert!(start.elapsed() < Duration::from_secs(120), "no first file");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    check_interrupted(child, dir.path(), libc::SIGINT, "SIGINT", &["tracked"]);
 }
 
 #[test]
