@@ -477,7 +477,9 @@ fn report_and_delete(
         if t.time_since_update >= max_age {
             continue;
         }
-        if !t.report(dt_nominal, c.cfg.origin, *m).within_bounds() {
+        // One report per track and frame: checked against the bounds, then handed out.
+        let mut r = t.report(dt_nominal, c.cfg.origin, *m);
+        if !r.within_bounds() {
             t.beyond_bounds = true;
             stats.beyond_bounds += 1;
             continue;
@@ -485,7 +487,6 @@ fn report_and_delete(
         let shown = t.hits >= min_hits || frame_count <= min_hits as u64;
         if let Some(status) = report_status(levers, shown, m.is_none()) {
             t.reported_frames += u32::from(status != ReportStatus::Hidden);
-            let mut r = t.report(dt_nominal, c.cfg.origin, *m);
             r.score = t.conf.reported(t.score, levers);
             r.status = status;
             reports.push(r);
