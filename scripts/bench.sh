@@ -26,7 +26,8 @@
 # file (issue #35): an hour-long ROS 2 drive (`simulate --scenario city --rate 10`, converted to
 # vision_msgs by scripts/make_ros2_fixture.py) written by rosbags (scripts/split_bag.py) as a bag
 # of one file and as a bag split in 60 files, each tracked BENCH_BAG_REPS times (default 5)
-# alternately: median wall time and peak RSS of each, and their ratios.
+# alternately: median wall time and peak RSS of each, and their ratios; and the peak RSS of a
+# tenth of the drive split in a tenth of the files (flat memory: the same).
 # BENCH_BAG="FRAMES OBJECTS FILES" changes the drive (default "36000 40 60").
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -108,18 +109,25 @@ split_bags() {
   rm -rf "$work/one" "$work/split"
   python3 scripts/split_bag.py "$work/drive_ros2.mcap" "$work/one" --parts 1 >/dev/null
   python3 scripts/split_bag.py "$work/drive_ros2.mcap" "$work/split" --parts "$parts" >/dev/null
-  : > "$work/one.tm"; : > "$work/split.tm"
+  # A tenth of the drive in a tenth of the files (files of the same length): flat memory is
+  # the same peak RSS for the whole drive.
+  "$bin" simulate --scenario city --frames "$((frames / 10))" --objects "$objects" --rate 10 -o "$work/tenth.mcap" --quiet
+  python3 scripts/make_ros2_fixture.py "$work/tenth.mcap" -o "$work/tenth_ros2.mcap" >/dev/null
+  rm -rf "$work/tenth"
+  python3 scripts/split_bag.py "$work/tenth_ros2.mcap" "$work/tenth" --parts "$((parts / 10 > 0 ? parts / 10 : 1))" >/dev/null
+  : > "$work/one.tm"; : > "$work/split.tm"; : > "$work/tenth.tm"
   for _ in $(seq "$reps"); do
-    for b in one split; do
+    for b in one split tenth; do
       rm -rf "$work/$b.out"
       timed "$b" "$bin" track "$work/$b" -o "$work/$b.out" --quiet
     done
   done
   echo "drive of $frames frames at 10 Hz x $objects objects, ROS 2 vision_msgs ($(du -sh "$work/one" | cut -f1)), medians of $reps alternating runs:"
-  echo "  one file:      $(med one 1) s, peak RSS $(med one 2) kB"
+  echo "  one file:  $(med one 1) s, peak RSS $(med one 2) kB"
   echo "  $parts files: $(med split 1) s, peak RSS $(med split 2) kB"
   echo "  split / one: time $(div "$(med split 1)" "$(med one 1)")x, peak RSS $(div "$(med split 2)" "$(med one 2)")x"
-  [ "${BENCH_KEEP:-0}" = 1 ] || rm -rf "$work/drive.mcap" "$work/drive_ros2.mcap" "$work/one" "$work/split" "$work/one.out" "$work/split.out"
+  echo "  a tenth of the drive in $((parts / 10 > 0 ? parts / 10 : 1)) files: peak RSS $(med tenth 2) kB (whole drive / tenth: $(div "$(med split 2)" "$(med tenth 2)")x)"
+  [ "${BENCH_KEEP:-0}" = 1 ] || rm -rf "$work"/{drive,drive_ros2,tenth,tenth_ros2}.mcap "$work"/{one,split,tenth}{,.out}
 }
 if [ "$mode" = bags ]; then
   split_bags

@@ -58,6 +58,8 @@ enum Op {
         data: Range<usize>,
     },
     Metadata(Metadata),
+    /// Commit this file and go on writing into a new one, `dest`.
+    NextFile(PathBuf),
 }
 
 #[derive(Default)]
@@ -118,9 +120,10 @@ impl BackgroundOutput {
         let dest: PathBuf = dest.to_path_buf();
         let (tx, rx) = mpsc::sync_channel::<Option<Batch>>(BATCHES);
         let (free_tx, free) = mpsc::sync_channel::<Batch>(BATCHES);
+        let thread_opts = opts.clone();
         let thread = std::thread::Builder::new()
             .name("probmot-writer".into())
-            .spawn(move || write_batches(out, rx, free_tx, &dest))
+            .spawn(move || write_batches(out, rx, free_tx, dest, &thread_opts))
             .context("cannot start the output writer thread")?;
         let mode = Mode::Thread {
             tx: Some(tx),
@@ -224,6 +227,28 @@ impl BackgroundOutput {
     /// Like `mcap::Writer::write_metadata`.
     pub fn write_metadata(&mut self, m: &Metadata) -> Result<()> {
         self.push(&[], |_| Op::Metadata(m.clone()))
+    }
+
+    /// Commits the file written so far (as [`BackgroundOutput::commit`]) and goes on writing
+    /// into a new file `dest`, with the same options and no schema or channel yet. On the writer
+    /// thread, the commit and the new file are that thread's work: the caller does not wait for
+    /// them (their errors come with a later call), and one thread writes every file.
+    pub fn next_file(&mut self, dest: &Path) -> Result<()> {
+        self.schemas.clear();
+        self.channels.clear();
+        self.made_with.0 = dest.to_path_buf();
+        if matches!(self.mode, Mode::Inline { .. }) {
+            if let Mode::Inline { out, .. } = std::mem::replace(&mut self.mode, Mode::Done) {
+                out.commit()?;
+            }
+            self.mode = Mode::Inline {
+                out: Box::new(AtomicOutput::create(dest, &self.made_with.1)?),
+                dest: dest.to_path_buf(),
+            };
+            return Ok(());
+        }
+        self.batch.ops.push(Op::NextFile(dest.to_path_buf()));
+        self.send()
     }
 
     /// Drops what was written (the partial file goes, as on a drop) and starts the output again,
@@ -338,13 +363,16 @@ impl Drop for BackgroundOutput {
 }
 
 /// The writer thread: applies every batch in order, returns each for reuse, and commits the
-/// output on the caller's `None` (sent by [`BackgroundOutput::commit`]). A caller that hangs up
-/// without it (an error, a drop) leaves no output: the temporary file is deleted.
+/// output on the caller's `None` (sent by [`BackgroundOutput::commit`]); a
+/// [`BackgroundOutput::next_file`] commits the file and starts the next with `opts`. A caller
+/// that hangs up without a commit (an error, a drop) leaves no output: the temporary file is
+/// deleted.
 fn write_batches(
     mut out: AtomicOutput,
     rx: Receiver<Option<Batch>>,
     free: SyncSender<Batch>,
-    dest: &Path,
+    mut dest: PathBuf,
+    opts: &OutputOptions,
 ) -> Result<()> {
     loop {
         let mut batch = match rx.recv() {
@@ -354,7 +382,14 @@ fn write_batches(
             Err(_) => return Ok(()),
         };
         for op in batch.ops.drain(..) {
-            apply(&mut out, op, &batch.bytes, dest)?;
+            if let Op::NextFile(next) = op {
+                // Committed first: the two files' buffers are not held at once.
+                out.commit()?;
+                out = AtomicOutput::create(&next, opts)?;
+                dest = next;
+                continue;
+            }
+            apply(&mut out, op, &batch.bytes, &dest)?;
         }
         batch.bytes.clear();
         // The caller may have stopped taking batches back; that is fine.
@@ -415,6 +450,7 @@ fn apply(out: &mut AtomicOutput, op: Op, bytes: &[u8], dest: &Path) -> Result<()
             w.write_metadata(&m)
                 .with_context(|| format!("writing {d}: metadata {}", m.name))?;
         }
+        Op::NextFile(_) => unreachable!("the writer thread starts the next file itself"),
     }
     Ok(())
 }
@@ -431,6 +467,45 @@ mod tests {
             sequence: i as u32,
             log_time: 1_000 + i,
             publish_time: 2_000 + i,
+        }
+    }
+
+    /// `next_file` commits the first file and goes on in the second, which declares its own
+    /// channel (the first file's ids are unknown to it); on the thread and inline.
+    #[test]
+    fn next_file_commits_one_file_and_starts_the_next() {
+        for inline in [false, true] {
+            let dir = tempfile::tempdir().unwrap();
+            let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
+            let opts = OutputOptions::default();
+            let mut out = match inline {
+                true => BackgroundOutput::create_inline(&a, &opts).unwrap(),
+                false => BackgroundOutput::create(&a, &opts).unwrap(),
+            };
+            out.add_channel_with_id(1, 0, "/a", "raw", &BTreeMap::new())
+                .unwrap();
+            out.write_to_known_channel(&header(1, 0), b"first").unwrap();
+            out.next_file(&b).unwrap();
+            assert!(out.write_to_known_channel(&header(1, 1), b"x").is_err());
+            out.add_channel_with_id(2, 0, "/b", "raw", &BTreeMap::new())
+                .unwrap();
+            out.write_to_known_channel(&header(2, 1), b"second")
+                .unwrap();
+            out.commit().unwrap();
+            for (path, topic, data) in [(&a, "/a", &b"first"[..]), (&b, "/b", b"second")] {
+                let bytes = std::fs::read(path).unwrap();
+                let msgs: Vec<_> = mcap::MessageStream::new(&bytes)
+                    .unwrap()
+                    .map(|m| m.unwrap())
+                    .collect();
+                assert_eq!(msgs.len(), 1, "inline {inline}");
+                assert_eq!(
+                    (msgs[0].channel.topic.as_str(), &*msgs[0].data),
+                    (topic, data)
+                );
+            }
+            let names: Vec<_> = std::fs::read_dir(dir.path()).unwrap().collect();
+            assert_eq!(names.len(), 2, "no partial file left");
         }
     }
 

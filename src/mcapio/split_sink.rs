@@ -1,5 +1,6 @@
 //! One output file per input file: the [`RecordSink`] of a split rosbag2 bag. Each part is a
-//! complete MCAP file of its own ([`BackgroundOutput`], committed when the next part starts),
+//! complete MCAP file of its own (one [`BackgroundOutput`] that moves on to the next file when
+//! the next part starts, so that one writer thread writes them all without the run waiting),
 //! with the schema and channel records of what is written into it: a channel first met in an
 //! earlier part is declared again in the part that writes a message on it.
 
@@ -142,11 +143,11 @@ impl RecordSink for SplitSink {
         if self.index + 1 >= self.paths.len() {
             bail!("more input files than the {} planned", self.paths.len());
         }
-        self.current.take().expect("an open part").commit()?;
+        let next = self.paths[self.index + 1].clone();
+        self.out().next_file(&next)?;
         self.index += 1;
         self.declared_schemas.clear();
         self.declared_channels.clear();
-        self.current = Some(self.open(self.index)?);
         Ok(())
     }
 
