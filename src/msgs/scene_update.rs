@@ -9,6 +9,11 @@
 //! longer reported (a track that died, or one not reported in this frame), so the scene shows
 //! exactly the tracks of the tracks channel.
 //!
+//! The values only the drawing has (the quaternions, the height of the label, the arrow's
+//! lengths, the colours) are rounded to `f32` precision, what a GPU draws with: full-precision
+//! digits there cost bytes in every frame and show nothing. The centres and sizes are the
+//! tracks' values as they are (zstd codes them as repeats of the tracks message).
+//!
 //! Each entity also carries the metadata `label`, `score` and `track_id`: the convention probmot
 //! reads `foxglove.SceneUpdate` detections with, so the boxes stay self-describing. The channel
 //! has the metadata `probmot.output = tracks`, which keeps `track` from reading it as detections
@@ -37,19 +42,24 @@ const TEXT_FONT_SIZE: f64 = 14.0;
 const ARROW_SHAFT_DIAMETER: f64 = 0.15;
 const ARROW_HEAD_DIAMETER: f64 = 0.4;
 
+/// `x` rounded to the nearest `f32`, kept as the `f64` the schema has.
+fn f32r(x: f64) -> f64 {
+    x as f32 as f64
+}
+
 /// Head length of the velocity arrow of a track moving at `speed`.
 fn arrow_head(speed: f64) -> f64 {
-    (0.3 * speed).clamp(0.3, 1.5)
+    f32r((0.3 * speed).clamp(0.3, 1.5))
 }
 
 /// Shaft length of that arrow: shaft + head = 1 s of travel.
 fn arrow_shaft(speed: f64, head: f64) -> f64 {
-    (speed - head).max(0.1)
+    f32r((speed - head).max(0.1))
 }
 
 /// Height of the label: half a metre above the box.
 fn text_z(z: f64, height: f64) -> f64 {
-    z + height / 2.0 + 0.5
+    f32r(z + height / 2.0 + 0.5)
 }
 
 /// The `FileDescriptorSet` of `foxglove.SceneUpdate`, as stored in the output's schema record.
@@ -72,22 +82,23 @@ fn timestamp(stamp: u64) -> Timestamp {
     Timestamp::new(sec, (stamp % 1_000_000_000) as u32)
 }
 
+/// The rotation by `yaw` about +z (components rounded to `f32`).
 fn yaw_quaternion(yaw: f64) -> Quaternion {
     Quaternion {
         x: 0.0,
         y: 0.0,
-        z: (yaw / 2.0).sin(),
-        w: (yaw / 2.0).cos(),
+        z: f32r((yaw / 2.0).sin()),
+        w: f32r((yaw / 2.0).cos()),
     }
 }
 
-/// The colour of a track id, opaque or with `alpha`.
+/// The colour of a track id, opaque or with `alpha` (components rounded to `f32`).
 pub fn track_color(id: u64, alpha: f64) -> Color {
     let (r, g, b) = id_color(id);
     Color {
-        r: r as f64 / 255.0,
-        g: g as f64 / 255.0,
-        b: b as f64 / 255.0,
+        r: f32r(r as f64 / 255.0),
+        g: f32r(g as f64 / 255.0),
+        b: f32r(b as f64 / 255.0),
         a: alpha,
     }
 }
@@ -390,9 +401,15 @@ mod tests {
         assert_eq!((ts.sec(), ts.nsec()), (1, 500_000_001));
         // 5 m/s: shaft + head = 5 m, pointing along atan2(4, 3).
         let a = &e.arrows[0];
-        assert!((a.shaft_length + a.head_length - 5.0).abs() < 1e-12);
+        // (f32 precision: a few 1e-7 off.)
+        assert!((a.shaft_length + a.head_length - 5.0).abs() < 1e-6);
         let q = a.pose.unwrap().orientation.unwrap();
-        assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 1e-12);
+        assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 1e-6);
+        // The drawing's own values are f32s, the centre is the track's.
+        for x in [q.z, q.w, a.shaft_length, a.head_length, e.texts[0].pose.unwrap().position.unwrap().z] {
+            assert_eq!(x, x as f32 as f64);
+        }
+        assert_eq!(a.pose.unwrap().position.unwrap().x, 1.0);
         assert!(u.entities[1].arrows.is_empty());
         // Stable colours: the same id gets the same colour, always.
         assert_eq!(e.cubes[0].color, Some(track_color(7, CUBE_ALPHA)));
