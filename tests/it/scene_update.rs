@@ -63,12 +63,17 @@ fn scene_updates_mirror_the_tracks_channel() {
                 .iter()
                 .map(|kv| (kv.key.as_str(), kv.value.as_str()))
                 .collect();
-            let (score, id) = (t.score.to_string(), t.id.to_string());
+            // The score with three decimals, within half a thousandth of the track's.
+            let id = t.id.to_string();
+            let score = meta[1].1;
+            assert_eq!(score.len() - score.find('.').unwrap(), 4, "{score}");
+            let back: f64 = score.parse().unwrap();
+            assert!((back - t.score).abs() <= 5e-4, "{score} vs {}", t.score);
             assert_eq!(
                 meta,
                 [
                     ("label", t.label.as_str()),
-                    ("score", &score),
+                    ("score", score),
                     ("track_id", &id)
                 ]
             );
