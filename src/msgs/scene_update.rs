@@ -327,10 +327,10 @@ fn write_pose(w: &mut ProtoWriter<'_>, field: u32, p: [f64; 3], yaw: f64) {
     });
 }
 
-fn write_color(w: &mut ProtoWriter<'_>, field: u32, id: u64, alpha: f64) {
-    let c = track_color(id, alpha);
+/// The track's colour `c` with `alpha`.
+fn write_color(w: &mut ProtoWriter<'_>, field: u32, c: &Color, alpha: f64) {
     w.message(field, |w| {
-        for (k, x) in (1..).zip([c.r, c.g, c.b, c.a]) {
+        for (k, x) in (1..).zip([c.r, c.g, c.b, alpha]) {
             w.double(k, x);
         }
     });
@@ -343,6 +343,8 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
     let center = [c.x, c.y, c.z];
     let v = t.velocity.unwrap_or_default();
     let speed = v.x.hypot(v.y);
+    // The id's colour once for the three primitives.
+    let color = track_color(t.id, 1.0);
     if speed > MIN_ARROW_SPEED {
         let head = arrow_head(speed);
         w.message(ENTITY_ARROWS, |w| {
@@ -351,20 +353,20 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
             w.double(3, ARROW_SHAFT_DIAMETER);
             w.double(4, head);
             w.double(5, ARROW_HEAD_DIAMETER);
-            write_color(w, 6, t.id, 1.0);
+            write_color(w, 6, &color, 1.0);
         });
     }
     w.message(ENTITY_CUBES, |w| {
         write_pose(w, 1, center, t.yaw);
         write_vector3(w, 2, [s.length, s.width, s.height]);
-        write_color(w, 3, t.id, CUBE_ALPHA);
+        write_color(w, 3, &color, CUBE_ALPHA);
     });
     w.message(ENTITY_TEXTS, |w| {
         write_pose(w, 1, [c.x, c.y, text_z(c.z, s.height)], 0.0);
         w.bool(2, true);
         w.double(3, TEXT_FONT_SIZE);
         w.bool(4, true);
-        write_color(w, 5, t.id, 1.0);
+        write_color(w, 5, &color, 1.0);
         w.string_parts(6, &[id, b" ", t.label.as_bytes()]);
     });
 }
@@ -419,7 +421,13 @@ mod tests {
         let q = a.pose.unwrap().orientation.unwrap();
         assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 1e-6);
         // The drawing's own values are f32s, the centre is the track's.
-        for x in [q.z, q.w, a.shaft_length, a.head_length, e.texts[0].pose.unwrap().position.unwrap().z] {
+        for x in [
+            q.z,
+            q.w,
+            a.shaft_length,
+            a.head_length,
+            e.texts[0].pose.unwrap().position.unwrap().z,
+        ] {
             assert_eq!(x, x as f32 as f64);
         }
         assert_eq!(a.pose.unwrap().position.unwrap().x, 1.0);

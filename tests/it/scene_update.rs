@@ -210,7 +210,12 @@ fn official_foxglove_python_schemas_decode_the_scene_updates() {
             }
             // Orientation: a rotation about z by the track's yaw (its components are f32s).
             let yaw = 2.0 * num(&cube["orientation"][2]).atan2(num(&cube["orientation"][3]));
-            assert!((yaw - t.yaw).abs() < 1e-6, "track {}: {yaw} vs {}", t.id, t.yaw);
+            assert!(
+                (yaw - t.yaw).abs() < 1e-6,
+                "track {}: {yaw} vs {}",
+                t.id,
+                t.yaw
+            );
             assert_eq!(e["texts"][0], format!("{} {}", t.id, t.label));
             let v = t.velocity.unwrap();
             let n_arrows = e["arrows"].as_array().unwrap().len();
