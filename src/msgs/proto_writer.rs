@@ -134,28 +134,23 @@ pub fn three_decimals(v: f64, buf: &mut [u8; 24]) -> Option<&[u8]> {
         return None;
     }
     let m = (v.abs() * 1000.0).round() as u64;
-    let mut i = buf.len();
-    let mut k = m;
-    for _ in 0..3 {
-        i -= 1;
-        buf[i] = b'0' + (k % 10) as u8;
-        k /= 10;
-    }
-    i -= 1;
-    buf[i] = b'.';
-    loop {
-        i -= 1;
-        buf[i] = b'0' + (k % 10) as u8;
-        k /= 10;
-        if k == 0 {
-            break;
-        }
-    }
+    let mut digits = [0; 20];
+    let int = decimal(m / 1000, &mut digits);
+    let mut n = 0;
     if v < 0.0 && m != 0 {
-        i -= 1;
-        buf[i] = b'-';
+        buf[0] = b'-';
+        n = 1;
     }
-    Some(&buf[i..])
+    buf[n..n + int.len()].copy_from_slice(int);
+    n += int.len();
+    let frac = m % 1000;
+    buf[n..n + 4].copy_from_slice(&[
+        b'.',
+        b'0' + (frac / 100) as u8,
+        b'0' + (frac / 10 % 10) as u8,
+        b'0' + (frac % 10) as u8,
+    ]);
+    Some(&buf[..n + 4])
 }
 
 #[cfg(test)]
