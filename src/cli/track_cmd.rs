@@ -115,7 +115,7 @@ pub struct TrackArgs {
         default_value_t = DEFAULT_MAX_DETECTIONS
     )]
     max_detections: usize,
-    /// Chunk compression of the output: zstd (level 1, the smallest files), lz4 (faster to
+    /// Chunk compression of the output: zstd (level 2, the smallest files), lz4 (faster to
     /// write and to read, larger files) or none.
     #[arg(long, value_name = "ALGO", default_value = "zstd", value_parser = OutputCompression::parse)]
     compression: OutputCompression,

@@ -155,6 +155,18 @@ pub fn encode_into<M: prost::Message>(msg: &M, buf: &mut Vec<u8>) {
     msg.encode(buf).expect("Vec grows as needed");
 }
 
+/// `x` rounded to the nearest `f32`, kept as an `f64`: the precision of the values probmot
+/// writes where more digits cost bytes and carry nothing (variances, what only a drawing has).
+/// A finite value beyond the `f32` range is kept as it is (not made infinite).
+pub fn f32_precision(x: f64) -> f64 {
+    let r = x as f32;
+    if r.is_infinite() && x.is_finite() {
+        x
+    } else {
+        r as f64
+    }
+}
+
 /// Builds a [`Vector3`].
 pub fn v3(v: [f64; 3]) -> Vector3 {
     Vector3 {
@@ -168,6 +180,17 @@ pub fn v3(v: [f64; 3]) -> Vector3 {
 mod tests {
     use super::*;
     use prost::Message;
+
+    #[test]
+    fn f32_precision_rounds_and_keeps_what_f32_cannot_hold() {
+        assert_eq!(f32_precision(0.1), 0.1f32 as f64);
+        assert_ne!(f32_precision(0.1), 0.1);
+        assert_eq!(f32_precision(0.5), 0.5);
+        for x in [1e300, -1e300, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(f32_precision(x), x);
+        }
+        assert!(f32_precision(f64::NAN).is_nan());
+    }
 
     #[test]
     fn descriptor_set_names_our_messages() {

@@ -126,6 +126,33 @@ pub fn decimal(v: u64, digits: &mut [u8; 20]) -> &[u8] {
     }
 }
 
+/// `v` with three decimals (`0.870`, `-12.000`), rounded to the nearest thousandth, in `buf`
+/// (no heap, no `fmt`); `None` when `v` is not finite or its magnitude reaches 10^15 (where a
+/// double has no thousandths).
+pub fn three_decimals(v: f64, buf: &mut [u8; 24]) -> Option<&[u8]> {
+    if !v.is_finite() || v.abs() >= 1e15 {
+        return None;
+    }
+    let m = (v.abs() * 1000.0).round() as u64;
+    let mut digits = [0; 20];
+    let int = decimal(m / 1000, &mut digits);
+    let mut n = 0;
+    if v < 0.0 && m != 0 {
+        buf[0] = b'-';
+        n = 1;
+    }
+    buf[n..n + int.len()].copy_from_slice(int);
+    n += int.len();
+    let frac = m % 1000;
+    buf[n..n + 4].copy_from_slice(&[
+        b'.',
+        b'0' + (frac / 100) as u8,
+        b'0' + (frac / 10 % 10) as u8,
+        b'0' + (frac % 10) as u8,
+    ]);
+    Some(&buf[..n + 4])
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -198,6 +225,53 @@ mod tests {
         buf.clear();
         ProtoWriter::new(&mut buf).string_parts(1, &[b""]);
         assert!(buf.is_empty());
+    }
+
+    proptest::proptest! {
+        /// Three decimals, within half a thousandth of the value (what `{:.3}` writes, but for
+        /// the ties that `{:.3}` rounds by the exact binary value).
+        #[test]
+        fn three_decimals_round_to_thousandths(v in proptest::prop_oneof![
+            -2.0..2.0f64, -1e14..1e14f64, proptest::prelude::any::<f64>()
+        ]) {
+            let mut buf = [0; 24];
+            match three_decimals(v, &mut buf) {
+                None => proptest::prop_assert!(!v.is_finite() || v.abs() >= 1e15),
+                Some(t) => {
+                    let t = std::str::from_utf8(t).unwrap();
+                    let back: f64 = t.parse().unwrap();
+                    proptest::prop_assert_eq!(t.len() - t.find('.').unwrap(), 4, "{}", t);
+                    proptest::prop_assert!((back - v).abs() <= 0.0005 + v.abs() * 1e-15, "{} {}", v, t);
+                    // Away from ties, and where the product is exact enough: `{:.3}`'s digits
+                    // (but for `-0.000`, written `0.000`).
+                    let f = (v * 1000.0).fract().abs();
+                    if v.abs() < 1e6 && !(0.49..=0.51).contains(&f) && t != "0.000" {
+                        proptest::prop_assert_eq!(t, format!("{v:.3}"));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn three_decimals_examples() {
+        let mut buf = [0; 24];
+        for (v, want) in [
+            (0.0, "0.000"),
+            (-0.0, "0.000"),
+            (0.87, "0.870"),
+            (1.0, "1.000"),
+            (0.12345, "0.123"),
+            (0.9996, "1.000"),
+            (-0.0004, "0.000"),
+            (-12.5, "-12.500"),
+            (123_456.789_4, "123456.789"),
+        ] {
+            assert_eq!(three_decimals(v, &mut buf), Some(want.as_bytes()), "{v}");
+        }
+        for v in [f64::NAN, f64::INFINITY, -1e15, 1e300] {
+            assert_eq!(three_decimals(v, &mut buf), None, "{v}");
+        }
     }
 
     #[test]

@@ -9,8 +9,14 @@
 //! longer reported (a track that died, or one not reported in this frame), so the scene shows
 //! exactly the tracks of the tracks channel.
 //!
-//! Each entity also carries the metadata `label`, `score` and `track_id`: the convention probmot
-//! reads `foxglove.SceneUpdate` detections with, so the boxes stay self-describing. The channel
+//! The values only the drawing has (the quaternions, the height of the label, the arrow's
+//! lengths, the colours) are rounded to `f32` precision, what a GPU draws with: full-precision
+//! digits there cost bytes in every frame and show nothing. The centres and sizes are the
+//! tracks' values as they are (zstd codes them as repeats of the tracks message).
+//!
+//! Each entity also carries the metadata `label`, `score` (three decimals: the 17 digits of a
+//! double there cost 3 % of the default output) and `track_id`: the convention probmot reads
+//! `foxglove.SceneUpdate` detections with, so the boxes stay self-describing. The channel
 //! has the metadata `probmot.output = tracks`, which keeps `track` from reading it as detections
 //! by default when the tracked log is tracked again.
 
@@ -21,8 +27,8 @@ use foxglove::schemas::{
 
 use super::colors::id_color;
 pub use super::detection_source::OUTPUT_METADATA_KEY;
-use super::proto_writer::{decimal, ProtoWriter};
-use super::{Track3D, Tracks3D};
+use super::proto_writer::{decimal, three_decimals, ProtoWriter};
+use super::{f32_precision, Track3D, Tracks3D};
 
 /// Schema name of the output channel.
 pub const SCENE_UPDATE_SCHEMA: &str = "foxglove.SceneUpdate";
@@ -39,17 +45,17 @@ const ARROW_HEAD_DIAMETER: f64 = 0.4;
 
 /// Head length of the velocity arrow of a track moving at `speed`.
 fn arrow_head(speed: f64) -> f64 {
-    (0.3 * speed).clamp(0.3, 1.5)
+    f32_precision((0.3 * speed).clamp(0.3, 1.5))
 }
 
 /// Shaft length of that arrow: shaft + head = 1 s of travel.
 fn arrow_shaft(speed: f64, head: f64) -> f64 {
-    (speed - head).max(0.1)
+    f32_precision((speed - head).max(0.1))
 }
 
 /// Height of the label: half a metre above the box.
 fn text_z(z: f64, height: f64) -> f64 {
-    z + height / 2.0 + 0.5
+    f32_precision(z + height / 2.0 + 0.5)
 }
 
 /// The `FileDescriptorSet` of `foxglove.SceneUpdate`, as stored in the output's schema record.
@@ -72,22 +78,23 @@ fn timestamp(stamp: u64) -> Timestamp {
     Timestamp::new(sec, (stamp % 1_000_000_000) as u32)
 }
 
+/// The rotation by `yaw` about +z (components rounded to `f32`).
 fn yaw_quaternion(yaw: f64) -> Quaternion {
     Quaternion {
         x: 0.0,
         y: 0.0,
-        z: (yaw / 2.0).sin(),
-        w: (yaw / 2.0).cos(),
+        z: f32_precision((yaw / 2.0).sin()),
+        w: f32_precision((yaw / 2.0).cos()),
     }
 }
 
-/// The colour of a track id, opaque or with `alpha`.
+/// The colour of a track id, opaque or with `alpha` (components rounded to `f32`).
 pub fn track_color(id: u64, alpha: f64) -> Color {
     let (r, g, b) = id_color(id);
     Color {
-        r: r as f64 / 255.0,
-        g: g as f64 / 255.0,
-        b: b as f64 / 255.0,
+        r: f32_precision(r as f64 / 255.0),
+        g: f32_precision(g as f64 / 255.0),
+        b: f32_precision(b as f64 / 255.0),
         a: alpha,
     }
 }
@@ -175,7 +182,7 @@ pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
                     },
                     KeyValuePair {
                         key: "score".into(),
-                        value: format!("{}", t.score),
+                        value: score_text(t.score),
                     },
                     KeyValuePair {
                         key: "track_id".into(),
@@ -260,12 +267,29 @@ fn write_update(w: &mut ProtoWriter<'_>, tracks: &Tracks3D, deleted: &[u64]) {
             w.string(ENTITY_FRAME_ID, &tracks.frame_id);
             w.string_parts(ENTITY_ID, &[b"track/", id]);
             write_metadata(w, b"label", |w| w.string(2, &t.label));
-            write_metadata(w, b"score", |w| {
-                w.string_fmt(2, format_args!("{}", t.score))
-            });
+            write_metadata(w, b"score", |w| write_score(w, t.score));
             write_metadata(w, b"track_id", |w| w.string_parts(2, &[id]));
             write_primitives(w, t, id);
         });
+    }
+}
+
+/// The `score` metadata of a track: three decimals (`0.870`), or as `{}` writes it when it has
+/// none (not finite, or too large).
+fn score_text(score: f64) -> String {
+    let mut buf = [0; 24];
+    match three_decimals(score, &mut buf) {
+        Some(t) => String::from_utf8_lossy(t).into_owned(),
+        None => format!("{score}"),
+    }
+}
+
+/// [`score_text`] as field 2 of a `KeyValuePair`.
+fn write_score(w: &mut ProtoWriter<'_>, score: f64) {
+    let mut buf = [0; 24];
+    match three_decimals(score, &mut buf) {
+        Some(t) => w.string_parts(2, &[t]),
+        None => w.string_fmt(2, format_args!("{score}")),
     }
 }
 
@@ -303,10 +327,10 @@ fn write_pose(w: &mut ProtoWriter<'_>, field: u32, p: [f64; 3], yaw: f64) {
     });
 }
 
-fn write_color(w: &mut ProtoWriter<'_>, field: u32, id: u64, alpha: f64) {
-    let c = track_color(id, alpha);
+/// The track's colour `c` with `alpha`.
+fn write_color(w: &mut ProtoWriter<'_>, field: u32, c: &Color, alpha: f64) {
     w.message(field, |w| {
-        for (k, x) in (1..).zip([c.r, c.g, c.b, c.a]) {
+        for (k, x) in (1..).zip([c.r, c.g, c.b, alpha]) {
             w.double(k, x);
         }
     });
@@ -319,6 +343,8 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
     let center = [c.x, c.y, c.z];
     let v = t.velocity.unwrap_or_default();
     let speed = v.x.hypot(v.y);
+    // The id's colour once for the three primitives.
+    let color = track_color(t.id, 1.0);
     if speed > MIN_ARROW_SPEED {
         let head = arrow_head(speed);
         w.message(ENTITY_ARROWS, |w| {
@@ -327,20 +353,20 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
             w.double(3, ARROW_SHAFT_DIAMETER);
             w.double(4, head);
             w.double(5, ARROW_HEAD_DIAMETER);
-            write_color(w, 6, t.id, 1.0);
+            write_color(w, 6, &color, 1.0);
         });
     }
     w.message(ENTITY_CUBES, |w| {
         write_pose(w, 1, center, t.yaw);
         write_vector3(w, 2, [s.length, s.width, s.height]);
-        write_color(w, 3, t.id, CUBE_ALPHA);
+        write_color(w, 3, &color, CUBE_ALPHA);
     });
     w.message(ENTITY_TEXTS, |w| {
         write_pose(w, 1, [c.x, c.y, text_z(c.z, s.height)], 0.0);
         w.bool(2, true);
         w.double(3, TEXT_FONT_SIZE);
         w.bool(4, true);
-        write_color(w, 5, t.id, 1.0);
+        write_color(w, 5, &color, 1.0);
         w.string_parts(6, &[id, b" ", t.label.as_bytes()]);
     });
 }
@@ -390,9 +416,21 @@ mod tests {
         assert_eq!((ts.sec(), ts.nsec()), (1, 500_000_001));
         // 5 m/s: shaft + head = 5 m, pointing along atan2(4, 3).
         let a = &e.arrows[0];
-        assert!((a.shaft_length + a.head_length - 5.0).abs() < 1e-12);
+        // (f32 precision: a few 1e-7 off.)
+        assert!((a.shaft_length + a.head_length - 5.0).abs() < 1e-6);
         let q = a.pose.unwrap().orientation.unwrap();
-        assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 1e-12);
+        assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 1e-6);
+        // The drawing's own values are f32s, the centre is the track's.
+        for x in [
+            q.z,
+            q.w,
+            a.shaft_length,
+            a.head_length,
+            e.texts[0].pose.unwrap().position.unwrap().z,
+        ] {
+            assert_eq!(x, x as f32 as f64);
+        }
+        assert_eq!(a.pose.unwrap().position.unwrap().x, 1.0);
         assert!(u.entities[1].arrows.is_empty());
         // Stable colours: the same id gets the same colour, always.
         assert_eq!(e.cubes[0].color, Some(track_color(7, CUBE_ALPHA)));

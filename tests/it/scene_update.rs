@@ -63,12 +63,17 @@ fn scene_updates_mirror_the_tracks_channel() {
                 .iter()
                 .map(|kv| (kv.key.as_str(), kv.value.as_str()))
                 .collect();
-            let (score, id) = (t.score.to_string(), t.id.to_string());
+            // The score with three decimals, within half a thousandth of the track's.
+            let id = t.id.to_string();
+            let score = meta[1].1;
+            assert_eq!(score.len() - score.find('.').unwrap(), 4, "{score}");
+            let back: f64 = score.parse().unwrap();
+            assert!((back - t.score).abs() <= 5e-4, "{score} vs {}", t.score);
             assert_eq!(
                 meta,
                 [
                     ("label", t.label.as_str()),
-                    ("score", &score),
+                    ("score", score),
                     ("track_id", &id)
                 ]
             );
@@ -200,14 +205,17 @@ fn official_foxglove_python_schemas_decode_the_scene_updates() {
                 (num(&cube["size"][0]), s.length),
                 (num(&cube["size"][1]), s.width),
                 (num(&cube["size"][2]), s.height),
-                // Orientation: a rotation about z by the track's yaw.
-                (
-                    2.0 * num(&cube["orientation"][2]).atan2(num(&cube["orientation"][3])),
-                    t.yaw,
-                ),
             ] {
                 assert!(near(got, want), "track {}: {got} vs {want}", t.id);
             }
+            // Orientation: a rotation about z by the track's yaw (its components are f32s).
+            let yaw = 2.0 * num(&cube["orientation"][2]).atan2(num(&cube["orientation"][3]));
+            assert!(
+                (yaw - t.yaw).abs() < 1e-6,
+                "track {}: {yaw} vs {}",
+                t.id,
+                t.yaw
+            );
             assert_eq!(e["texts"][0], format!("{} {}", t.id, t.label));
             let v = t.velocity.unwrap();
             let n_arrows = e["arrows"].as_array().unwrap().len();
