@@ -5,9 +5,10 @@
 //! listing them ([`super::rosbag_dir::write_metadata`]).
 //!
 //! The output directory is written beside it as `.NAME.probmot-partial` and renamed at the end
-//! ([`PartialDir`]): an error or an interrupt leaves no half-written bag. Compressed input files (`.mcap.zstd`) are read as a
-//! stream ([`super::bag_source`]); the output files are plain MCAP files with zstd-compressed
-//! chunks (see docs/ros2.md).
+//! ([`PartialDir`]): an error or an interrupt leaves no half-written bag. Its files are synced
+//! together just before the rename, not each as it ends, which would stall the writing at every
+//! file. Compressed input files (`.mcap.zstd`) are read as a stream ([`super::bag_source`]); the
+//! output files are plain MCAP files with zstd-compressed chunks (see docs/ros2.md).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
