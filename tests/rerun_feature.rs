@@ -451,4 +451,27 @@ mod with_feature {
         assert!(err.contains("--rerun reads the tracked file back"), "{err}");
         assert!(!rrd.exists());
     }
+
+    /// `track --rerun` on a bag split into several files is refused before any work (its
+    /// output would be split too, and a recording reads one file back): no output is left.
+    #[test]
+    fn track_rerun_refuses_a_split_bag_up_front() {
+        let dir = tempfile::tempdir().unwrap();
+        let bag = dir.path().join("bag");
+        let log = repo("sample_logs/city.mcap");
+        super::common::split::split_mcap(&log, &bag, &[20]);
+        let (out, rrd) = (dir.path().join("out"), dir.path().join("run.rrd"));
+        let run = probmot(&[
+            "track",
+            bag.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--rerun",
+            rrd.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(2), "{err}");
+        assert!(err.contains("split into 2 files"), "{err}");
+        assert_eq!(super::common::entries(dir.path()), ["bag"]);
+    }
 }

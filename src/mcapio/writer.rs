@@ -77,6 +77,10 @@ pub struct OutputOptions {
     pub chunk_size: u64,
     /// Chunk compression.
     pub compression: OutputCompression,
+    /// Sync the file to the disk before it is renamed into place. The files of a partial
+    /// directory (a split bag's) are synced by its owner before the directory is renamed:
+    /// syncing each as it ends would stall the writing at every file.
+    pub sync: bool,
 }
 
 impl Default for OutputOptions {
@@ -85,6 +89,7 @@ impl Default for OutputOptions {
             profile: String::new(),
             chunk_size: 1 << 20,
             compression: OutputCompression::Zstd,
+            sync: true,
         }
     }
 }
@@ -163,6 +168,8 @@ struct Partial {
     path: Option<PathBuf>,
     dest: PathBuf,
     done: bool,
+    /// Whether [`Partial::persist`] syncs the file.
+    sync: bool,
 }
 
 impl Partial {
@@ -212,6 +219,7 @@ impl Partial {
             path: Some(path),
             dest: dest.to_path_buf(),
             done: false,
+            sync: true,
         };
         Ok((file, partial))
     }
@@ -236,6 +244,7 @@ impl Partial {
             path: None,
             dest: dest.to_path_buf(),
             done: false,
+            sync: true,
         }
     }
 
@@ -248,7 +257,7 @@ impl Partial {
         }
     }
 
-    /// Syncs the complete `file` and renames the partial file over the destination (a
+    /// Syncs the complete `file` (unless told not to) and renames the partial file over the destination (a
     /// destination written in place is left as it is: a device need not support syncing).
     fn persist(mut self, file: File) -> Result<()> {
         self.done = true;
@@ -256,8 +265,11 @@ impl Partial {
             self.forget_in_place();
             return Ok(());
         };
-        let result = file
-            .sync_all()
+        let synced = match self.sync {
+            true => file.sync_all(),
+            false => Ok(()),
+        };
+        let result = synced
             .with_context(|| format!("syncing {}", self.dest.display()))
             .and_then(|()| {
                 drop(file);
@@ -410,7 +422,8 @@ impl AtomicOutput {
     /// of its own where it pays), message and chunk indexes, and a summary section,
     /// so viewers can seek.
     pub fn create(dest: &Path, opts: &OutputOptions) -> Result<Self> {
-        let (file, partial) = Partial::create(dest)?;
+        let (file, mut partial) = Partial::create(dest)?;
+        partial.sync = opts.sync;
         let writer = WriteOptions::new()
             .profile(opts.profile.clone())
             .library(library_string())

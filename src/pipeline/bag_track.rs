@@ -5,9 +5,10 @@
 //! listing them ([`super::rosbag_dir::write_metadata`]).
 //!
 //! The output directory is written beside it as `.NAME.probmot-partial` and renamed at the end
-//! ([`PartialDir`]): an error or an interrupt leaves no half-written bag. Compressed input files (`.mcap.zstd`) are read as a
-//! stream ([`super::bag_source`]); the output files are plain MCAP files with zstd-compressed
-//! chunks (see docs/ros2.md).
+//! ([`PartialDir`]): an error or an interrupt leaves no half-written bag. Its files are synced
+//! together just before the rename, not each as it ends, which would stall the writing at every
+//! file. Compressed input files (`.mcap.zstd`) are read as a stream ([`super::bag_source`]); the
+//! output files are plain MCAP files with zstd-compressed chunks (see docs/ros2.md).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -55,6 +56,15 @@ pub fn track_bag(
     Ok(summary)
 }
 
+/// Syncs the files `paths` to the disk, before their directory is renamed into place.
+fn sync_files(paths: &[PathBuf]) -> Result<()> {
+    for p in paths {
+        (std::fs::File::open(p).and_then(|f| f.sync_all()))
+            .with_context(|| format!("syncing {}", p.display()))?;
+    }
+    Ok(())
+}
+
 /// Writes the output files and the metadata of `bag` into the directory `dir`.
 fn write_bag(
     bag: &Bag,
@@ -74,6 +84,8 @@ fn write_bag(
         let out_opts = OutputOptions {
             profile,
             compression: opts.compression,
+            // Synced all together at the end (sync_files).
+            sync: false,
             ..Default::default()
         };
         SplitSink::create(paths.clone(), out_opts, opts.background_writer)
@@ -82,6 +94,7 @@ fn write_bag(
     sink.commit()
         .with_context(|| format!("{}: writing the output bag", bag.dir.display()))?;
     write_metadata(dir, &paths)?;
+    sync_files(&paths)?;
     progress(Progress::Done);
     Ok(summary)
 }

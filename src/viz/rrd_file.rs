@@ -10,7 +10,7 @@ pub use super::rrd_options::{RrdSummary, VizOptions};
 use crate::mcapio::destination::{destination, Destination};
 use crate::mcapio::writer::check_output_path;
 use crate::pipeline::progress::{Progress, ProgressFn};
-use crate::pipeline::rosbag_dir::resolve_input;
+use crate::pipeline::rosbag_dir::{open_bag, resolve_input};
 
 /// The error without the `rerun` feature: how to enable it, or the script to use instead.
 pub const NEEDS_FEATURE: &str = "this probmot was built without the `rerun` cargo feature; \
@@ -32,9 +32,20 @@ pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {
 }
 
 /// Checks `track --rerun RRD` before any work: a `.rrd` path that is not the input, and not the
-/// `-o` output, which must be a regular file since the recording reads it back.
+/// `-o` output, which must be a regular file since the recording reads it back; and an input
+/// that is not a bag split into several files (its output is split too, and a recording is
+/// made of one file).
 pub fn check_track_rerun(input: Option<&Path>, output: Option<&Path>, rrd: &Path) -> Result<()> {
     check_rrd_output(input, rrd)?;
+    if let Some(bag) = input.map(open_bag).transpose()?.flatten() {
+        if bag.files.len() > 1 {
+            bail!(
+                "--rerun: {} is a bag split into {} files, and so is its output, while a                  recording reads one file back: track without --rerun, then record one output                  file with `probmot viz OUT_BAG/FILE.mcap -o OUT.rrd`",
+                bag.dir.display(),
+                bag.files.len()
+            );
+        }
+    }
     if output == Some(rrd) {
         bail!(
             "--rerun {} is also the -o output; give two paths",
@@ -99,4 +110,34 @@ fn write(file: &Path, output: &Path, o: &VizOptions) -> Result<RrdSummary> {
 #[cfg(not(feature = "rerun"))]
 fn write(_: &Path, _: &Path, _: &VizOptions) -> Result<RrdSummary> {
     bail!("probmot viz: {NEEDS_FEATURE}")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A split bag is refused before any work, naming the bag and what to do; a bag of one
+    /// file is not.
+    #[test]
+    fn track_rerun_refuses_a_split_bag_up_front() {
+        let d = tempfile::tempdir().unwrap();
+        let bag = d.path().join("bag");
+        std::fs::create_dir(&bag).unwrap();
+        for f in ["bag_0.mcap", "bag_1.mcap"] {
+            std::fs::write(bag.join(f), b"").unwrap();
+        }
+        let yaml = |files: &str| {
+            format!("rosbag2_bagfile_information:\n  storage_identifier: mcap\n  relative_file_paths: [{files}]\n")
+        };
+        std::fs::write(bag.join("metadata.yaml"), yaml("bag_0.mcap, bag_1.mcap")).unwrap();
+        let (out, rrd) = (d.path().join("out"), d.path().join("run.rrd"));
+        let e = check_track_rerun(Some(&bag), Some(&out), &rrd).unwrap_err();
+        let e = format!("{e:#}");
+        assert!(
+            e.contains("split into 2 files") && e.contains("probmot viz"),
+            "{e}"
+        );
+        std::fs::write(bag.join("metadata.yaml"), yaml("bag_0.mcap")).unwrap();
+        check_track_rerun(Some(&bag), Some(&out), &rrd).unwrap();
+    }
 }

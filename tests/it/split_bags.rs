@@ -261,13 +261,12 @@ fn output_files(out: &Path) -> Vec<PathBuf> {
     }
 }
 
-/// `(topic, log_time, publish_time, bytes)` of the messages of `files` on topics that are (or
-/// are not, when `inputs` is false) among `topics`, file after file.
-fn on_topics(
-    files: &[PathBuf],
-    topics: &[String],
-    inputs: bool,
-) -> Vec<Vec<(String, u64, u64, Vec<u8>)>> {
+/// A message as compared: topic, log_time, publish_time, bytes.
+type Stored = (String, u64, u64, Vec<u8>);
+
+/// The messages of `files` on topics that are (or are not, when `inputs` is false) among
+/// `topics`, file after file.
+fn on_topics(files: &[PathBuf], topics: &[String], inputs: bool) -> Vec<Vec<Stored>> {
     (files.iter())
         .map(|f| {
             (messages(f).into_iter())
@@ -286,7 +285,7 @@ fn check_split(
     input: &Path,
     file: &Path,
     starts: &[usize],
-    whole: &(TrackSummary, Vec<(String, u64, u64, Vec<u8>)>),
+    whole: &(TrackSummary, Vec<Stored>),
 ) -> Result<(), TestCaseError> {
     let dir = tempfile::tempdir().unwrap();
     let bag = dir.path().join("part");
