@@ -80,7 +80,7 @@ fn ignored(sig: i32) -> bool {
     }
 }
 
-/// The one line printed on an interrupt: the outputs not written (their partial files removed)
+/// The one line printed on an interrupt: the outputs not written (their partial files or bag directories removed)
 /// and those written in place (a device, FIFO or stdout) that got part of an output.
 fn message(sig: i32, unwritten: &[PathBuf], partly: &[PathBuf]) -> String {
     let name = match sig {
@@ -96,7 +96,7 @@ fn message(sig: i32, unwritten: &[PathBuf], partly: &[PathBuf]) -> String {
     let mut parts = Vec::new();
     if !unwritten.is_empty() {
         parts.push(format!(
-            "not written (partial file removed): {}",
+            "not written (partial output removed): {}",
             list(unwritten)
         ));
     }
@@ -122,7 +122,7 @@ mod tests {
         );
         assert_eq!(
             m,
-            "probmot: interrupted by SIGTERM; not written (partial file removed): a.mcap, out/b.mcap"
+            "probmot: interrupted by SIGTERM; not written (partial output removed): a.mcap, out/b.mcap"
         );
         assert!(message(SIGHUP, &[], &[]).contains("SIGHUP; no output was being written"));
         let files = vec![
