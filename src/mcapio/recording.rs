@@ -181,31 +181,23 @@ impl Decoder {
 
     /// [`Decoder::decode`], with the message's `frame_id` (the coordinate frame of its boxes).
     pub fn decode_with_frame_id(&self, data: &[u8], log_time: u64) -> Result<(Frame, String)> {
+        let frame = |stamp, boxes, frame_id| {
+            let f = Frame {
+                stamp,
+                log_time,
+                boxes,
+            };
+            (f, frame_id)
+        };
         let tracks = |m: Tracks3D| {
             let stamp = tracks_stamp(m.stamp, log_time);
-            let boxes = Boxes::Tracks(m.tracks);
-            (
-                Frame {
-                    stamp,
-                    log_time,
-                    boxes,
-                },
-                m.frame_id,
-            )
+            frame(stamp, Boxes::Tracks(m.tracks), m.frame_id)
         };
         Ok(match self {
             Decoder::Detections(source) => {
                 let m = source.decode(data)?;
                 let stamp = stamp_or_log_time(m.stamp, log_time);
-                let boxes = Boxes::Detections(m.detections);
-                (
-                    Frame {
-                        stamp,
-                        log_time,
-                        boxes,
-                    },
-                    m.frame_id,
-                )
+                frame(stamp, Boxes::Detections(m.detections), m.frame_id)
             }
             Decoder::Ros2Tracks(layout) => tracks(ros2_tracks::decode_tracks(data, *layout)?),
             Decoder::AutowareTracks(order) => tracks(autoware_tracks::decode_tracks(data, *order)?),
