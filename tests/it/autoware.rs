@@ -7,45 +7,15 @@
 //! frames. The tracked bag is read back by rosbags (scripts/check_autoware_bag.py), which decodes
 //! the TrackedObjects from the definitions in the bag's own schema record.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
+use crate::common::autoware_bag::{have_rosbags, make_autoware_bag as make_bag};
 use crate::common::*;
 use probmot::msgs::autoware_tracks::{self, KinematicsOrder, TRACKING_TOPIC};
 use probmot::msgs::Tracks3D;
 
 const DETECTION_TOPIC: &str = "/perception/object_recognition/detection/objects";
-
-/// Whether the rosbags tools can run; reports a skip when not.
-fn have_rosbags(test: &str) -> bool {
-    if python_has("rosbags, numpy") {
-        return true;
-    }
-    skip(
-        test,
-        "python3 cannot import rosbags (pip install -r scripts/requirements.txt)",
-    );
-    false
-}
-
-/// Writes the rosbags bag directory `dir/name` (`flags` to make_autoware_bag.py) and its truth
-/// into `dir/name.jsonl`; returns the bag directory.
-fn make_bag(dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
-    let bag = dir.join(name);
-    let out = Command::new("python3")
-        .arg(repo("scripts/make_autoware_bag.py"))
-        .arg(&bag)
-        .args(flags)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "make_autoware_bag.py: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    std::fs::write(dir.join(format!("{name}.jsonl")), &out.stdout).unwrap();
-    bag
-}
 
 /// Runs scripts/check_autoware_bag.py on `path` (`ids` UUIDs expected, the truth of bag
 /// `name`); returns (success, stdout + stderr).

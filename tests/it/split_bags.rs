@@ -18,21 +18,11 @@ use probmot::tracker::TrackerConfig;
 use proptest::prelude::*;
 use proptest::test_runner::{Config, TestRunner};
 
+use crate::common::autoware_bag::{have_rosbags, make_autoware_bag};
 use crate::common::split::split_mcap;
 use crate::common::*;
 
 const TRACKING_TOPIC: &str = "/perception/object_recognition/tracking/objects";
-
-fn have_rosbags(test: &str) -> bool {
-    if python_has("rosbags, numpy") {
-        return true;
-    }
-    skip(
-        test,
-        "python3 cannot import rosbags (pip install -r scripts/requirements.txt)",
-    );
-    false
-}
 
 /// Runs a Python script of scripts/ with `args`; panics with its stderr when it fails.
 fn python(script: &str, args: &[&Path], flags: &[&str]) -> Vec<u8> {
@@ -50,10 +40,7 @@ fn python(script: &str, args: &[&Path], flags: &[&str]) -> Vec<u8> {
 /// The drive of scripts/make_autoware_bag.py (`flags`) in `d/drive`, its truth in
 /// `d/drive.jsonl`.
 fn drive(d: &Path, flags: &[&str]) -> PathBuf {
-    let bag = d.join("drive");
-    let truth = python("scripts/make_autoware_bag.py", &[&bag], flags);
-    std::fs::write(d.join("drive.jsonl"), truth).unwrap();
-    bag
+    make_autoware_bag(d, "drive", flags)
 }
 
 /// The MCAP files of a bag directory, in name order (the order of a split).

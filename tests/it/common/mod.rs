@@ -8,6 +8,7 @@ use probmot::msgs::{Detections3D, Tracks3D};
 use prost::Message as _;
 
 pub mod alloc;
+pub mod autoware_bag;
 pub mod split;
 
 /// The probmot binary built for the tests.
