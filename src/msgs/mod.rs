@@ -155,15 +155,30 @@ pub fn encode_into<M: prost::Message>(msg: &M, buf: &mut Vec<u8>) {
     msg.encode(buf).expect("Vec grows as needed");
 }
 
-/// `x` rounded to the nearest `f32`, kept as an `f64`: the precision of the values probmot
-/// writes where more digits cost bytes and carry nothing (variances, what only a drawing has).
-/// A finite value beyond the `f32` range is kept as it is (not made infinite).
-pub fn f32_precision(x: f64) -> f64 {
-    let r = x as f32;
-    if r.is_infinite() && x.is_finite() {
-        x
+/// Significant bits (of the mantissa) kept in the values probmot writes where more digits cost
+/// bytes and carry nothing: what only a drawing has (quaternions, arrow lengths, label heights,
+/// colours) and the filter variances. 12 bits are 1/4096 relative (three to four significant
+/// digits): a heading off by at most 0.02°, an arrow of 10 m off by at most 2.5 mm, far below a
+/// pixel of any view; a variance's own uncertainty is far larger. The low bytes of such a
+/// `double` are zeros, which zstd codes in almost nothing (see docs/scaling.md, issue #39).
+pub const SHORT_BITS: u32 = 12;
+
+/// `x` with its mantissa rounded to [`SHORT_BITS`] bits (to nearest, ties away from zero),
+/// kept as an `f64`. Zeros, infinities and NaN stay as they are, and so does a finite value
+/// whose rounding would overflow.
+pub fn short_precision(x: f64) -> f64 {
+    const DROP: u32 = 52 - SHORT_BITS;
+    if !x.is_finite() {
+        return x;
+    }
+    // Adding half of the dropped part to the bit pattern rounds the magnitude (the sign bit is
+    // not touched); a carry out of the mantissa moves the exponent up, as it should.
+    let bits = (x.to_bits() + (1 << (DROP - 1))) & !((1u64 << DROP) - 1);
+    let r = f64::from_bits(bits);
+    if r.is_finite() {
+        r
     } else {
-        r as f64
+        x
     }
 }
 
@@ -182,14 +197,27 @@ mod tests {
     use prost::Message;
 
     #[test]
-    fn f32_precision_rounds_and_keeps_what_f32_cannot_hold() {
-        assert_eq!(f32_precision(0.1), 0.1f32 as f64);
-        assert_ne!(f32_precision(0.1), 0.1);
-        assert_eq!(f32_precision(0.5), 0.5);
-        for x in [1e300, -1e300, f64::INFINITY, f64::NEG_INFINITY] {
-            assert_eq!(f32_precision(x), x);
+    fn short_precision_keeps_twelve_bits() {
+        assert_eq!(short_precision(0.5), 0.5);
+        assert_eq!(short_precision(-3.0), -3.0);
+        assert_eq!(short_precision(0.0), 0.0);
+        // 1 + 2^-12 is exact at 12 bits; 1 + 2^-13 is a tie, rounded away from zero; below
+        // that it rounds down.
+        assert_eq!(short_precision(1.0 + 2f64.powi(-12)), 1.0 + 2f64.powi(-12));
+        assert_eq!(short_precision(1.0 + 2f64.powi(-13)), 1.0 + 2f64.powi(-12));
+        assert_eq!(short_precision(1.0 + 2f64.powi(-14)), 1.0);
+        assert_eq!(short_precision(-(1.0 + 2f64.powi(-13))), -(1.0 + 2f64.powi(-12)));
+        // A carry out of the mantissa: just below 2 rounds to 2.
+        assert_eq!(short_precision(2.0 - 2f64.powi(-20)), 2.0);
+        for x in [0.1, -0.7071067811865476, 1234.5678, 3.0e-9] {
+            let r = short_precision(x);
+            assert!(((r - x) / x).abs() <= 2f64.powi(-13), "{x} -> {r}");
+            assert_eq!(r.to_bits() & ((1 << 40) - 1), 0, "{x} -> {r}");
         }
-        assert!(f32_precision(f64::NAN).is_nan());
+        for x in [f64::MAX, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(short_precision(x), x);
+        }
+        assert!(short_precision(f64::NAN).is_nan());
     }
 
     #[test]

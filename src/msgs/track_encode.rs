@@ -2,7 +2,7 @@
 
 use std::collections::BTreeMap;
 
-use super::{f32_precision, size3, v3, ImageBox, Track3D};
+use super::{short_precision, size3, v3, ImageBox, Track3D};
 use crate::tracker::TrackReport;
 
 /// Writes one reported track into an output message, reusing its allocations (the image box and
@@ -19,8 +19,8 @@ pub fn fill_track3d(t: &mut Track3D, r: &TrackReport, label: &str) {
     t.score = r.score;
     // f32 precision: a variance's eighth digit means nothing, and full digits cost a tenth of
     // the tracks channel's bytes.
-    t.position_variance = Some(v3(r.position_variance.map(f32_precision)));
-    t.yaw_variance = f32_precision(r.yaw_variance);
+    t.position_variance = Some(v3(r.position_variance.map(short_precision)));
+    t.yaw_variance = short_precision(r.yaw_variance);
     t.age = r.age;
     t.hits = r.hits;
     t.frames_since_update = r.frames_since_update;
