@@ -156,8 +156,8 @@ pub fn encode_into<M: prost::Message>(msg: &M, buf: &mut Vec<u8>) {
 }
 
 /// Significant bits (of the mantissa) kept in the values probmot writes where more digits cost
-/// bytes and carry nothing: what only a drawing has (quaternions, arrow lengths, label heights,
-/// colours) and the filter variances. 12 bits are 1/4096 relative (three to four significant
+/// bytes and carry nothing: what only a drawing has (quaternions, arrow lengths, colours) and the
+/// filter variances. 12 bits are 1/4096 relative (three to four significant
 /// digits): a heading off by at most 0.02°, an arrow of 10 m off by at most 2.5 mm, far below a
 /// pixel of any view; a variance's own uncertainty is far larger. The low bytes of such a
 /// `double` are zeros, which zstd codes in almost nothing (see docs/scaling.md, issue #39).

@@ -2,17 +2,21 @@
 //! tracked log opens in the Foxglove 3D panel as it is.
 //!
 //! One entity per reported track, with the entity id `track/<id>`: a cube (the box, coloured by
-//! the track id's stable colour, [`super::colors::id_color`]), a text above it (`<id>
+//! the track id's stable colour, [`super::colors::id_color`]), a text at its centre (`<id>
 //! <label>`), and an arrow from the centre along the velocity (length = 1 s of travel) when
 //! the track moves faster than [`MIN_ARROW_SPEED`]. Entities have no lifetime (they stay until
 //! replaced or deleted); the update of a frame deletes the entities of the tracks that are no
 //! longer reported (a track that died, or one not reported in this frame), so the scene shows
 //! exactly the tracks of the tracks channel.
 //!
-//! The values only the drawing has (the quaternions, the height of the label, the arrow's
-//! lengths, the colours) are rounded to `f32` precision, what a GPU draws with: full-precision
-//! digits there cost bytes in every frame and show nothing. The centres and sizes are the
-//! tracks' values as they are (zstd codes them as repeats of the tracks message).
+//! The values only the drawing has (the quaternions, the arrow's lengths, the colours) are
+//! rounded to 12 significant bits ([`super::short_precision`]: under 0.02° for a heading, 2.5 mm
+//! on a 10 m arrow): full-precision digits there cost bytes in every frame and show nothing. The
+//! centres and sizes are the tracks' values as they are, and the text sits at the box's centre
+//! (billboarded, so it faces the viewer; seen from above, it is where a label above the box
+//! would be): zstd codes all of them as repeats of the tracks message written just before, where
+//! a label height of its own was a new value in every frame (1.3 % of the default output,
+//! docs/scaling.md).
 //!
 //! Each entity also carries the metadata `label`, `score` (three decimals: the 17 digits of a
 //! double there cost 3 % of the default output) and `track_id`: the convention probmot reads
@@ -51,11 +55,6 @@ fn arrow_head(speed: f64) -> f64 {
 /// Shaft length of that arrow: shaft + head = 1 s of travel.
 fn arrow_shaft(speed: f64, head: f64) -> f64 {
     short_precision((speed - head).max(0.1))
-}
-
-/// Height of the label: half a metre above the box.
-fn text_z(z: f64, height: f64) -> f64 {
-    short_precision(z + height / 2.0 + 0.5)
 }
 
 /// The `FileDescriptorSet` of `foxglove.SceneUpdate`, as stored in the output's schema record.
@@ -136,10 +135,7 @@ pub fn scene_update(tracks: &Tracks3D, deleted: &[u64]) -> SceneUpdate {
             };
             let text = TextPrimitive {
                 pose: Some(Pose {
-                    position: Some(Vector3 {
-                        z: text_z(c.z, s.height),
-                        ..center
-                    }),
+                    position: Some(center),
                     orientation: Some(yaw_quaternion(0.0)),
                 }),
                 billboard: true,
@@ -345,8 +341,7 @@ fn write_color(w: &mut ProtoWriter<'_>, field: u32, c: &Color, alpha: f64) {
 /// that it and the entity's id and metadata before it are one match with the same track's
 /// entity one frame earlier; then the pose, orientation first, so that the position is followed
 /// by the box's size as in the tracks message just before (one match again); the values only
-/// this frame has (the quaternions, the arrow's length, the label's height) sit between
-/// those matches. The `score` metadata, new in every frame, closes the entity.
+/// this frame has (the quaternions, the arrow's length) sit between those matches. The `score` metadata, new in every frame, closes the entity.
 fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
     let c = t.center.unwrap_or_default();
     let s = t.size.unwrap_or_default();
@@ -361,7 +356,7 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
         w.double(3, TEXT_FONT_SIZE);
         write_color(w, 5, &color, 1.0);
         w.string_parts(6, &[id, b" ", t.label.as_bytes()]);
-        write_pose(w, 1, [c.x, c.y, text_z(c.z, s.height)], 0.0);
+        write_pose(w, 1, center, 0.0);
     });
     w.message(ENTITY_CUBES, |w| {
         write_color(w, 3, &color, CUBE_ALPHA);
@@ -426,21 +421,22 @@ mod tests {
         assert_eq!((ts.sec(), ts.nsec()), (1, 500_000_001));
         // 5 m/s: shaft + head = 5 m, pointing along atan2(4, 3).
         let a = &e.arrows[0];
-        // (f32 precision: a few 1e-7 off.)
+        // (5 = 3.5 + 1.5, both exact with 12 significant bits.)
         assert!((a.shaft_length + a.head_length - 5.0).abs() < 1e-6);
         let q = a.pose.unwrap().orientation.unwrap();
-        assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 1e-6);
-        // The drawing's own values are f32s, the centre is the track's.
-        for x in [
-            q.z,
-            q.w,
-            a.shaft_length,
-            a.head_length,
-            e.texts[0].pose.unwrap().position.unwrap().z,
-        ] {
-            assert_eq!(x, x as f32 as f64);
+        // (12 significant bits: the angle is within 1/2048 rad.)
+        assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 5e-4);
+        // The drawing's own values have 12 significant bits, the centre is the track's, the
+        // text is at the centre.
+        for x in [q.z, q.w, a.shaft_length, a.head_length] {
+            assert_eq!(x, short_precision(x));
         }
+        assert_ne!(q.z, (4f64.atan2(3.0) / 2.0).sin());
         assert_eq!(a.pose.unwrap().position.unwrap().x, 1.0);
+        assert_eq!(
+            e.texts[0].pose.unwrap().position,
+            e.cubes[0].pose.unwrap().position
+        );
         assert!(u.entities[1].arrows.is_empty());
         // Stable colours: the same id gets the same colour, always.
         assert_eq!(e.cubes[0].color, Some(track_color(7, CUBE_ALPHA)));
