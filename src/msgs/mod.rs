@@ -155,7 +155,7 @@ pub fn encode_into<M: prost::Message>(msg: &M, buf: &mut Vec<u8>) {
     msg.encode(buf).expect("Vec grows as needed");
 }
 
-/// Significant bits (of the mantissa) kept in the values probmot writes where more digits cost
+/// Bits of the mantissa kept in the values probmot writes where more digits cost
 /// bytes and carry nothing: what only a drawing has (quaternions, arrow lengths, colours) and the
 /// filter variances. 12 bits are 1/4096 relative (three to four significant
 /// digits): a heading off by at most 0.02°, an arrow of 10 m off by at most 2.5 mm, far below a
@@ -206,7 +206,10 @@ mod tests {
         assert_eq!(short_precision(1.0 + 2f64.powi(-12)), 1.0 + 2f64.powi(-12));
         assert_eq!(short_precision(1.0 + 2f64.powi(-13)), 1.0 + 2f64.powi(-12));
         assert_eq!(short_precision(1.0 + 2f64.powi(-14)), 1.0);
-        assert_eq!(short_precision(-(1.0 + 2f64.powi(-13))), -(1.0 + 2f64.powi(-12)));
+        assert_eq!(
+            short_precision(-(1.0 + 2f64.powi(-13))),
+            -(1.0 + 2f64.powi(-12))
+        );
         // A carry out of the mantissa: just below 2 rounds to 2.
         assert_eq!(short_precision(2.0 - 2f64.powi(-20)), 2.0);
         for x in [0.1, -0.7071067811865476, 1234.5678, 3.0e-9] {

@@ -10,7 +10,7 @@
 //! exactly the tracks of the tracks channel.
 //!
 //! The values only the drawing has (the quaternions, the arrow's lengths, the colours) are
-//! rounded to 12 significant bits ([`super::short_precision`]: under 0.02° for a heading, 2.5 mm
+//! rounded to a 12-bit mantissa ([`super::short_precision`]: under 0.02° for a heading, 2.5 mm
 //! on a 10 m arrow): full-precision digits there cost bytes in every frame and show nothing. The
 //! centres and sizes are the tracks' values as they are, and the text sits at the box's centre
 //! (billboarded, so it faces the viewer; seen from above, it is where a label above the box
@@ -421,12 +421,12 @@ mod tests {
         assert_eq!((ts.sec(), ts.nsec()), (1, 500_000_001));
         // 5 m/s: shaft + head = 5 m, pointing along atan2(4, 3).
         let a = &e.arrows[0];
-        // (5 = 3.5 + 1.5, both exact with 12 significant bits.)
+        // (5 = 3.5 + 1.5, both exact with a 12-bit mantissa.)
         assert!((a.shaft_length + a.head_length - 5.0).abs() < 1e-6);
         let q = a.pose.unwrap().orientation.unwrap();
-        // (12 significant bits: the angle is within 1/2048 rad.)
+        // (a 12-bit mantissa: the angle is within 1/2048 rad.)
         assert!((2.0 * q.z.atan2(q.w) - 4f64.atan2(3.0)).abs() < 5e-4);
-        // The drawing's own values have 12 significant bits, the centre is the track's, the
+        // The drawing's own values have a 12-bit mantissa, the centre is the track's, the
         // text is at the centre.
         for x in [q.z, q.w, a.shaft_length, a.head_length] {
             assert_eq!(x, short_precision(x));

@@ -17,7 +17,7 @@ pub fn fill_track3d(t: &mut Track3D, r: &TrackReport, label: &str) {
     t.velocity = Some(v3(r.velocity));
     t.yaw_rate = r.yaw_rate;
     t.score = r.score;
-    // 12 significant bits (`short_precision`): a variance's fifth digit means nothing, and full
+    // A 12-bit mantissa (`short_precision`): a variance's fifth digit means nothing, and full
     // digits cost a tenth of the tracks channel's bytes.
     t.position_variance = Some(v3(r.position_variance.map(short_precision)));
     t.yaw_variance = short_precision(r.yaw_variance);

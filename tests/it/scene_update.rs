@@ -208,8 +208,8 @@ fn official_foxglove_python_schemas_decode_the_scene_updates() {
             ] {
                 assert!(near(got, want), "track {}: {got} vs {want}", t.id);
             }
-            // Orientation: a rotation about z by the track's yaw (its components have 12
-            // significant bits: within 1/2048 rad).
+            // Orientation: a rotation about z by the track's yaw (its components have a 12-bit
+            // mantissa: within 1/2048 rad).
             let yaw = 2.0 * num(&cube["orientation"][2]).atan2(num(&cube["orientation"][3]));
             assert!(
                 (yaw - t.yaw).abs() < 5e-4,
