@@ -13,7 +13,7 @@
 use std::collections::BTreeMap;
 use std::ops::Range;
 
-use prost::encoding::{decode_key, decode_varint, WireType};
+use prost::encoding::WireType;
 
 use super::detection_frame::Rejected;
 use super::detection_frame::{check_parts, stamp_or_log_time, DetectionBox, DetectionFrame};
@@ -139,7 +139,7 @@ impl FrameReader {
                 _ => c.skip(wire)?,
             }
         }
-        set_attributes(&mut b.attributes, c.buf, &self.entries);
+        set_attributes(&mut b.attributes, c.buf, &self.entries)?;
         match check_parts(p.center, p.size, p.yaw, p.score, p.velocity) {
             Ok(bbox) => {
                 b.index = index;
@@ -176,35 +176,37 @@ struct Parts {
 }
 
 /// Makes `map` hold the entries (key and value ranges of `buf`, the last of a repeated key
-/// winning), as prost's map decoding would. A map with the same keys is updated in place.
+/// winning), as prost's map decoding would; [`Declined`] when a key or value is not UTF-8. A
+/// map with the same keys is updated in place (its strings keep their memory).
 fn set_attributes(
     map: &mut BTreeMap<String, String>,
     buf: &[u8],
     entries: &[(Range<usize>, Range<usize>)],
-) {
-    // The ranges were checked to be UTF-8 when read.
-    let text = |r: &Range<usize>| std::str::from_utf8(&buf[r.clone()]).unwrap_or_default();
-    let same_keys = entries.len() == map.len()
-        && entries.len() <= MAX_IN_PLACE_ENTRIES
-        && entries.iter().enumerate().all(|(i, (k, _))| {
-            map.contains_key(text(k))
-                && entries[..i]
-                    .iter()
-                    .all(|(o, _)| buf[o.clone()] != buf[k.clone()])
-        });
-    if same_keys {
-        for (k, v) in entries {
-            if let Some(slot) = map.get_mut(text(k)) {
-                slot.clear();
-                slot.push_str(text(v));
-            }
+) -> Step<()> {
+    let text = |r: &Range<usize>| std::str::from_utf8(&buf[r.clone()]).map_err(|_| Declined);
+    // As many entries as keys, each key among them: the entries' keys are the map's, once each.
+    if entries.len() == map.len() && entries.len() <= MAX_IN_PLACE_ENTRIES {
+        let mut same_keys = true;
+        for (key, slot) in map.iter_mut() {
+            let Some((_, v)) = entries
+                .iter()
+                .find(|(k, _)| &buf[k.clone()] == key.as_bytes())
+            else {
+                same_keys = false;
+                break;
+            };
+            slot.clear();
+            slot.push_str(text(v)?);
         }
-        return;
+        if same_keys {
+            return Ok(());
+        }
     }
     map.clear();
     for (k, v) in entries {
-        map.insert(text(k).to_owned(), text(v).to_owned());
+        map.insert(text(k)?.to_owned(), text(v)?.to_owned());
     }
+    Ok(())
 }
 
 /// A position in a message, read up to `end` (the end of the message or sub-message).
@@ -236,24 +238,47 @@ impl<'a> Cursor<'a> {
         self.pos < self.end
     }
 
-    /// Runs one of prost's readers on the bytes left and advances past what it read.
-    fn with_prost<T>(
-        &mut self,
-        f: impl FnOnce(&mut &'a [u8]) -> Result<T, prost::DecodeError>,
-    ) -> Step<T> {
-        let mut rest = &self.buf[self.pos..self.end];
-        let v = f(&mut rest).map_err(|_| Declined)?;
-        self.pos = self.end - rest.len();
-        Ok(v)
+    /// A varint, refused where prost refuses it: past the end, longer than ten bytes, or
+    /// beyond 64 bits.
+    fn varint(&mut self) -> Step<u64> {
+        let mut v = 0u64;
+        for i in 0..10 {
+            let b = *self.buf[..self.end].get(self.pos).ok_or(Declined)?;
+            self.pos += 1;
+            if i == 9 && b >= 0x02 {
+                return Err(Declined);
+            }
+            v |= u64::from(b & 0x7f) << (7 * i);
+            if b < 0x80 {
+                return Ok(v);
+            }
+        }
+        Err(Declined)
     }
 
+    /// A field key: tag and wire type, refused as prost refuses it (a key beyond 32 bits, wire
+    /// type 6 or 7, tag 0).
     fn key(&mut self) -> Step<(u32, WireType)> {
-        self.with_prost(decode_key)
+        let key = self.varint()?;
+        let key = u32::try_from(key).map_err(|_| Declined)?;
+        let wire = match key & 7 {
+            0 => WireType::Varint,
+            1 => WireType::SixtyFourBit,
+            2 => WireType::LengthDelimited,
+            3 => WireType::StartGroup,
+            4 => WireType::EndGroup,
+            5 => WireType::ThirtyTwoBit,
+            _ => return Err(Declined),
+        };
+        match key >> 3 {
+            0 => Err(Declined),
+            tag => Ok((tag, wire)),
+        }
     }
 
     fn varint_field(&mut self, wire: WireType) -> Step<u64> {
         expect(wire, WireType::Varint)?;
-        self.with_prost(decode_varint)
+        self.varint()
     }
 
     /// `n` bytes, advanced past.
@@ -275,7 +300,7 @@ impl<'a> Cursor<'a> {
     /// The payload of a length-delimited field.
     fn delimited(&mut self, wire: WireType) -> Step<Range<usize>> {
         expect(wire, WireType::LengthDelimited)?;
-        let len = self.with_prost(decode_varint)?;
+        let len = self.varint()?;
         self.take(usize::try_from(len).map_err(|_| Declined)?)
     }
 
@@ -298,30 +323,34 @@ impl<'a> Cursor<'a> {
         Ok(())
     }
 
-    /// Reads a map entry: the ranges of its key and value (empty when absent), checked UTF-8.
+    /// Reads a map entry: the ranges of its key and value (empty when absent; checked UTF-8 by
+    /// [`set_attributes`]).
     fn map_entry(mut self) -> Step<(Range<usize>, Range<usize>)> {
         let (mut key, mut value) = (0..0, 0..0);
         while self.more() {
             let (tag, wire) = self.key()?;
             match tag {
-                1 => key = self.checked_string(wire)?,
-                2 => value = self.checked_string(wire)?,
+                // prost checks every occurrence, also the ones a later one replaces.
+                1 => key = self.replace_string(key, wire)?,
+                2 => value = self.replace_string(value, wire)?,
                 _ => self.skip(wire)?,
             }
         }
         Ok((key, value))
     }
 
-    fn checked_string(&mut self, wire: WireType) -> Step<Range<usize>> {
-        let r = self.delimited(wire)?;
-        std::str::from_utf8(&self.buf[r.clone()]).map_err(|_| Declined)?;
-        Ok(r)
+    /// The range of the next string field, after checking the one it replaces (if any).
+    fn replace_string(&mut self, old: Range<usize>, wire: WireType) -> Step<Range<usize>> {
+        if !old.is_empty() {
+            std::str::from_utf8(&self.buf[old]).map_err(|_| Declined)?;
+        }
+        self.delimited(wire)
     }
 
     /// Skips an unknown field; groups are left to prost (its recursion limit applies to them).
     fn skip(&mut self, wire: WireType) -> Step<()> {
         match wire {
-            WireType::Varint => self.with_prost(decode_varint).map(drop),
+            WireType::Varint => self.varint().map(drop),
             WireType::SixtyFourBit => self.take(8).map(drop),
             WireType::ThirtyTwoBit => self.take(4).map(drop),
             WireType::LengthDelimited => self.delimited(wire).map(drop),
@@ -710,6 +739,23 @@ mod tests {
             got.rejected[0].reason,
             super::super::detection_frame::SkipReason::LabelNotUtf8
         );
+    }
+
+    /// A map entry whose key comes twice, the first not UTF-8: prost refuses the message, and
+    /// so does the fast path (which checks only the strings it keeps otherwise).
+    #[test]
+    fn replaced_attribute_strings_are_checked() {
+        for tag in [1u32, 2] {
+            let mut entry = Vec::new();
+            delimited(&mut entry, tag, &[0xff, b'a']);
+            delimited(&mut entry, tag, b"ok");
+            let mut det = encode_box(&[BoxField::Label("car".into())]);
+            delimited(&mut det, 8, &entry);
+            let mut bytes = Vec::new();
+            delimited(&mut bytes, 3, &det);
+            assert!(PROBMOT.decode_frame(&bytes, 0).is_err());
+            assert!(FrameReader::default().read_probmot(&bytes, 0).is_err());
+        }
     }
 
     /// A recycled box keeps its strings: a box with the same attribute key and a label that fits
