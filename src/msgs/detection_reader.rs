@@ -234,13 +234,27 @@ impl<'a> Cursor<'a> {
         }
     }
 
+    #[inline(always)]
     fn more(&self) -> bool {
         self.pos < self.end
     }
 
     /// A varint, refused where prost refuses it: past the end, longer than ten bytes, or
     /// beyond 64 bits.
+    #[inline(always)]
     fn varint(&mut self) -> Step<u64> {
+        match self.buf[..self.end].get(self.pos) {
+            Some(&b) if b < 0x80 => {
+                self.pos += 1;
+                Ok(u64::from(b))
+            }
+            _ => self.long_varint(),
+        }
+    }
+
+    /// [`Cursor::varint`] of more than one byte.
+    #[inline(never)]
+    fn long_varint(&mut self) -> Step<u64> {
         let mut v = 0u64;
         for i in 0..10 {
             let b = *self.buf[..self.end].get(self.pos).ok_or(Declined)?;
@@ -258,6 +272,7 @@ impl<'a> Cursor<'a> {
 
     /// A field key: tag and wire type, refused as prost refuses it (a key beyond 32 bits, wire
     /// type 6 or 7, tag 0).
+    #[inline(always)]
     fn key(&mut self) -> Step<(u32, WireType)> {
         let key = self.varint()?;
         let key = u32::try_from(key).map_err(|_| Declined)?;
@@ -282,6 +297,7 @@ impl<'a> Cursor<'a> {
     }
 
     /// `n` bytes, advanced past.
+    #[inline(always)]
     fn take(&mut self, n: usize) -> Step<Range<usize>> {
         if n > self.end - self.pos {
             return Err(Declined);
@@ -290,11 +306,13 @@ impl<'a> Cursor<'a> {
         Ok(self.pos - n..self.pos)
     }
 
+    #[inline(always)]
     fn double(&mut self, wire: WireType) -> Step<f64> {
         expect(wire, WireType::SixtyFourBit)?;
-        let r = self.take(8)?;
-        let bytes: [u8; 8] = self.buf[r].try_into().map_err(|_| Declined)?;
-        Ok(f64::from_le_bytes(bytes))
+        let bytes = self.buf[self.pos..self.end].first_chunk::<8>();
+        let v = f64::from_le_bytes(*bytes.ok_or(Declined)?);
+        self.pos += 8;
+        Ok(v)
     }
 
     /// The payload of a length-delimited field.
@@ -755,6 +773,35 @@ mod tests {
             delimited(&mut bytes, 3, &det);
             assert!(PROBMOT.decode_frame(&bytes, 0).is_err());
             assert!(FrameReader::default().read_probmot(&bytes, 0).is_err());
+        }
+    }
+
+    /// Varints at prost's limits: ten bytes with the last 1 is `u64::MAX`-sized, with the last
+    /// 2 (beyond 64 bits) or eleven bytes it is refused; a key beyond 32 bits is refused.
+    #[test]
+    fn varints_end_where_prost_ends_them() {
+        let stamp = |tail: &[u8]| {
+            let mut b = vec![0x08];
+            b.extend(std::iter::repeat_n(0xff, 9));
+            b.extend_from_slice(tail);
+            b
+        };
+        let key_too_wide = vec![0x80, 0x80, 0x80, 0x80, 0x10, 0x00];
+        let cases = [
+            (stamp(&[0x01]), true),
+            (stamp(&[0x02]), false),
+            (stamp(&[0x81, 0x00]), false),
+            (key_too_wide, false),
+        ];
+        for (bytes, ok) in cases {
+            let want = PROBMOT.decode_frame(&bytes, 0);
+            assert_eq!(want.is_ok(), ok, "{bytes:?}");
+            let got = FrameReader::default().read_probmot(&bytes, 0);
+            assert_eq!(
+                text_of(&got),
+                text_of(&want.map_err(|_| Declined)),
+                "{bytes:?}"
+            );
         }
     }
 
