@@ -57,7 +57,7 @@ impl SkipReason {
 }
 
 /// One valid detection box: finite geometry with positive sizes and a finite score.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct DetectionBox {
     /// Position of the box in its message (for error messages).
     pub index: u32,
@@ -124,17 +124,27 @@ pub fn stamp_or_log_time(stamp: Option<u64>, log_time: u64) -> u64 {
 /// Checks one decoded box: `Err` names the first failed check (missing field, non-finite,
 /// non-positive size, centre and size beyond their bounds, velocity, in that order).
 pub fn check_box(d: &Detection3D) -> Result<Box3, SkipReason> {
-    let (Some(c), Some(s)) = (&d.center, &d.size) else {
+    let xyz = |v: &super::Vector3| [v.x, v.y, v.z];
+    let size = d.size.as_ref().map(|s| [s.length, s.width, s.height]);
+    let velocity = d.velocity.as_ref().map(xyz);
+    check_parts(d.center.as_ref().map(xyz), size, d.yaw, d.score, velocity)
+}
+
+/// [`check_box`] on the fields of a box: centre, size `[l, w, h]`, yaw, score and velocity.
+pub fn check_parts(
+    center: Option<[f64; 3]>,
+    size: Option<[f64; 3]>,
+    yaw: f64,
+    score: f64,
+    velocity: Option<[f64; 3]>,
+) -> Result<Box3, SkipReason> {
+    let (Some(center), Some(size)) = (center, size) else {
         return Err(SkipReason::MissingField);
     };
-    let bbox = Box3 {
-        center: [c.x, c.y, c.z],
-        yaw: d.yaw,
-        size: [s.length, s.width, s.height],
-    };
+    let bbox = Box3 { center, yaw, size };
     let finite = bbox.center.iter().chain(&bbox.size).all(|v| v.is_finite())
         && bbox.yaw.is_finite()
-        && d.score.is_finite();
+        && score.is_finite();
     if !finite {
         return Err(SkipReason::NonFinite);
     }
@@ -147,8 +157,7 @@ pub fn check_box(d: &Detection3D) -> Result<Box3, SkipReason> {
     if bbox.size.iter().any(|v| *v > bounds::MAX_SIZE) {
         return Err(SkipReason::SizeBeyondBound);
     }
-    if let Some(v) = &d.velocity {
-        let v = [v.x, v.y, v.z];
+    if let Some(v) = velocity {
         if !v.iter().all(|c| c.is_finite()) {
             return Err(SkipReason::NonFiniteVelocity);
         }

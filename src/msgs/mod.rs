@@ -15,6 +15,7 @@ pub mod cdr_cursor;
 pub mod cdr_writer;
 pub mod colors;
 pub mod detection_frame;
+pub mod detection_reader;
 pub mod detection_source;
 pub mod eval_events;
 pub mod foxglove_scene;

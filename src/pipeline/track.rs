@@ -353,6 +353,7 @@ fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
         progress,
         base,
         headers: 0,
+        reader: Default::default(),
     };
     session.add_tracks_channels()?;
     let mut replan = None;

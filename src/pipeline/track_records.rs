@@ -22,6 +22,7 @@ use super::track_outputs::ExtraOutputs;
 use super::track_session::TrackSession;
 use super::tracks_format::TracksFormat;
 use crate::mcapio::sink::RecordSink;
+use crate::msgs::detection_reader::FrameReader;
 use crate::msgs::detection_source::DetectionSource;
 
 /// The error of a detection message that does not decode.
@@ -115,6 +116,8 @@ pub(super) struct RecordSession<'a, S: RecordSink> {
     pub(super) base: u64,
     /// Header records met: each after the first starts the next file of a split bag.
     pub(super) headers: u32,
+    /// Decodes the detection messages, reusing the frames already tracked.
+    pub(super) reader: FrameReader,
 }
 
 impl<S: RecordSink> RecordSession<'_, S> {
@@ -234,8 +237,8 @@ impl<S: RecordSink> RecordSession<'_, S> {
     ) -> Result<ControlFlow<Replan>> {
         let file = self.file;
         let topic = &self.session.topics[topic_idx];
-        let mut msg = source
-            .decode_frame(data, header.log_time)
+        let mut msg = (self.reader)
+            .read(&source, data, header.log_time)
             .with_context(|| undecodable(file, topic, header, &source))?;
         check_count(msg.len(), self.opts, file, topic, header)?;
         let name = || describe_message(file, topic, header);
@@ -307,6 +310,9 @@ impl<S: RecordSink> RecordSession<'_, S> {
         let mut msgs_of_frame = self.pending.remove(&stamp).expect("a pending frame");
         msgs_of_frame.sort_by_key(|p| p.ordinal);
         self.session.track_messages(&mut msgs_of_frame)?;
+        for p in msgs_of_frame {
+            self.reader.recycle(p.msg);
+        }
         self.write_ready()?;
         self.next_frame += 1;
         if self.next_frame.is_multiple_of(64) {
@@ -487,6 +493,7 @@ mod tests {
             progress: &no_progress,
             base: 0,
             headers: 0,
+            reader: FrameReader::default(),
         };
         let schema = Record::Schema {
             header: SchemaHeader {
