@@ -12,7 +12,8 @@ use crate::mcapio::sink::RecordSink;
 use crate::msgs::scene_update::{
     scene_update_descriptor, SceneEncoder, OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA,
 };
-use crate::msgs::{self, Tracks3D};
+use crate::msgs::track_encode::encode_tracks;
+use crate::msgs::Tracks3D;
 use crate::transforms::boxes::transform_tracks_into;
 
 /// Suffix of the tracks topic for the tracks in the ego frame.
@@ -137,7 +138,8 @@ impl ExtraOutputs {
         };
         if let (Some((_, id)), Some((frame, iso))) = (&self.ego, ego) {
             transform_tracks_into(tracks, &iso, &frame, &mut self.ego_msg);
-            msgs::encode_into(&self.ego_msg, &mut self.buf);
+            self.buf.clear();
+            encode_tracks(&self.ego_msg, &mut self.buf);
             let mut h = header(*id);
             h.sequence = self.ego_sequence;
             self.ego_sequence += 1;

@@ -9,7 +9,7 @@ use std::collections::BTreeMap;
 use anyhow::{bail, Result};
 
 use crate::msgs::detection_source::{DetectionSource, OUTPUT_METADATA_KEY};
-use crate::msgs::track_encode::RateVariances;
+use crate::msgs::track_encode::{encode_tracks, RateVariances};
 use crate::msgs::{self, autoware_tracks, ros2_tracks, Tracks3D};
 
 /// The tracks topic of the probmot and ROS 2 formats when `--tracks-topic` is not given.
@@ -137,7 +137,10 @@ impl TracksFormat {
     /// yaw-rate variances of `tracks.tracks[i]` (only the Autoware format writes them).
     pub fn encode_into(self, tracks: &Tracks3D, rates: &[RateVariances], buf: &mut Vec<u8>) {
         match self {
-            TracksFormat::Probmot => msgs::encode_into(tracks, buf),
+            TracksFormat::Probmot => {
+                buf.clear();
+                encode_tracks(tracks, buf);
+            }
             TracksFormat::Ros2 => ros2_tracks::encode_tracks_into(tracks, buf),
             TracksFormat::Autoware => autoware_tracks::encode_tracks_into(tracks, rates, buf),
         }
