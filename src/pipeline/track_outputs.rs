@@ -138,12 +138,11 @@ impl ExtraOutputs {
         };
         if let (Some((_, id)), Some((frame, iso))) = (&self.ego, ego) {
             transform_tracks_into(tracks, &iso, &frame, &mut self.ego_msg);
-            self.buf.clear();
-            encode_tracks(&self.ego_msg, &mut self.buf);
             let mut h = header(*id);
             h.sequence = self.ego_sequence;
             self.ego_sequence += 1;
-            w.write_to_known_channel(&h, &self.buf)?;
+            let ego_msg = &self.ego_msg;
+            w.write_encoded(&h, &mut self.buf, |buf| encode_tracks(ego_msg, buf))?;
         }
         if let Some((_, _, id)) = &self.scene {
             self.scene_encoder.encode_frame(tracks, &mut self.buf);
