@@ -54,6 +54,13 @@ pub fn encode_tracks(tracks: &Tracks3D, buf: &mut Vec<u8>) {
     }
 }
 
+/// The protobuf bytes of `tracks` in `buf` (cleared first), as [`super::encode_into`] writes
+/// them, without prost.
+pub fn encode_tracks_into(tracks: &Tracks3D, buf: &mut Vec<u8>) {
+    buf.clear();
+    encode_tracks(tracks, buf);
+}
+
 fn write_track(w: &mut ProtoWriter<'_>, t: &Track3D) {
     w.uint(1, t.id);
     w.string(2, &t.label);
