@@ -213,6 +213,35 @@ impl BackgroundOutput {
         })
     }
 
+    /// Like [`BackgroundOutput::write_to_known_channel`], but `encode` appends the payload
+    /// straight to the batch's buffer (no copy). It must only append: the buffer may hold other
+    /// payloads before it.
+    pub fn write_encoded_to_known_channel(
+        &mut self,
+        header: &MessageHeader,
+        encode: impl FnOnce(&mut Vec<u8>),
+    ) -> Result<()> {
+        if !self.channels.contains(&header.channel_id) {
+            return Err(McapError::UnknownChannel(header.sequence, header.channel_id).into());
+        }
+        let bytes = &mut self.batch.bytes;
+        let start = bytes.len();
+        encode(bytes);
+        let data = start..bytes.len();
+        let op = Op::Message {
+            header: *header,
+            data,
+        };
+        if let Mode::Inline { out, dest } = &mut self.mode {
+            // Inline, the batch is unused but as this payload's buffer (empty before it).
+            let r = apply(out, op, bytes, dest);
+            bytes.clear();
+            return r;
+        }
+        self.batch.ops.push(op);
+        self.send_if_full()
+    }
+
     /// Like `mcap::Writer::attach`.
     pub fn attach(&mut self, a: &mcap::Attachment) -> Result<()> {
         self.push(&a.data, |data| Op::Attachment {
@@ -300,6 +329,11 @@ impl BackgroundOutput {
         }
         let range = self.batch.push_bytes(payload);
         self.batch.ops.push(op(range));
+        self.send_if_full()
+    }
+
+    /// Hands the current batch over when it is full.
+    fn send_if_full(&mut self) -> Result<()> {
         if self.batch.bytes.len() >= BATCH_BYTES || self.batch.ops.len() >= BATCH_OPS {
             self.send()?;
         }
@@ -510,7 +544,8 @@ mod tests {
     }
 
     /// Every record kind goes through in order, over many batches (payloads of 3 x BATCH_BYTES
-    /// in all, so batches are reused), and reads back unchanged; also written inline.
+    /// in all, so batches are reused), and reads back unchanged, payloads copied or encoded in
+    /// place alike; also written inline.
     #[test]
     fn writes_every_record_in_order() {
         for inline in [false, true] {
@@ -536,10 +571,15 @@ mod tests {
         let n = 3 * BATCH_BYTES / 1000;
         let payload =
             |i: u64| -> Vec<u8> { (0..1000).map(|k| ((i * 31 + k) % 251) as u8).collect() };
+        // Channel /b's payloads are encoded in place: appended to the batch, not copied.
         for i in 0..n as u64 {
-            let ch = if i.is_multiple_of(2) { 7 } else { 9 };
-            out.write_to_known_channel(&header(ch, i), &payload(i))
-                .unwrap();
+            if i.is_multiple_of(2) {
+                out.write_to_known_channel(&header(7, i), &payload(i))
+                    .unwrap();
+            } else {
+                out.write_encoded_to_known_channel(&header(9, i), |b| b.extend(payload(i)))
+                    .unwrap();
+            }
         }
         out.attach(&mcap::Attachment {
             log_time: 5,
@@ -609,6 +649,8 @@ mod tests {
             .unwrap_err();
         assert!(e.to_string().contains("schema"), "{e}");
         let e = out.write_to_known_channel(&header(2, 0), b"x").unwrap_err();
+        assert!(e.to_string().contains("channel"), "{e}");
+        let e = (out.write_encoded_to_known_channel(&header(2, 0), |b| b.push(1))).unwrap_err();
         assert!(e.to_string().contains("channel"), "{e}");
         assert!(out.add_schema_with_id(0, "s", "raw", b"").is_err());
     }

@@ -29,6 +29,20 @@ pub trait RecordSink {
     ) -> Result<()>;
     /// Writes a message on a channel added before.
     fn write_to_known_channel(&mut self, header: &MessageHeader, data: &[u8]) -> Result<()>;
+    /// Writes a message on a channel added before, its bytes appended by `encode` to the buffer
+    /// it is given. `encode` must only append (the buffer may hold other bytes before it): a
+    /// batching sink has it write straight into its batch; by default the bytes are written
+    /// into `scratch` (cleared first) and then as [`RecordSink::write_to_known_channel`].
+    fn write_encoded(
+        &mut self,
+        header: &MessageHeader,
+        scratch: &mut Vec<u8>,
+        encode: impl FnOnce(&mut Vec<u8>),
+    ) -> Result<()> {
+        scratch.clear();
+        encode(scratch);
+        self.write_to_known_channel(header, scratch)
+    }
     /// Writes an attachment.
     fn attach(&mut self, a: &mcap::Attachment) -> Result<()>;
     /// Writes a metadata record.
@@ -68,6 +82,15 @@ impl RecordSink for BackgroundOutput {
 
     fn write_to_known_channel(&mut self, header: &MessageHeader, data: &[u8]) -> Result<()> {
         BackgroundOutput::write_to_known_channel(self, header, data)
+    }
+
+    fn write_encoded(
+        &mut self,
+        header: &MessageHeader,
+        _: &mut Vec<u8>,
+        encode: impl FnOnce(&mut Vec<u8>),
+    ) -> Result<()> {
+        self.write_encoded_to_known_channel(header, encode)
     }
 
     fn attach(&mut self, a: &mcap::Attachment) -> Result<()> {

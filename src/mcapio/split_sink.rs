@@ -131,6 +131,16 @@ impl RecordSink for SplitSink {
         self.out().write_to_known_channel(header, data)
     }
 
+    fn write_encoded(
+        &mut self,
+        header: &MessageHeader,
+        _: &mut Vec<u8>,
+        encode: impl FnOnce(&mut Vec<u8>),
+    ) -> Result<()> {
+        self.declare(header.channel_id)?;
+        self.out().write_encoded_to_known_channel(header, encode)
+    }
+
     fn attach(&mut self, a: &mcap::Attachment) -> Result<()> {
         self.out().attach(a)
     }

@@ -16,6 +16,7 @@ use crate::mcapio::writer::{
 };
 use crate::mcapio::LabelledBox;
 use crate::msgs::size3;
+use crate::msgs::track_encode::encode_tracks_into;
 use crate::msgs::{self, v3, Detection3D, Detections3D, ImageBox, Track3D, Tracks3D};
 use crate::tracker::Box3;
 
@@ -312,14 +313,14 @@ pub fn import_kitti(
             let rows = truth.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
             let gt = tracks_msg(stamp, rows.iter().map(truth_track).collect());
             summary.truth_rows += rows.len() as u64;
-            msgs::encode_into(&gt, &mut buf);
+            encode_tracks_into(&gt, &mut buf);
             w.write_to_known_channel(&header(c_gt), &buf)?;
         }
         if let Some(c_trk) = c_trk {
             let rows = results.get(&frame).map(Vec::as_slice).unwrap_or(&[]);
             let msg = tracks_msg(stamp, rows.iter().map(result_track).collect());
             summary.track_rows += rows.len() as u64;
-            msgs::encode_into(&msg, &mut buf);
+            encode_tracks_into(&msg, &mut buf);
             w.write_to_known_channel(&header(c_trk), &buf)?;
         }
     }

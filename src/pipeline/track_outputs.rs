@@ -12,7 +12,8 @@ use crate::mcapio::sink::RecordSink;
 use crate::msgs::scene_update::{
     scene_update_descriptor, SceneEncoder, OUTPUT_METADATA_KEY, SCENE_UPDATE_SCHEMA,
 };
-use crate::msgs::{self, Tracks3D};
+use crate::msgs::track_encode::encode_tracks;
+use crate::msgs::Tracks3D;
 use crate::transforms::boxes::transform_tracks_into;
 
 /// Suffix of the tracks topic for the tracks in the ego frame.
@@ -137,11 +138,11 @@ impl ExtraOutputs {
         };
         if let (Some((_, id)), Some((frame, iso))) = (&self.ego, ego) {
             transform_tracks_into(tracks, &iso, &frame, &mut self.ego_msg);
-            msgs::encode_into(&self.ego_msg, &mut self.buf);
             let mut h = header(*id);
             h.sequence = self.ego_sequence;
             self.ego_sequence += 1;
-            w.write_to_known_channel(&h, &self.buf)?;
+            let ego_msg = &self.ego_msg;
+            w.write_encoded(&h, &mut self.buf, |buf| encode_tracks(ego_msg, buf))?;
         }
         if let Some((_, _, id)) = &self.scene {
             self.scene_encoder.encode_frame(tracks, &mut self.buf);

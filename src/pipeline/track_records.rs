@@ -339,17 +339,19 @@ impl<S: RecordSink> RecordSession<'_, S> {
         let (_, channel_id) = self.ids.expect("ids exist with detections");
         let log_time = self.order.tracks_time(&mut self.out, latest)?;
         let state = &mut self.session.frame_state;
-        self.format
-            .encode_into(&state.out, &state.rates, &mut state.buf);
         let sequence = self.summary.tracks_messages as u32;
-        self.out.write_to_known_channel(
-            &MessageHeader {
-                channel_id,
-                sequence,
-                log_time,
-                publish_time: log_time,
-            },
-            &state.buf,
+        let header = MessageHeader {
+            channel_id,
+            sequence,
+            log_time,
+            publish_time: log_time,
+        };
+        (self.format).write(
+            &mut self.out,
+            &header,
+            &state.out,
+            &state.rates,
+            &mut state.buf,
         )?;
         let ego = self.ego.take_ego(state.out.stamp);
         self.extra

@@ -7,9 +7,12 @@
 use std::collections::BTreeMap;
 
 use anyhow::{bail, Result};
+use mcap::records::MessageHeader;
+
+use crate::mcapio::sink::RecordSink;
 
 use crate::msgs::detection_source::{DetectionSource, OUTPUT_METADATA_KEY};
-use crate::msgs::track_encode::RateVariances;
+use crate::msgs::track_encode::{encode_tracks, RateVariances};
 use crate::msgs::{self, autoware_tracks, ros2_tracks, Tracks3D};
 
 /// The tracks topic of the probmot and ROS 2 formats when `--tracks-topic` is not given.
@@ -133,14 +136,26 @@ impl TracksFormat {
         }
     }
 
-    /// Encodes one frame's tracks into `buf` (cleared first); `rates[i]`: the velocity and
-    /// yaw-rate variances of `tracks.tracks[i]` (only the Autoware format writes them).
-    pub fn encode_into(self, tracks: &Tracks3D, rates: &[RateVariances], buf: &mut Vec<u8>) {
+    /// Writes one frame's tracks to `out` with `header`; `rates[i]`: the velocity and yaw-rate
+    /// variances of `tracks.tracks[i]` (only the Autoware format writes them). probmot's
+    /// tracks are encoded straight into the sink's buffer; the CDR formats, whose alignment
+    /// counts from the message's first byte, go through `scratch`.
+    pub fn write(
+        self,
+        out: &mut impl RecordSink,
+        header: &MessageHeader,
+        tracks: &Tracks3D,
+        rates: &[RateVariances],
+        scratch: &mut Vec<u8>,
+    ) -> Result<()> {
         match self {
-            TracksFormat::Probmot => msgs::encode_into(tracks, buf),
-            TracksFormat::Ros2 => ros2_tracks::encode_tracks_into(tracks, buf),
-            TracksFormat::Autoware => autoware_tracks::encode_tracks_into(tracks, rates, buf),
+            TracksFormat::Probmot => {
+                return out.write_encoded(header, scratch, |buf| encode_tracks(tracks, buf))
+            }
+            TracksFormat::Ros2 => ros2_tracks::encode_tracks_into(tracks, scratch),
+            TracksFormat::Autoware => autoware_tracks::encode_tracks_into(tracks, rates, scratch),
         }
+        out.write_to_known_channel(header, scratch)
     }
 
     /// Refuses the optional outputs that have no ROS 2 form (`--tracks-frame ego` and

@@ -13,6 +13,7 @@ use super::scenario::{objects, SimOptions};
 use super::sensor::{detect, SimDetection};
 use super::SimObject;
 use crate::mcapio::writer::{AtomicOutput, OutputOptions};
+use crate::msgs::track_encode::encode_tracks_into;
 use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 use crate::transforms::sources::FOXGLOVE_FRAME_TRANSFORM;
 
@@ -103,10 +104,10 @@ pub fn write_simulation_progress(
 
             let gt = truth_msg(&objs, f, stamp);
             summary.truth_boxes += gt.tracks.len() as u64;
-            msgs::encode_into(&gt, &mut buf);
+            encode_tracks_into(&gt, &mut buf);
             w.write_to_known_channel(&header(ch_gt, f, stamp), &buf)?;
             if let Some((_, ch_gt_ego)) = ego_channels {
-                msgs::encode_into(&truth_to_ego(gt, &pose), &mut buf);
+                encode_tracks_into(&truth_to_ego(gt, &pose), &mut buf);
                 w.write_to_known_channel(&header(ch_gt_ego, f, stamp), &buf)?;
             }
             progress(1);

@@ -8,6 +8,7 @@ use mcap::Writer;
 use serde::Serialize;
 
 use crate::mcapio::writer::{AtomicOutput, OutputOptions, OutputSink};
+use crate::msgs::track_encode::encode_tracks_into;
 use crate::msgs::{self, v3, Detection3D, Detections3D, Track3D, Tracks3D};
 
 use super::plan::ScenePlan;
@@ -109,21 +110,21 @@ pub(crate) fn write_scene(plan: &ScenePlan, inputs: &SceneInputs) -> Result<Scen
             let boxes = tracking.results.get(tok).map(Vec::as_slice).unwrap_or(&[]);
             let tracks = boxes.iter().map(|b| track_of(b, &mut track_ids)).collect();
             s.tracks += boxes.len() as u64;
-            msgs::encode_into(&tracks_msg(stamp, tracks), &mut buf);
+            encode_tracks_into(&tracks_msg(stamp, tracks), &mut buf);
             w.write_to_known_channel(&header(c), &buf)?;
         }
         if let (Some(c), Some(truth)) = (ch.racks, inputs.truth) {
             let boxes = truth.racks.get(tok).map(Vec::as_slice).unwrap_or(&[]);
             let tracks = boxes.iter().map(|r| rack_track(r, tok)).collect();
             s.bike_racks += boxes.len() as u64;
-            msgs::encode_into(&tracks_msg(stamp, tracks), &mut buf);
+            encode_tracks_into(&tracks_msg(stamp, tracks), &mut buf);
             w.write_to_known_channel(&header(c), &buf)?;
         }
         if let (Some(c), Some(truth)) = (ch.gt, inputs.truth) {
             let boxes = truth.boxes.get(tok).map(Vec::as_slice).unwrap_or(&[]);
             let tracks = boxes.iter().map(|b| truth_track(b, tok)).collect();
             s.truth_boxes += boxes.len() as u64;
-            msgs::encode_into(&tracks_msg(stamp, tracks), &mut buf);
+            encode_tracks_into(&tracks_msg(stamp, tracks), &mut buf);
             w.write_to_known_channel(&header(c), &buf)?;
         }
         if let (Some(c), Some(ego)) = (ch.ego, inputs.ego) {
