@@ -209,8 +209,15 @@ pub struct SceneEncoder {
 }
 
 impl SceneEncoder {
-    /// Encodes the update of the next frame of tracks into `buf` (protobuf).
+    /// Encodes the update of the next frame of tracks into `buf` (protobuf), cleared first.
     pub fn encode_frame(&mut self, tracks: &Tracks3D, buf: &mut Vec<u8>) {
+        buf.clear();
+        self.append_frame(tracks, buf);
+    }
+
+    /// Appends the update of the next frame of tracks to `buf`, leaving what it holds (for a
+    /// sink that has it written straight into its batch, `RecordSink::write_encoded`).
+    pub fn append_frame(&mut self, tracks: &Tracks3D, buf: &mut Vec<u8>) {
         self.now.clear();
         self.now.extend(tracks.tracks.iter().map(|t| t.id));
         self.now.sort_unstable();
@@ -226,7 +233,6 @@ impl SceneEncoder {
             }
         }
         std::mem::swap(&mut self.shown, &mut self.now);
-        buf.clear();
         write_update(&mut ProtoWriter::new(buf), tracks, &self.gone);
     }
 }

@@ -145,8 +145,10 @@ impl ExtraOutputs {
             w.write_encoded(&h, &mut self.buf, |buf| encode_tracks(ego_msg, buf))?;
         }
         if let Some((_, _, id)) = &self.scene {
-            self.scene_encoder.encode_frame(tracks, &mut self.buf);
-            w.write_to_known_channel(&header(*id), &self.buf)?;
+            let scene = &mut self.scene_encoder;
+            w.write_encoded(&header(*id), &mut self.buf, |buf| {
+                scene.append_frame(tracks, buf)
+            })?;
         }
         Ok(())
     }
