@@ -90,6 +90,16 @@ impl<'a> ProtoWriter<'a> {
         }
     }
 
+    /// An embedded message whose fields 1, 2, ... are `values`: the shape of every message of
+    /// doubles in the schemas (a vector, a size, a quaternion, a colour, an image box).
+    pub fn doubles(&mut self, field: u32, values: &[f64]) {
+        self.message(field, |w| {
+            for (k, &v) in (1..).zip(values) {
+                w.double(k, v);
+            }
+        });
+    }
+
     /// An embedded message (always written, as a present optional or a repeated entry): its
     /// fields are written by `fill`, then its length is put in front of them.
     pub fn message(&mut self, field: u32, fill: impl FnOnce(&mut ProtoWriter<'_>)) {

@@ -309,34 +309,18 @@ fn write_metadata(w: &mut ProtoWriter<'_>, key: &[u8], value: impl FnOnce(&mut P
     });
 }
 
-fn write_vector3(w: &mut ProtoWriter<'_>, field: u32, v: [f64; 3]) {
-    w.message(field, |w| {
-        for (k, x) in (1..).zip(v) {
-            w.double(k, x);
-        }
-    });
-}
-
 /// A `Pose` at `p`, rotated by `yaw` about +z (the orientation first: see [`write_primitives`]).
 fn write_pose(w: &mut ProtoWriter<'_>, field: u32, p: [f64; 3], yaw: f64) {
     let q = yaw_quaternion(yaw);
     w.message(field, |w| {
-        w.message(2, |w| {
-            for (k, x) in (1..).zip([q.x, q.y, q.z, q.w]) {
-                w.double(k, x);
-            }
-        });
-        write_vector3(w, 1, p);
+        w.doubles(2, &[q.x, q.y, q.z, q.w]);
+        w.doubles(1, &p);
     });
 }
 
 /// The track's colour `c` with `alpha`.
 fn write_color(w: &mut ProtoWriter<'_>, field: u32, c: &Color, alpha: f64) {
-    w.message(field, |w| {
-        for (k, x) in (1..).zip([c.r, c.g, c.b, alpha]) {
-            w.double(k, x);
-        }
-    });
+    w.doubles(field, &[c.r, c.g, c.b, alpha]);
 }
 
 /// The text, cube and arrow of a track's entity, as [`scene_update`] makes them.
@@ -367,7 +351,7 @@ fn write_primitives(w: &mut ProtoWriter<'_>, t: &Track3D, id: &[u8]) {
     w.message(ENTITY_CUBES, |w| {
         write_color(w, 3, &color, CUBE_ALPHA);
         write_pose(w, 1, center, t.yaw);
-        write_vector3(w, 2, [s.length, s.width, s.height]);
+        w.doubles(2, &[s.length, s.width, s.height]);
     });
     if speed > MIN_ARROW_SPEED {
         let head = arrow_head(speed);

@@ -71,11 +71,7 @@ fn write_track(w: &mut ProtoWriter<'_>, t: &Track3D) {
         height,
     }) = t.size
     {
-        w.message(4, |w| {
-            w.double(1, length);
-            w.double(2, width);
-            w.double(3, height);
-        });
+        w.doubles(4, &[length, width, height]);
     }
     w.double(5, t.yaw);
     write_vector3(w, 6, t.velocity.as_ref());
@@ -87,12 +83,7 @@ fn write_track(w: &mut ProtoWriter<'_>, t: &Track3D) {
     w.uint(12, t.hits.into());
     w.uint(13, t.frames_since_update.into());
     if let Some(b) = &t.image_box {
-        w.message(14, |w| {
-            w.double(1, b.x1);
-            w.double(2, b.y1);
-            w.double(3, b.x2);
-            w.double(4, b.y2);
-        });
+        w.doubles(14, &[b.x1, b.y1, b.x2, b.y2]);
     }
     for (k, v) in &t.attributes {
         w.message(15, |w| {
@@ -104,11 +95,7 @@ fn write_track(w: &mut ProtoWriter<'_>, t: &Track3D) {
 
 fn write_vector3(w: &mut ProtoWriter<'_>, field: u32, v: Option<&Vector3>) {
     if let Some(v) = v {
-        w.message(field, |w| {
-            w.double(1, v.x);
-            w.double(2, v.y);
-            w.double(3, v.z);
-        });
+        w.doubles(field, &[v.x, v.y, v.z]);
     }
 }
 
