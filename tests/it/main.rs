@@ -42,4 +42,5 @@ mod track_e2e;
 mod track_log_order;
 mod tracker_core;
 mod tune;
+mod tune_cli;
 mod viewer_install;
