@@ -214,3 +214,26 @@ for o in track noscene; do
   echo "  ratio to copy (cpu):  $(div "$(col 2 "$o-zstd")" "$(col 2 copy-zstd)")x"
   echo "  output / input size:  $(div "$(size "$work/dense.$o.zstd.mcap")" "$(size "$work/dense.mcap")")x ($(size "$work/dense.$o.zstd.mcap") bytes)"
 done
+
+# --- issue #39: the compression floor. zstd alone, at the output's level and chunk size, on the
+# uncompressed records of the copy and of the default output: the default's ratio to the copy
+# cannot go below this one while both write these bytes at this level (the zstd command line
+# tool, not installed by the project; the same library as the crate, version may differ).
+if [ "${BENCH_ISSUE39:-0}" = 1 ]; then
+  if command -v zstd >/dev/null; then
+    for o in copy track; do
+      # shellcheck disable=SC2086 # an empty flag is no argument
+      "$bin" track "$work/dense.mcap" -o "$work/dense.$o.none.mcap" ${flags[$o]} --quiet --compression none
+    done
+    zstd_mbs() { # zstd_mbs FILE: compression speed (MB/s) of level 2 in 1 MiB blocks, best of 5
+      zstd -2 -B1M -i5 -b "$1" 2>&1 | tr '\r' '\n' | grep 'MB/s' | tail -1 | sed -E 's/.*\), *([0-9.]+) MB\/s.*/\1/'
+    }
+    c_mbs=$(zstd_mbs "$work/dense.copy.none.mcap"); d_mbs=$(zstd_mbs "$work/dense.track.none.mcap")
+    c_s=$(div "$(size "$work/dense.copy.none.mcap")" "${c_mbs}e6"); d_s=$(div "$(size "$work/dense.track.none.mcap")" "${d_mbs}e6")
+    echo "compression floor (zstd -2 -B1M -b on the uncompressed outputs, $(zstd --version | grep -o 'v[0-9.]*')):"
+    echo "  copy $(size "$work/dense.copy.none.mcap") bytes in ${c_s} s, default $(size "$work/dense.track.none.mcap") bytes in ${d_s} s: $(div "$d_s" "$c_s")x"
+    rm -f "$work"/dense.*.none.mcap
+  else
+    echo "compression floor: SKIPPED (no zstd command line tool)"
+  fi
+fi
