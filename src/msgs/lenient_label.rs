@@ -91,21 +91,7 @@ pub fn decode_with_bad_labels(bytes: &[u8]) -> Option<(Detections3D, Vec<u32>)> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::msgs::{v3, Size3};
-
-    fn det(label: &str, x: f64) -> Detection3D {
-        Detection3D {
-            center: Some(v3([x, 0.0, 0.0])),
-            size: Some(Size3 {
-                length: 4.0,
-                width: 2.0,
-                height: 1.5,
-            }),
-            label: label.into(),
-            score: 0.9,
-            ..Default::default()
-        }
-    }
+    use crate::msgs::test_box;
 
     /// The label bytes of the middle box are overwritten with invalid UTF-8: prost refuses the
     /// message, the lenient read keeps the other boxes exactly and names the bad one.
@@ -114,7 +100,11 @@ mod tests {
         let msg = Detections3D {
             stamp: Some(5),
             frame_id: "map".into(),
-            detections: vec![det("car", 1.0), det("XXXX", 2.0), det("bus", 3.0)],
+            detections: vec![
+                test_box("car", 1.0),
+                test_box("XXXX", 2.0),
+                test_box("bus", 3.0),
+            ],
         };
         let mut bytes = msg.encode_to_vec();
         let at = bytes.windows(4).position(|w| w == b"XXXX").unwrap();

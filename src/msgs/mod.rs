@@ -192,6 +192,23 @@ pub fn v3(v: [f64; 3]) -> Vector3 {
     }
 }
 
+/// A 4 x 2 x 1.5 m box at (`x`, 0, 0) with score 0.9: the detection the unit tests of the
+/// readers and of the tracking session are made of.
+#[cfg(test)]
+pub(crate) fn test_box(label: &str, x: f64) -> Detection3D {
+    Detection3D {
+        center: Some(v3([x, 0.0, 0.0])),
+        size: Some(Size3 {
+            length: 4.0,
+            width: 2.0,
+            height: 1.5,
+        }),
+        label: label.into(),
+        score: 0.9,
+        ..Default::default()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -402,7 +402,7 @@ mod tests {
 
     use crate::mcapio::sink::{MemorySink, SinkRecord};
     use crate::msgs::Tracks3D;
-    use crate::msgs::{self, v3, Detection3D, Detections3D, Encoding, Size3};
+    use crate::msgs::{self, test_box, v3, Detection3D, Detections3D, Encoding};
     use crate::pipeline::ego::EgoOptions;
     use crate::pipeline::progress::no_progress;
     use crate::pipeline::track_options::SceneOutput;
@@ -417,16 +417,8 @@ mod tests {
         let mut detections = Vec::new();
         if let Some((x, frame)) = car {
             detections.push(Detection3D {
-                center: Some(v3([x, 0.0, 0.0])),
-                size: Some(Size3 {
-                    length: 4.0,
-                    width: 2.0,
-                    height: 1.5,
-                }),
-                label: "car".into(),
-                score: 0.9,
                 attributes: [("frame".to_string(), frame.to_string())].into(),
-                ..Default::default()
+                ..test_box("car", x)
             });
         }
         // No size: rejected when decoded, counted when its frame is tracked.

@@ -2,7 +2,7 @@
 //! encodings), damaged bytes, and the limits where prost refuses a message.
 
 use super::*;
-use crate::msgs::{v3, Detection3D, Detections3D, Size3};
+use crate::msgs::{test_box, v3, Detection3D, Detections3D, Size3};
 use proptest::prelude::*;
 use prost::encoding::{encode_key, encode_varint};
 use prost::Message;
@@ -302,16 +302,8 @@ proptest! {
 
 fn car(x: f64) -> Detection3D {
     Detection3D {
-        center: Some(v3([x, 0.0, 0.0])),
-        size: Some(Size3 {
-            length: 4.0,
-            width: 2.0,
-            height: 1.5,
-        }),
-        label: "car".into(),
-        score: 0.9,
         attributes: [("sim_truth_id".to_string(), format!("{x}"))].into(),
-        ..Default::default()
+        ..test_box("car", x)
     }
 }
 
