@@ -224,6 +224,7 @@ impl BackgroundOutput {
         if !self.channels.contains(&header.channel_id) {
             return Err(McapError::UnknownChannel(header.sequence, header.channel_id).into());
         }
+        self.refuse_if_stopped()?;
         let bytes = &mut self.batch.bytes;
         let start = bytes.len();
         encode(bytes);
@@ -324,12 +325,22 @@ impl BackgroundOutput {
     /// Records the call `op` with its `payload` (given to `op` as a range of the bytes it is
     /// written from); inline, writes it at once from `payload` itself.
     fn push(&mut self, payload: &[u8], op: impl FnOnce(Range<usize>) -> Op) -> Result<()> {
+        self.refuse_if_stopped()?;
         if let Mode::Inline { out, dest } = &mut self.mode {
             return apply(out, op(0..payload.len()), payload, dest);
         }
         let range = self.batch.push_bytes(payload);
         self.batch.ops.push(op(range));
         self.send_if_full()
+    }
+
+    /// Refuses a call once the output has stopped (its writer failed): the batch could never
+    /// be written.
+    fn refuse_if_stopped(&self) -> Result<()> {
+        match self.mode {
+            Mode::Done => Err(anyhow!("the output has stopped after an earlier error")),
+            _ => Ok(()),
+        }
     }
 
     /// Hands the current batch over when it is full.
@@ -347,7 +358,7 @@ impl BackgroundOutput {
             tx, free, batches, ..
         } = &mut self.mode
         else {
-            unreachable!("only the threaded mode batches")
+            return Err(anyhow!("the output has stopped after an earlier error"));
         };
         let next = match free.try_recv() {
             Ok(b) => Some(b),
@@ -668,6 +679,35 @@ mod tests {
             .unwrap();
         let e = format!("{:#}", out.commit().unwrap_err());
         assert!(e.contains("channel 1 (/y)") && e.contains("o.mcap"), "{e}");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+
+    /// Writes after the writer thread failed are refused, every one (the copying and the
+    /// encoding calls alike), instead of filling batches that can no longer be sent.
+    #[test]
+    fn writes_after_a_writer_error_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let dest = dir.path().join("o.mcap");
+        let mut out = BackgroundOutput::create(&dest, &OutputOptions::default()).unwrap();
+        out.add_channel_with_id(1, 0, "/x", "raw", &BTreeMap::new())
+            .unwrap();
+        out.add_channel_with_id(1, 0, "/y", "raw", &BTreeMap::new())
+            .unwrap();
+        let mut first_error = None;
+        for i in 0..4000 {
+            let r = if i % 2 == 0 {
+                out.write_to_known_channel(&header(1, i), &[0u8; 1000])
+            } else {
+                out.write_encoded_to_known_channel(&header(1, i), |b| b.extend([0u8; 1000]))
+            };
+            match (r, first_error) {
+                (Err(_), None) => first_error = Some(i),
+                (Ok(()), Some(at)) => panic!("write {i} accepted after the error at {at}"),
+                _ => {}
+            }
+        }
+        assert!(first_error.is_some(), "the writer's error never came back");
+        drop(out);
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 
