@@ -85,7 +85,8 @@ impl<'a> ProtoWriter<'a> {
         self.message(field, |w| {
             w.buf.write_fmt(args).expect("a Vec grows as needed");
         });
-        if self.buf.len() == start + 2 {
+        let key_len = varint_len(u64::from(field << 3 | LEN));
+        if self.buf.len() == start + key_len + 1 {
             self.buf.truncate(start); // empty: key and zero length only
         }
     }
@@ -179,6 +180,9 @@ mod tests {
         b: bool,
         #[prost(string, tag = "4")]
         s: String,
+        /// A field whose key takes two bytes.
+        #[prost(string, tag = "20")]
+        s20: String,
         #[prost(message, repeated, tag = "200")]
         inner: Vec<Probe>,
     }
@@ -188,6 +192,7 @@ mod tests {
         w.uint(2, p.u);
         w.bool(3, p.b);
         w.string_fmt(4, format_args!("{}", p.s));
+        w.string_fmt(20, format_args!("{}", p.s20));
         for i in &p.inner {
             w.message(200, |w| write(i, w));
         }
@@ -196,12 +201,14 @@ mod tests {
     fn probe() -> impl proptest::strategy::Strategy<Value = Probe> {
         use proptest::prelude::*;
         let d = prop_oneof![Just(0.0), Just(-0.0), Just(f64::NAN), any::<f64>()];
+        let text = ".{0,3}|.{100,200}";
         let leaf =
-            (d, any::<u64>(), any::<bool>(), ".{0,3}|.{100,200}").prop_map(|(d, u, b, s)| Probe {
+            (d, any::<u64>(), any::<bool>(), text, text).prop_map(|(d, u, b, s, s20)| Probe {
                 d,
                 u,
                 b,
                 s,
+                s20,
                 inner: Vec::new(),
             });
         leaf.prop_recursive(3, 40, 4, |inner| {
