@@ -666,17 +666,24 @@ mod tests {
         assert!(out.add_schema_with_id(0, "s", "raw", b"").is_err());
     }
 
-    /// An error of the writer thread (here a channel id reused for another topic) comes back
-    /// from `commit`, and no output (nor temporary file) is left.
-    #[test]
-    fn writer_errors_reach_the_caller_and_leave_no_file() {
-        let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("o.mcap");
+    /// An output in `dir` whose writer thread fails on its first batch: channel 1 is declared
+    /// twice, for two topics (the call side cannot tell; the MCAP writer refuses it).
+    fn failing_output(dir: &Path) -> BackgroundOutput {
+        let dest = dir.join("o.mcap");
         let mut out = BackgroundOutput::create(&dest, &OutputOptions::default()).unwrap();
         out.add_channel_with_id(1, 0, "/x", "raw", &BTreeMap::new())
             .unwrap();
         out.add_channel_with_id(1, 0, "/y", "raw", &BTreeMap::new())
             .unwrap();
+        out
+    }
+
+    /// An error of the writer thread (here a channel id reused for another topic) comes back
+    /// from `commit`, and no output (nor temporary file) is left.
+    #[test]
+    fn writer_errors_reach_the_caller_and_leave_no_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = failing_output(dir.path());
         let e = format!("{:#}", out.commit().unwrap_err());
         assert!(e.contains("channel 1 (/y)") && e.contains("o.mcap"), "{e}");
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
@@ -687,12 +694,7 @@ mod tests {
     #[test]
     fn writes_after_a_writer_error_are_refused() {
         let dir = tempfile::tempdir().unwrap();
-        let dest = dir.path().join("o.mcap");
-        let mut out = BackgroundOutput::create(&dest, &OutputOptions::default()).unwrap();
-        out.add_channel_with_id(1, 0, "/x", "raw", &BTreeMap::new())
-            .unwrap();
-        out.add_channel_with_id(1, 0, "/y", "raw", &BTreeMap::new())
-            .unwrap();
+        let mut out = failing_output(dir.path());
         let mut first_error = None;
         for i in 0..4000 {
             let r = if i % 2 == 0 {
