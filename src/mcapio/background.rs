@@ -338,7 +338,7 @@ impl BackgroundOutput {
     /// be written.
     fn refuse_if_stopped(&self) -> Result<()> {
         match self.mode {
-            Mode::Done => Err(anyhow!("the output has stopped after an earlier error")),
+            Mode::Done => Err(stopped()),
             _ => Ok(()),
         }
     }
@@ -358,7 +358,7 @@ impl BackgroundOutput {
             tx, free, batches, ..
         } = &mut self.mode
         else {
-            return Err(anyhow!("the output has stopped after an earlier error"));
+            return Err(stopped());
         };
         let next = match free.try_recv() {
             Ok(b) => Some(b),
@@ -390,6 +390,11 @@ impl BackgroundOutput {
             _ => anyhow!("the output writer thread has already stopped"),
         }
     }
+}
+
+/// The error of a call made after the output stopped (its writer failed, or it was given up).
+fn stopped() -> anyhow::Error {
+    anyhow!("the output has stopped after an earlier error")
 }
 
 /// Waits for the writer thread and returns its result.
