@@ -31,6 +31,11 @@ const BATCH_OPS: usize = 4096;
 /// Batches in circulation (filled by the caller, queued, or being written).
 pub const BATCHES: usize = 4;
 
+/// Capacity a batch's buffer keeps once written: a batch that held one huge payload (an
+/// attachment, a point cloud) gives that memory back instead of holding it for the rest of the
+/// run, while ordinary batches (up to [`BATCH_BYTES`] and one payload more) keep theirs.
+const KEPT_BATCH_BYTES: usize = 4 * BATCH_BYTES;
+
 /// One recorded call; payloads are ranges into the batch's byte buffer.
 enum Op {
     Schema {
@@ -69,6 +74,13 @@ struct Batch {
 }
 
 impl Batch {
+    /// Empties a written batch for reuse, keeping at most [`KEPT_BATCH_BYTES`] of its buffer.
+    fn empty(&mut self) {
+        self.ops.clear();
+        self.bytes.clear();
+        self.bytes.shrink_to(KEPT_BATCH_BYTES);
+    }
+
     fn push_bytes(&mut self, data: &[u8]) -> Range<usize> {
         let start = self.bytes.len();
         self.bytes.extend_from_slice(data);
@@ -236,7 +248,7 @@ impl BackgroundOutput {
         if let Mode::Inline { out, dest } = &mut self.mode {
             // Inline, the batch is unused but as this payload's buffer (empty before it).
             let r = apply(out, op, bytes, dest);
-            bytes.clear();
+            self.batch.empty();
             return r;
         }
         self.batch.ops.push(op);
@@ -441,7 +453,7 @@ fn write_batches(
             }
             apply(&mut out, op, &batch.bytes, &dest)?;
         }
-        batch.bytes.clear();
+        batch.empty();
         // The caller may have stopped taking batches back; that is fine.
         let _ = free.try_send(batch);
     }
@@ -518,6 +530,26 @@ mod tests {
             log_time: 1_000 + i,
             publish_time: 2_000 + i,
         }
+    }
+
+    /// A written batch that held a huge payload gives its memory back; an ordinary one keeps
+    /// its buffer (no reallocation in steady state).
+    #[test]
+    fn an_emptied_batch_keeps_only_an_ordinary_buffer() {
+        let mut huge = Batch::default();
+        huge.push_bytes(&vec![7; 64 << 20]);
+        huge.empty();
+        assert!(huge.bytes.is_empty());
+        assert!(
+            huge.bytes.capacity() <= KEPT_BATCH_BYTES,
+            "{}",
+            huge.bytes.capacity()
+        );
+        let mut ordinary = Batch::default();
+        ordinary.push_bytes(&vec![7; BATCH_BYTES + 1000]);
+        let capacity = ordinary.bytes.capacity();
+        ordinary.empty();
+        assert_eq!(ordinary.bytes.capacity(), capacity);
     }
 
     /// `next_file` commits the first file and goes on in the second, which declares its own
