@@ -202,8 +202,13 @@ mod tests {
         use proptest::prelude::*;
         let d = prop_oneof![Just(0.0), Just(-0.0), Just(f64::NAN), any::<f64>()];
         let text = ".{0,3}|.{100,200}";
+        // Around 16 KiB too: a message that holds one takes a three-byte length (2^14 and up).
+        let long_text = prop_oneof![
+            text.boxed(),
+            (16370..16400usize).prop_map(|n| "x".repeat(n)).boxed()
+        ];
         let leaf =
-            (d, any::<u64>(), any::<bool>(), text, text).prop_map(|(d, u, b, s, s20)| Probe {
+            (d, any::<u64>(), any::<bool>(), text, long_text).prop_map(|(d, u, b, s, s20)| Probe {
                 d,
                 u,
                 b,
