@@ -31,8 +31,10 @@ pub enum SkipReason {
     NonFiniteVelocity,
     /// A velocity component exceeds [`bounds::MAX_SPEED`].
     VelocityBeyondBound,
-    /// The label is not valid UTF-8.
+    /// The label is not valid UTF-8 (ROS 2 `vision_msgs`: the class id of any hypothesis).
     LabelNotUtf8,
+    /// The per-object id (ROS 2 `vision_msgs` `id` or `tracking_id`) is not valid UTF-8.
+    IdNotUtf8,
 }
 
 impl SkipReason {
@@ -52,6 +54,7 @@ impl SkipReason {
             SkipReason::NonFiniteVelocity => "non-finite velocity",
             SkipReason::VelocityBeyondBound => "velocity beyond 1e5 m/s",
             SkipReason::LabelNotUtf8 => "label not valid UTF-8",
+            SkipReason::IdNotUtf8 => "id not valid UTF-8",
         }
     }
 }
