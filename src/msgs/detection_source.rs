@@ -200,9 +200,7 @@ impl DetectionSource {
     pub fn decode_frame(&self, bytes: &[u8], log_time: u64) -> Result<DetectionFrame, DecodeError> {
         let (msg, rejected) = self.decode_lenient(bytes)?;
         let mut frame = DetectionFrame::from_message(msg, log_time);
-        for (i, reason) in rejected {
-            frame.reject_indices(&[i], reason);
-        }
+        frame.reject(&rejected);
         if let DetectionSource::Autoware(_) = self {
             autoware::mark_classes_without_probmot_class(&mut frame);
         }
