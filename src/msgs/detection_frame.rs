@@ -31,8 +31,10 @@ pub enum SkipReason {
     NonFiniteVelocity,
     /// A velocity component exceeds [`bounds::MAX_SPEED`].
     VelocityBeyondBound,
-    /// The label is not valid UTF-8.
+    /// The label is not valid UTF-8 (ROS 2 `vision_msgs`: the class id of any hypothesis).
     LabelNotUtf8,
+    /// The per-object id (ROS 2 `vision_msgs` `id` or `tracking_id`) is not valid UTF-8.
+    IdNotUtf8,
 }
 
 impl SkipReason {
@@ -52,6 +54,7 @@ impl SkipReason {
             SkipReason::NonFiniteVelocity => "non-finite velocity",
             SkipReason::VelocityBeyondBound => "velocity beyond 1e5 m/s",
             SkipReason::LabelNotUtf8 => "label not valid UTF-8",
+            SkipReason::IdNotUtf8 => "id not valid UTF-8",
         }
     }
 }
@@ -200,18 +203,31 @@ impl DetectionFrame {
         frame
     }
 
-    /// Moves the boxes at `indices` (in message order) to the rejected ones, for `reason`.
-    pub fn reject_indices(&mut self, indices: &[u32], reason: SkipReason) {
-        let (gone, kept) = std::mem::take(&mut self.boxes)
-            .into_iter()
-            .partition(|b| indices.contains(&b.index));
+    /// Moves the boxes at the indices of `rejects` (`(index, reason)`, ascending message order)
+    /// to the rejected ones, each for its reason: one pass with a binary search, so a message
+    /// of many such boxes costs no more than a sort.
+    pub fn reject(&mut self, rejects: &[(u32, SkipReason)]) {
+        if rejects.is_empty() {
+            return;
+        }
+        let reason_of = |index: u32| {
+            rejects
+                .binary_search_by_key(&index, |r| r.0)
+                .ok()
+                .map(|k| rejects[k].1)
+        };
+        let mut kept = Vec::with_capacity(self.boxes.len());
+        for b in std::mem::take(&mut self.boxes) {
+            match reason_of(b.index) {
+                Some(reason) => self.rejected.push(Rejected {
+                    index: b.index,
+                    label: b.label,
+                    reason,
+                }),
+                None => kept.push(b),
+            }
+        }
         self.boxes = kept;
-        let gone: Vec<DetectionBox> = gone;
-        self.rejected.extend(gone.into_iter().map(|b| Rejected {
-            index: b.index,
-            label: b.label,
-            reason,
-        }));
         self.rejected.sort_by_key(|r| r.index);
     }
 
@@ -306,6 +322,35 @@ mod tests {
                 (8, SkipReason::SizeBeyondBound),
                 (9, SkipReason::NonFiniteVelocity),
                 (10, SkipReason::VelocityBeyondBound),
+            ]
+        );
+    }
+
+    /// Rejected boxes leave the valid ones with their own reasons, merged in message order with
+    /// those the checks rejected; indices of boxes already rejected are left alone.
+    #[test]
+    fn reject_moves_the_given_boxes_with_their_reasons() {
+        let ok = || det(Some([1.0, 2.0, 3.0]), [4.0, 2.0, 1.5], 0.9);
+        let msg = Detections3D {
+            detections: vec![ok(), det(None, [1.0; 3], 0.9), ok(), ok(), ok()],
+            ..Default::default()
+        };
+        let mut f = DetectionFrame::from_message(msg, 42);
+        f.reject(&[
+            (1, SkipReason::LabelNotUtf8),
+            (2, SkipReason::IdNotUtf8),
+            (4, SkipReason::LabelNotUtf8),
+        ]);
+        let valid: Vec<u32> = f.boxes.iter().map(|b| b.index).collect();
+        assert_eq!(valid, [0, 3]);
+        let reasons: Vec<(u32, SkipReason)> =
+            f.rejected.iter().map(|r| (r.index, r.reason)).collect();
+        assert_eq!(
+            reasons,
+            [
+                (1, SkipReason::MissingField),
+                (2, SkipReason::IdNotUtf8),
+                (4, SkipReason::LabelNotUtf8),
             ]
         );
     }

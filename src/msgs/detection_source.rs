@@ -194,30 +194,42 @@ impl DetectionSource {
 
     /// Decodes one message into a checked [`DetectionFrame`]; `log_time` is its stamp when the
     /// message carries none.
-    /// A probmot protobuf box whose label is not UTF-8 is rejected (the rest of the message is
-    /// kept; see [`lenient_label`]).
+    /// A box whose label is not UTF-8 is rejected and the rest of the message kept: a probmot
+    /// protobuf label ([`lenient_label`]), a ROS 2 vision_msgs class id of any hypothesis or
+    /// per-object id ([`ros2_vision::decode_lenient`]).
     pub fn decode_frame(&self, bytes: &[u8], log_time: u64) -> Result<DetectionFrame, DecodeError> {
-        let msg = match self.decode(bytes) {
-            Ok(msg) => msg,
-            Err(e) if *self == DetectionSource::Probmot(Encoding::Protobuf) => {
-                let Some((msg, bad)) = lenient_label::decode_with_bad_labels(bytes) else {
-                    return Err(e);
-                };
-                let mut frame = DetectionFrame::from_message(msg, log_time);
-                frame.reject_indices(&bad, SkipReason::LabelNotUtf8);
-                return Ok(frame);
-            }
-            Err(e) => return Err(e),
-        };
+        let (msg, rejected) = self.decode_lenient(bytes)?;
         let mut frame = DetectionFrame::from_message(msg, log_time);
+        frame.reject(&rejected);
         if let DetectionSource::Autoware(_) = self {
             autoware::mark_classes_without_probmot_class(&mut frame);
         }
         Ok(frame)
     }
 
+    /// Decodes one message, with the boxes to reject for a string that is not UTF-8 (see
+    /// [`Self::decode_frame`]) as `(index, reason)`.
+    fn decode_lenient(
+        &self,
+        bytes: &[u8],
+    ) -> Result<(Detections3D, Vec<(u32, SkipReason)>), DecodeError> {
+        match *self {
+            DetectionSource::Ros2Vision(layout) => ros2_vision::decode_lenient(bytes, layout),
+            DetectionSource::Probmot(Encoding::Protobuf) => match self.decode(bytes) {
+                Ok(msg) => Ok((msg, Vec::new())),
+                Err(e) => {
+                    let (msg, bad) = lenient_label::decode_with_bad_labels(bytes).ok_or(e)?;
+                    let reason = SkipReason::LabelNotUtf8;
+                    Ok((msg, bad.into_iter().map(|i| (i, reason)).collect()))
+                }
+            },
+            _ => Ok((self.decode(bytes)?, Vec::new())),
+        }
+    }
+
     /// The stamp and the number of boxes of one message, for the first pass of `track`:
-    /// probmot messages are read without building their boxes, the other kinds fully.
+    /// probmot messages are read without building their boxes, the other kinds fully (counting
+    /// the boxes [`Self::decode_frame`] rejects for a string that is not UTF-8).
     pub fn stamp_and_count(&self, bytes: &[u8]) -> Result<(Option<u64>, usize), DecodeError> {
         match *self {
             DetectionSource::Probmot(enc) => {
@@ -225,7 +237,7 @@ impl DetectionSource {
                 Ok((e.stamp, e.detections.len()))
             }
             _ => {
-                let m = self.decode(bytes)?;
+                let (m, _) = self.decode_lenient(bytes)?;
                 Ok((m.stamp, m.detections.len()))
             }
         }

@@ -45,11 +45,40 @@ pub struct Header {
 /// read as the empty string; otherwise the last byte must be NUL and the rest UTF-8.
 pub fn cdr_string<'de, D: serde::Deserializer<'de>>(d: D) -> Result<String, D::Error> {
     use serde::de::Error as _;
+    String::from_utf8(cdr_string_bytes(d)?).map_err(|e| D::Error::custom(format!("string: {e}")))
+}
+
+/// The bytes of a ROS 2 CDR `string` without its terminating NUL (see [`cdr_string`]).
+fn cdr_string_bytes<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Vec<u8>, D::Error> {
+    use serde::de::Error as _;
     let mut bytes = Vec::<u8>::deserialize(d)?;
     match bytes.pop() {
-        None => Ok(String::new()),
-        Some(0) => String::from_utf8(bytes).map_err(|e| D::Error::custom(format!("string: {e}"))),
+        None | Some(0) => Ok(bytes),
         Some(_) => Err(D::Error::custom("string without its terminating NUL")),
+    }
+}
+
+/// A ROS 2 CDR `string` that may not be UTF-8 (read as [`cdr_string`] otherwise), for the
+/// strings whose fault costs one box rather than the message: the text with invalid sequences
+/// replaced by U+FFFD, and whether the bytes were UTF-8. Valid bytes become the text without a
+/// copy; only an invalid string is copied.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LossyString {
+    /// The text (lossy when `utf8` is false).
+    pub text: String,
+    /// Whether the bytes were valid UTF-8.
+    pub utf8: bool,
+}
+
+impl<'de> Deserialize<'de> for LossyString {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Ok(match String::from_utf8(cdr_string_bytes(d)?) {
+            Ok(text) => LossyString { text, utf8: true },
+            Err(e) => LossyString {
+                text: String::from_utf8_lossy(e.as_bytes()).into_owned(),
+                utf8: false,
+            },
+        })
     }
 }
 

@@ -389,6 +389,82 @@ fn malformed_ros2_message_names_file_topic_and_message() {
     );
 }
 
+/// A class id that is not UTF-8 costs its box, not the run: `track` tracks the other boxes of
+/// its message and names the skipped box in the summary and a warning (both layouts). The log
+/// times of [`write_mcap`] are far from the stamps, so `track` reads the file in two passes,
+/// and both passes take the message.
+#[test]
+fn a_class_id_that_is_not_utf8_skips_only_its_box() {
+    let dir = tempfile::tempdir().unwrap();
+    for (fixture, layout) in [
+        (ROS2_FIXTURE, VisionLayout::V4),
+        (ROS2_V2_FIXTURE, VisionLayout::V2),
+    ] {
+        let bytes = std::fs::read(repo(fixture)).unwrap();
+        let mut messages = Vec::new();
+        let mut schema = None;
+        for m in mcap::MessageStream::new(&bytes).unwrap() {
+            let m = m.unwrap();
+            let s = m.channel.schema.clone().unwrap();
+            schema.get_or_insert(s);
+            messages.push(m.data.to_vec());
+        }
+        // The first class id "car" of message 4 (a CDR string: length 4, the bytes, NUL).
+        let at = (messages[4].windows(8))
+            .position(|w| w == b"\x04\0\0\0car\0")
+            .unwrap();
+        messages[4][at + 4] = 0xff;
+        let (_, rejected) = ros2_vision::decode_lenient(&messages[4], layout).unwrap();
+        assert_eq!(rejected.len(), 1, "{fixture}: {rejected:?}");
+        let schema = schema.unwrap();
+        let path = dir.path().join(format!("{layout:?}.mcap"));
+        let (name, enc) = (schema.name.as_str(), schema.encoding.as_str());
+        write_mcap(
+            &path,
+            (name, enc, &schema.data),
+            "/detections",
+            "cdr",
+            &messages,
+        );
+        let out = dir.path().join(format!("{layout:?}-out.mcap"));
+        let r = probmot_ok(&[
+            "track",
+            path.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--json",
+            "--tracks-format",
+            "probmot",
+        ]);
+        let s: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        assert_eq!(s["passes"], 2, "{s}");
+        assert_eq!(s["detections"]["skipped"]["label_not_utf8"], 1, "{s}");
+        let boxes: usize = (messages.iter())
+            .map(|m| {
+                ros2_vision::decode_lenient(m, layout)
+                    .unwrap()
+                    .0
+                    .detections
+                    .len()
+            })
+            .sum();
+        let kept: u64 = (s["detections"]["per_label"].as_object().unwrap().values())
+            .map(|v| v.as_u64().unwrap())
+            .sum();
+        assert_eq!(kept as usize, boxes - 1, "{s}");
+        assert!(
+            (s["warnings"].to_string()).contains("label not valid UTF-8 at topic /detections"),
+            "{s}"
+        );
+        let tracks = common::tracks(&out, "/tracks");
+        assert_eq!(tracks.len(), messages.len());
+        assert!(
+            !tracks[4].tracks.is_empty(),
+            "{fixture}: tracks at message 4"
+        );
+    }
+}
+
 #[test]
 fn unsupported_schema_lists_the_supported_ones() {
     let dir = tempfile::tempdir().unwrap();

@@ -34,11 +34,15 @@
 //! the hypothesis with the highest score (the first one on a tie; empty label and score 0 when
 //! there is none); a non-empty `id` (2.x: `tracking_id`) is kept as the attribute `id`. The
 //! per-detection headers are not used.
+//!
+//! A class id or per-object id that is not UTF-8 costs its box, not the message
+//! ([`decode_lenient`]); any other string that is not UTF-8 fails the message.
 
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 
-use super::ros2_common::{cdr_string, Header, Pose, Vector3};
+use super::detection_frame::SkipReason;
+use super::ros2_common::{cdr_string, Header, LossyString, Pose, Vector3};
 use super::ros2_schema::{self, fields, Expected, Fields, Sections};
 use super::{v3, DecodeError, Detection3D, Detections3D, Size3};
 
@@ -252,8 +256,7 @@ struct RosDetection3D {
     header: Header,
     results: Vec<ObjectHypothesisWithPose>,
     bbox: BoundingBox3D,
-    #[serde(deserialize_with = "cdr_string")]
-    id: String,
+    id: LossyString,
 }
 
 /// `vision_msgs/msg/ObjectHypothesisWithPose` (4.x).
@@ -267,8 +270,7 @@ struct ObjectHypothesisWithPose {
 /// `vision_msgs/msg/ObjectHypothesis` (4.x).
 #[derive(Deserialize)]
 struct ObjectHypothesis {
-    #[serde(deserialize_with = "cdr_string")]
-    class_id: String,
+    class_id: LossyString,
     score: f64,
 }
 
@@ -306,15 +308,13 @@ struct RosDetection3DV2 {
     source_cloud: PointCloud2,
     #[allow(dead_code)]
     is_tracking: bool,
-    #[serde(deserialize_with = "cdr_string")]
-    tracking_id: String,
+    tracking_id: LossyString,
 }
 
 /// `vision_msgs/msg/ObjectHypothesisWithPose` (2.x).
 #[derive(Deserialize)]
 struct ObjectHypothesisWithPoseV2 {
-    #[serde(deserialize_with = "cdr_string")]
-    id: String,
+    id: LossyString,
     score: f64,
     #[allow(dead_code)]
     pose: PoseWithCovariance,
@@ -346,11 +346,42 @@ struct PointField {
     count: u32,
 }
 
-/// One detection of either layout: hypotheses `(class, score)`, box, per-object id.
+/// One detection of either layout: hypotheses `(class, score)`, box, per-object id, and why
+/// the box is rejected, if it is.
 struct RosBox {
     hypotheses: Vec<(String, f64)>,
     bbox: BoundingBox3D,
     id: String,
+    fault: Option<SkipReason>,
+}
+
+impl RosBox {
+    /// A box from its hypotheses, bounding box and per-object id, read lossily; its fault as
+    /// [`decode_lenient`] gives it (any hypothesis' class id first, then the id).
+    fn new(
+        hypotheses: impl Iterator<Item = (LossyString, f64)>,
+        bbox: BoundingBox3D,
+        id: LossyString,
+    ) -> RosBox {
+        let mut labels_utf8 = true;
+        let hypotheses = hypotheses
+            .map(|(class, score)| {
+                labels_utf8 &= class.utf8;
+                (class.text, score)
+            })
+            .collect();
+        let fault = match (labels_utf8, id.utf8) {
+            (false, _) => Some(SkipReason::LabelNotUtf8),
+            (true, false) => Some(SkipReason::IdNotUtf8),
+            (true, true) => None,
+        };
+        RosBox {
+            hypotheses,
+            bbox,
+            id: id.text,
+            fault,
+        }
+    }
 }
 
 /// `float64[36]`: a fixed-size array, no length on the wire (serde's arrays stop at 32).
@@ -376,40 +407,60 @@ impl<'de> Deserialize<'de> for Covariance {
     }
 }
 
-/// Decodes one CDR message (with its 4-byte encapsulation header) of the given layout.
+/// Decodes one CDR message (with its 4-byte encapsulation header) of the given layout; a box
+/// whose class id or id is not UTF-8 fails the message (as a probmot protobuf label does
+/// outside `track`; [`decode_lenient`] keeps the message).
 pub fn decode(bytes: &[u8], layout: VisionLayout) -> Result<Detections3D, DecodeError> {
+    let (msg, rejected) = decode_lenient(bytes, layout)?;
+    match rejected.first() {
+        None => Ok(msg),
+        Some((i, reason)) => Err(DecodeError::Content(format!(
+            "detection {i}: {}",
+            reason.describe()
+        ))),
+    }
+}
+
+/// Decodes one CDR message as [`decode`] does, but a box whose class id or per-object id is not
+/// UTF-8 is decoded with those strings read lossily and named in the list `(index, reason)` for
+/// the caller to reject. The class id of *any* hypothesis of the box counts, not only the best
+/// one's ([`SkipReason::LabelNotUtf8`]): a detector that garbles one class id may garble the
+/// scores too, so the best valid hypothesis may be the wrong one. Else a per-object id that is
+/// not UTF-8 rejects the box ([`SkipReason::IdNotUtf8`]): the id is copied to the track, and a
+/// lossy copy is not the id the detector gave. Any other string that is not UTF-8
+/// (`header.frame_id`, a point field name) fails the message.
+pub fn decode_lenient(
+    bytes: &[u8],
+    layout: VisionLayout,
+) -> Result<(Detections3D, Vec<(u32, SkipReason)>), DecodeError> {
     // XCDR2 encapsulations (ids 6-11) align 8-byte values to 4; the `cdr` crate reads only the
     // classic ids 0-3, which are what ROS 2 (Fast DDS, Cyclone DDS) record.
     match layout {
         VisionLayout::V4 => {
             let msg: Detection3DArray = cdr::deserialize(bytes)?;
-            let boxes = msg.detections.into_iter().map(|d| RosBox {
-                hypotheses: d
-                    .results
-                    .into_iter()
-                    .map(|r| (r.hypothesis.class_id, r.hypothesis.score))
-                    .collect(),
-                bbox: d.bbox,
-                id: d.id,
+            let boxes = msg.detections.into_iter().map(|d| {
+                let results = d.results.into_iter();
+                let hypotheses = results.map(|r| (r.hypothesis.class_id, r.hypothesis.score));
+                RosBox::new(hypotheses, d.bbox, d.id)
             });
             convert(msg.header, boxes)
         }
         VisionLayout::V2 => {
             let msg: Detection3DArrayV2 = cdr::deserialize(bytes)?;
-            let boxes = msg.detections.into_iter().map(|d| RosBox {
-                hypotheses: d.results.into_iter().map(|r| (r.id, r.score)).collect(),
-                bbox: d.bbox,
-                id: d.tracking_id,
+            let boxes = msg.detections.into_iter().map(|d| {
+                let hypotheses = d.results.into_iter().map(|r| (r.id, r.score));
+                RosBox::new(hypotheses, d.bbox, d.tracking_id)
             });
             convert(msg.header, boxes)
         }
     }
 }
 
+/// The message of `header` and `boxes`, and the `(index, reason)` of the rejected boxes.
 fn convert(
     header: Header,
     boxes: impl Iterator<Item = RosBox>,
-) -> Result<Detections3D, DecodeError> {
+) -> Result<(Detections3D, Vec<(u32, SkipReason)>), DecodeError> {
     let t = header.stamp;
     let stamp = if t.sec == 0 && t.nanosec == 0 {
         None
@@ -421,8 +472,13 @@ fn convert(
             ))
         })?)
     };
+    let mut rejected = Vec::new();
     let detections = boxes
-        .map(|d| {
+        .enumerate()
+        .map(|(i, d)| {
+            if let Some(reason) = d.fault {
+                rejected.push((i as u32, reason));
+            }
             let mut best: Option<(String, f64)> = None;
             for h in d.hypotheses {
                 if best.as_ref().is_none_or(|b| h.1 > b.1) {
@@ -450,9 +506,13 @@ fn convert(
             }
         })
         .collect();
-    Ok(Detections3D {
+    let msg = Detections3D {
         stamp,
         frame_id: header.frame_id,
         detections,
-    })
+    };
+    Ok((msg, rejected))
 }
+
+#[cfg(test)]
+mod tests;
