@@ -393,17 +393,6 @@ fn copy_without_summary(input: &Path, output: &Path) {
     w.finish().unwrap();
 }
 
-fn track_json(input: &Path, output: &Path) -> serde_json::Value {
-    let out = probmot_ok(&[
-        "track",
-        input.to_str().unwrap(),
-        "-o",
-        output.to_str().unwrap(),
-        "--json",
-    ]);
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 /// Writes a copy of `input` with its first detections message moved to the end of the file.
 fn late_first_detections_copy(input: &Path, output: &Path) {
     let bytes = std::fs::read(input).unwrap();
@@ -448,7 +437,7 @@ fn one_pass_and_two_passes_give_the_same_tracks() {
                 .enumerate()
                 .map(|(i, p)| {
                     let out = dir.path().join(format!("{name}.{i}.out.mcap"));
-                    let s = track_json(p, &out);
+                    let s = track_json(p, &out, &[]);
                     let mut t = tracks(&out, "/tracks");
                     // In stamp order in every output; sorted so that a failure shows the tracks.
                     t.sort_by_key(|m| m.stamp);
@@ -493,8 +482,8 @@ fn a_bad_summary_offset_falls_back_to_two_passes() {
     let broken = dir.path().join("broken-summary.mcap");
     std::fs::write(&broken, &bytes).unwrap();
     let (a, b) = (dir.path().join("a.mcap"), dir.path().join("b.mcap"));
-    let sa = track_json(&input, &a);
-    let sb = track_json(&broken, &b);
+    let sa = track_json(&input, &a, &[]);
+    let sb = track_json(&broken, &b, &[]);
     assert_eq!(
         (sa["passes"].as_u64(), sb["passes"].as_u64()),
         (Some(1), Some(2))
@@ -517,7 +506,7 @@ fn tracking_bytes_into_memory_restarts_the_sink_for_a_second_pass() {
     let late = dir.path().join("late.mcap");
     late_first_detections_copy(&input, &late);
     let file_out = dir.path().join("late.out.mcap");
-    let file_summary = track_json(&late, &file_out);
+    let file_summary = track_json(&late, &file_out, &[]);
     let expected: Vec<probmot::msgs::Tracks3D> = tracks(&file_out, "/tracks");
 
     let bytes = std::fs::read(&late).unwrap();

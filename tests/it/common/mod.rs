@@ -33,6 +33,20 @@ pub fn probmot_ok(args: &[&str]) -> Output {
     out
 }
 
+/// Runs `probmot track INPUT -o OUTPUT --json EXTRA...`, asserts success and returns the
+/// summary it printed.
+pub fn track_json(input: &Path, output: &Path, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        output.to_str().unwrap(),
+        "--json",
+    ];
+    args.extend_from_slice(extra);
+    serde_json::from_slice(&probmot_ok(&args).stdout).unwrap()
+}
+
 /// Whether `python3` can import `modules` (comma-separated), for checks that need Python tools.
 pub fn python_has(modules: &str) -> bool {
     can_import("python3", modules)

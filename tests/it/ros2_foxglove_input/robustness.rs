@@ -188,14 +188,7 @@ fn unreadable_channels_are_left_out_of_the_default_selection_with_a_warning() {
         w.finish().unwrap();
     }
     let out = dir.path().join("out.mcap");
-    let r = probmot_ok(&[
-        "track",
-        path.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let v = track_json(&path, &out, &[]);
     assert_eq!(v["detection_topics"], serde_json::json!(["/objects"]));
     assert_eq!(v["frames"], 40);
     let warnings: Vec<&str> = v["warnings"]

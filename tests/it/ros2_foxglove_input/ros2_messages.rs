@@ -427,16 +427,7 @@ fn a_class_id_that_is_not_utf8_skips_only_its_box() {
             &messages,
         );
         let out = dir.path().join(format!("{layout:?}-out.mcap"));
-        let r = probmot_ok(&[
-            "track",
-            path.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--json",
-            "--tracks-format",
-            "probmot",
-        ]);
-        let s: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+        let s = track_json(&path, &out, &["--tracks-format", "probmot"]);
         assert_eq!(s["passes"], 2, "{s}");
         assert_eq!(s["detections"]["skipped"]["label_not_utf8"], 1, "{s}");
         let boxes: usize = (messages.iter())
@@ -503,14 +494,7 @@ fn unsupported_schema_lists_the_supported_ones() {
     assert!(why.contains("ros2idl") && why.contains("ros2msg"), "{why}");
     // Without --detections-topic such a channel is not a detection channel: copied with a warning.
     let out = dir.path().join("copied.mcap");
-    let r = probmot_ok(&[
-        "track",
-        path.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
-    let v: serde_json::Value = serde_json::from_slice(&r.stdout).unwrap();
+    let v = track_json(&path, &out, &[]);
     assert!(v["warnings"][0]
         .as_str()
         .unwrap()
