@@ -31,19 +31,6 @@ fn simulate(dir: &Path, name: &str, extra: &[&str]) -> PathBuf {
     out
 }
 
-fn track(input: &Path, output: &Path, extra: &[&str]) -> Value {
-    let mut args = vec![
-        "track",
-        input.to_str().unwrap(),
-        "-o",
-        output.to_str().unwrap(),
-        "--json",
-    ];
-    args.extend(extra);
-    let out = probmot_ok(&args);
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 fn overall(truth: &Path, truth_topic: &str, tracks_topic: &str) -> Value {
     let out = probmot_ok(&[
         "eval",
@@ -108,8 +95,8 @@ fn with_transforms_the_tracks_match_the_fixed_frame_run() {
     let ego = simulate(dir.path(), "ego.mcap", &["--ego-frame"]);
     let map_out = dir.path().join("map.tracked.mcap");
     let ego_out = dir.path().join("ego.tracked.mcap");
-    track(&map, &map_out, &[]);
-    let s = track(&ego, &ego_out, &["--tracks-frame", "ego"]);
+    track_json(&map, &map_out, &[]);
+    let s = track_json(&ego, &ego_out, &["--tracks-frame", "ego"]);
     assert_eq!(s["ego"]["fixed_frame"], "map");
     assert_eq!(s["ego"]["messages_transformed"], 40);
     assert_eq!(s["ego"]["messages_without_transform"], 0);
@@ -165,9 +152,9 @@ fn without_transforms_tracking_is_visibly_worse() {
     let ego = simulate(dir.path(), "ego.mcap", &["--ego-frame"]);
     let with = dir.path().join("with.mcap");
     let without = dir.path().join("without.mcap");
-    track(&ego, &with, &[]);
+    track_json(&ego, &with, &[]);
     // Tracking in the moving frame itself: no transform is used.
-    let s = track(&ego, &without, &["--fixed-frame", "base_link"]);
+    let s = track_json(&ego, &without, &["--fixed-frame", "base_link"]);
     assert_eq!(s["ego"]["messages_transformed"], 0);
     let good = overall(&with, "/ground_truth", "/tracks");
     // Scored in base_link against the truth moved into base_link (distances are the same in
@@ -214,7 +201,7 @@ fn a_missing_transform_skips_the_frame_with_a_warning_or_fails_with_strict() {
     // Transforms for the first 10 s only; frames are 0.5 s apart.
     drop_messages(&ego, &cut, "/tf", START_NS + 10_000_000_000);
     let out = dir.path().join("out.mcap");
-    let s = track(&cut, &out, &["--tf-tolerance", "0.2"]);
+    let s = track_json(&cut, &out, &["--tf-tolerance", "0.2"]);
     // Frames at 0.0 .. 19.5 s: 10.0 is the last with a transform, and 10.5 is beyond the
     // 0.2 s tolerance, so 19 frames have none.
     assert_eq!(s["ego"]["messages_without_transform"], 19);
@@ -290,7 +277,7 @@ fn a_fixed_frame_outside_the_transform_tree_is_an_error() {
         assert!(err.contains("topic /detections"), "{err}");
         assert!(!out.exists(), "{frame}");
     }
-    let s = track(
+    let s = track_json(
         &city,
         &dir.path().join("map.mcap"),
         &["--fixed-frame", "map"],
@@ -335,7 +322,7 @@ fn an_undecodable_transform_message_is_a_warning_or_a_strict_error() {
         true
     });
     assert_eq!(n, 1);
-    let s = track(&bad, &dir.path().join("out.mcap"), &[]);
+    let s = track_json(&bad, &dir.path().join("out.mcap"), &[]);
     assert_eq!(s["ego"]["undecodable_transform_messages"], 1);
     // The other transforms still cover every frame.
     assert_eq!(s["ego"]["messages_without_transform"], 0);
@@ -363,7 +350,7 @@ fn an_undecodable_transform_message_is_a_warning_or_a_strict_error() {
 fn without_transforms_the_ego_channel_equals_the_tracks() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.mcap");
-    let s = track(
+    let s = track_json(
         &repo("sample_logs/turning-car.mcap"),
         &out,
         &["--tracks-frame", "ego"],
