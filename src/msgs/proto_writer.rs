@@ -10,6 +10,10 @@ const VARINT: u32 = 0;
 const FIXED64: u32 = 1;
 const LEN: u32 = 2;
 
+/// Doubles of a message that [`ProtoWriter::doubles`] writes in one piece (one-byte keys, a
+/// body under 128 bytes).
+const SHORT_DOUBLES: usize = 4;
+
 /// Appends protobuf fields to a buffer.
 pub struct ProtoWriter<'a> {
     buf: &'a mut Vec<u8>,
@@ -93,12 +97,30 @@ impl<'a> ProtoWriter<'a> {
 
     /// An embedded message whose fields 1, 2, ... are `values`: the shape of every message of
     /// doubles in the schemas (a vector, a size, a quaternion, a colour, an image box).
+    ///
+    /// Up to [`SHORT_DOUBLES`] values (every such message in the schemas) are put together on
+    /// the stack and appended at once: the body is shorter than 128 bytes, so its length takes
+    /// one byte and nothing has to move.
     pub fn doubles(&mut self, field: u32, values: &[f64]) {
-        self.message(field, |w| {
-            for (k, &v) in (1..).zip(values) {
-                w.double(k, v);
+        if values.len() > SHORT_DOUBLES {
+            return self.message(field, |w| {
+                for (k, &v) in (1..).zip(values) {
+                    w.double(k, v);
+                }
+            });
+        }
+        let mut body = [0u8; 9 * SHORT_DOUBLES];
+        let mut n = 0;
+        for (k, &v) in (1u8..).zip(values) {
+            if v != 0.0 {
+                body[n] = k << 3 | FIXED64 as u8;
+                body[n + 1..n + 9].copy_from_slice(&v.to_le_bytes());
+                n += 9;
             }
-        });
+        }
+        self.key(field, LEN);
+        self.buf.push(n as u8);
+        self.buf.extend_from_slice(&body[..n]);
     }
 
     /// An embedded message (always written, as a present optional or a repeated entry): its
@@ -225,6 +247,27 @@ mod tests {
     }
 
     proptest::proptest! {
+        /// `doubles` writes what `message` with one `double` per value writes (prost's bytes,
+        /// see below), on its short path and past it, under one- and two-byte keys.
+        #[test]
+        fn doubles_is_a_message_of_doubles(
+            field in proptest::prop_oneof![1..16u32, 16..300u32],
+            values in proptest::collection::vec(proptest::prop_oneof![
+                proptest::strategy::Just(0.0), proptest::strategy::Just(-0.0),
+                proptest::strategy::Just(f64::NAN), proptest::prelude::any::<f64>()
+            ], 0..=2 * SHORT_DOUBLES),
+        ) {
+            let mut got = vec![7];
+            ProtoWriter::new(&mut got).doubles(field, &values);
+            let mut want = vec![7];
+            ProtoWriter::new(&mut want).message(field, |w| {
+                for (k, &v) in (1..).zip(&values) {
+                    w.double(k, v);
+                }
+            });
+            proptest::prop_assert_eq!(got, want);
+        }
+
         /// The bytes are prost's, whatever the values and the lengths of nested messages.
         #[test]
         fn writes_what_prost_writes(p in probe()) {
