@@ -98,7 +98,7 @@ impl<'a> ProtoWriter<'a> {
     /// An embedded message whose fields 1, 2, ... are `values`: the shape of every message of
     /// doubles in the schemas (a vector, a size, a quaternion, a colour, an image box).
     ///
-    /// Up to [`SHORT_DOUBLES`] values (every such message in the schemas) are put together on
+    /// Up to four values (every such message in the schemas) are put together on
     /// the stack and appended at once: the body is shorter than 128 bytes, so its length takes
     /// one byte and nothing has to move.
     pub fn doubles(&mut self, field: u32, values: &[f64]) {
