@@ -4,7 +4,7 @@ use super::bounds::{MAX_COORDINATE, MAX_SIZE, MAX_SPEED, MAX_VARIANCE};
 use super::boxes::{Box3, ClassId};
 use super::confidence::Confidence;
 use super::config::BoxOrigin;
-use super::kalman::{Innovation, KalmanState};
+use super::kalman::KalmanState;
 
 /// A live track inside the tracker.
 #[derive(Debug, Clone)]
@@ -28,8 +28,6 @@ pub struct Track {
     pub reported_frames: u32,
     /// Whether `hits` ever reached `min_hits`.
     pub confirmed: bool,
-    /// Association cache of the current frame.
-    pub(crate) innovation: Option<Innovation>,
     /// Refined and mean score (see [`super::levers`]).
     pub conf: Confidence,
     /// Whether its state or a variance has left [`super::bounds`]: it is then ended.

@@ -6,7 +6,7 @@ use super::boxes::{Box3, ClassId, Detection};
 use super::confidence::Confidence;
 use super::config::{ClassConfig, ConfigError, DistanceKind, MatcherKind, TrackerConfig};
 use super::geometry::{giou3d, iou3d};
-use super::kalman::{mahalanobis_sq, mahalanobis_sq_xy, KalmanState, Noise};
+use super::kalman::{mahalanobis_sq, mahalanobis_sq_xy, Innovation, KalmanState, Noise};
 use super::levers::{Coast, Levers};
 use super::matching::{greedy, hungarian, Pair, NOT_A_CANDIDATE};
 use super::nms::{suppress, NmsScratch};
@@ -83,6 +83,8 @@ struct Scratch {
     matched_det: Vec<bool>,
     track_match: Vec<Option<u32>>,
     pred: Vec<Box3>,
+    /// The innovation of each track of the class being associated (Mahalanobis distance).
+    innovations: Vec<Innovation>,
     /// Tracks matched by the first round of a two-stage association.
     trk_matched: Vec<bool>,
     /// One round's optimal assignment, before its detection indices are offset.
@@ -315,7 +317,6 @@ fn step_class(
     if let Some(k) = k {
         for t in &mut c.tracks {
             t.kf.predict(k, &c.noise);
-            t.innovation = None;
             t.age += 1;
             t.time_since_update += 1;
         }
@@ -442,7 +443,6 @@ fn birth(
             score: det.score,
             reported_frames: 0,
             confirmed: false,
-            innovation: None,
             conf: Confidence::born(det.score),
             beyond_bounds: false,
         });
@@ -587,17 +587,16 @@ fn candidate_pairs(
     };
     match cfg.distance {
         DistanceKind::Mahalanobis => {
-            for t in &mut c.tracks {
-                t.innovation = Some(t.kf.innovation(&c.noise));
-            }
+            s.innovations.clear();
+            s.innovations
+                .extend(c.tracks.iter().map(|t| t.kf.innovation(&c.noise)));
             let g2 = thr * thr;
             for (d, &di) in c.dets.iter().enumerate().take(hi).skip(lo) {
                 let b = all_dets[di as usize].bbox.to_origin(origin);
-                for (ti, t) in c.tracks.iter().enumerate() {
+                for (ti, inn) in s.innovations.iter().enumerate() {
                     if s.trk_matched[ti] {
                         continue;
                     }
-                    let inn = t.innovation.as_ref().expect("computed above");
                     // Pre-gate: the x and y terms alone already exceed the gate.
                     if !all && mahalanobis_sq_xy(inn, &b) > g2 {
                         continue;
