@@ -36,20 +36,6 @@ fn check(path: &Path, dir: &Path, name: &str, ids: usize, extra: &[&str]) -> (bo
     (out.status.success(), text)
 }
 
-/// Tracks `input` into `out` with extra arguments; returns the JSON summary.
-fn track(input: &Path, out: &Path, extra: &[&str]) -> serde_json::Value {
-    let mut args = vec![
-        "track",
-        input.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--json",
-    ];
-    args.extend_from_slice(extra);
-    let o = probmot_ok(&args);
-    serde_json::from_slice(&o.stdout).unwrap()
-}
-
 /// The TrackedObjects of a tracked file, decoded by probmot's reader.
 fn autoware_tracks(path: &Path) -> Vec<Tracks3D> {
     messages(path)
@@ -74,7 +60,7 @@ fn rosbags_autoware_bag_tracks_into_tracked_objects() {
     let d = dir.path();
     let bag = make_bag(d, "drive", &[]);
     let out = d.join("tracked");
-    let s = track(&bag, &out, &[]);
+    let s = track_json(&bag, &out, &[]);
     assert_eq!(s["detection_topics"][0], DETECTION_TOPIC);
     assert_eq!(s["tracks_messages"], 60);
     // The UNKNOWN object is skipped and counted: the default preset has no `unknown` entry
@@ -110,7 +96,7 @@ fn rosbags_autoware_bag_tracks_into_tracked_objects() {
 
     // The same check fails on the ROS 2 tracks of the same bag: it is not vacuous.
     let ros = d.join("tracked-ros2");
-    track(&bag, &ros, &["--tracks-format", "ros2"]);
+    track_json(&bag, &ros, &["--tracks-format", "ros2"]);
     let (ok, text) = check(&ros, d, "drive", 5, &["--tracks-topic", "/tracks"]);
     assert!(!ok, "the check passed on vision_msgs tracks: {text}");
 }
@@ -125,7 +111,7 @@ fn ego_motion_from_tf_moves_base_link_detections_into_map() {
     // Detections in base_link of an ego driving and turning, its pose on /tf.
     let bag = make_bag(d, "ego", &["--ego"]);
     let out = d.join("tracked");
-    let s = track(&bag, &out, &[]);
+    let s = track_json(&bag, &out, &[]);
     assert_eq!(s["ego"]["fixed_frame"], "map", "{}", s["ego"]);
     let frames = autoware_tracks(&out.join("ego.mcap"));
     assert_eq!(frames.len(), 60);
@@ -151,7 +137,7 @@ fn autoware_auto_package_tracks_too() {
         "{info}"
     );
     let out = d.join("tracked");
-    track(&bag, &out, &[]);
+    track_json(&bag, &out, &[]);
     let (ok, text) = check(&out, d, "auto", 5, &[]);
     assert!(ok, "rosbags on the tracked auto bag: {text}");
 }
@@ -167,8 +153,8 @@ fn autoware_tracks_carry_probmots_tracks_and_read_back_everywhere() {
     let mcap = bag.join("drive.mcap");
     let aw = d.join("aw.mcap");
     let pb = d.join("pb.mcap");
-    track(&mcap, &aw, &[]);
-    track(&mcap, &pb, &["--tracks-format", "probmot", "--no-scene"]);
+    track_json(&mcap, &aw, &[]);
+    track_json(&mcap, &pb, &["--tracks-format", "probmot", "--no-scene"]);
     let got = autoware_tracks(&aw);
     let want = tracks(&pb, "/tracks");
     assert_eq!(got.len(), want.len());
@@ -316,7 +302,7 @@ fn autoware_classes_are_tracked_under_their_own_config_entry() {
     let cfg_path = d.join("unknown.json");
     std::fs::write(&cfg_path, cfg.to_string()).unwrap();
     let out = d.join("out.mcap");
-    let s = track(&mcap, &out, &["--config", cfg_path.to_str().unwrap()]);
+    let s = track_json(&mcap, &out, &["--config", cfg_path.to_str().unwrap()]);
     assert_eq!(s["detections"]["per_label"]["unknown"], 60, "{s}");
     assert!(s["detections"]["skipped"]
         .get("class_without_entry")
@@ -352,7 +338,7 @@ fn default_tracking_topic_taken_by_autowares_own_tracks_is_refused_with_the_fix(
     let bag = make_bag(d, "drive", &[]);
     // A tracked bag holds TrackedObjects on Autoware's topic, as a recorded Autoware drive does.
     let once = d.join("once.mcap");
-    track(&bag.join("drive.mcap"), &once, &[]);
+    track_json(&bag.join("drive.mcap"), &once, &[]);
     let again = d.join("again.mcap");
     let r = probmot(&[
         "track",
@@ -367,7 +353,7 @@ fn default_tracking_topic_taken_by_autowares_own_tracks_is_refused_with_the_fix(
             && err.contains("--tracks-topic /probmot/tracking/objects"),
         "{err}"
     );
-    let s = track(
+    let s = track_json(
         &once,
         &again,
         &["--tracks-topic", "/probmot/tracking/objects"],

@@ -104,16 +104,8 @@ fn default_selection_leaves_a_sceneupdate_beside_other_detections_out_with_a_war
     }
     let out = dir.path().join("out.mcap");
     let run = |extra: &[&str]| -> serde_json::Value {
-        let mut args = vec![
-            "track",
-            path.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "--json",
-        ];
-        args.extend_from_slice(extra);
         let _ = std::fs::remove_file(&out);
-        serde_json::from_slice(&probmot_ok(&args).stdout).unwrap()
+        track_json(&path, &out, extra)
     };
     // A SceneUpdate is often a drawing of the same boxes: by default it is read only when the
     // log has no other detection channel.
