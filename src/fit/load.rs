@@ -40,6 +40,7 @@ fn read_topics(
                 out[i].get_or_insert_with(Vec::new);
             }
             FrameEvent::Frame(i, f) => {
+                count_skipped(&f.skipped, &mut skipped);
                 // Extended into a new vector: `collect` would keep the decoded messages'
                 // larger allocation in place for as long as the log is held.
                 let mut boxes = Vec::new();
@@ -89,6 +90,13 @@ fn detection_box(d: Detection3D, skipped: &mut Skipped) -> Option<LabelledBox> {
             *skipped.entry(reason).or_default() += 1;
             None
         }
+    }
+}
+
+/// Counts the boxes the decoder already left out (a string that is not UTF-8), as `track` does.
+fn count_skipped(reasons: &[SkipReason], skipped: &mut Skipped) {
+    for &reason in reasons {
+        *skipped.entry(reason).or_default() += 1;
     }
 }
 
@@ -205,6 +213,7 @@ fn stream_ordered(
                 }
             }
             Boxes::Detections(d) => {
+                count_skipped(&f.skipped, &mut skipped);
                 let kept = d.into_iter().filter_map(|d| detection_box(d, &mut skipped));
                 p.detections.extend(kept);
                 p.detection_messages += 1;

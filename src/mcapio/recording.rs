@@ -16,7 +16,7 @@ use mcap::records::Record;
 
 use super::reader::{read_records, ReadStats};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
-use crate::msgs::detection_frame::stamp_or_log_time;
+use crate::msgs::detection_frame::{stamp_or_log_time, SkipReason};
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::ros2_tracks;
 use crate::msgs::ros2_vision::{self, VisionLayout};
@@ -63,6 +63,10 @@ pub struct Frame {
     pub log_time: u64,
     /// Its boxes.
     pub boxes: Boxes,
+    /// Detection boxes left out of `boxes` because a string of theirs is not UTF-8, one
+    /// reason per box (as `track` rejects them, [`DetectionSource::decode_frame`]): the rest
+    /// of their message is read, so every command accepts the messages `track` accepts.
+    pub skipped: Vec<SkipReason>,
 }
 
 /// The frames of the requested topics of one recording.
@@ -181,29 +185,45 @@ impl Decoder {
 
     /// [`Decoder::decode`], with the message's `frame_id` (the coordinate frame of its boxes).
     pub fn decode_with_frame_id(&self, data: &[u8], log_time: u64) -> Result<(Frame, String)> {
-        let frame = |stamp, boxes, frame_id| {
+        let frame = |stamp, boxes, frame_id, skipped| {
             let f = Frame {
                 stamp,
                 log_time,
                 boxes,
+                skipped,
             };
             (f, frame_id)
         };
         let tracks = |m: Tracks3D| {
             let stamp = tracks_stamp(m.stamp, log_time);
-            frame(stamp, Boxes::Tracks(m.tracks), m.frame_id)
+            frame(stamp, Boxes::Tracks(m.tracks), m.frame_id, Vec::new())
         };
         Ok(match self {
             Decoder::Detections(source) => {
-                let m = source.decode(data)?;
+                let (mut m, rejected) = source.decode_lenient(data)?;
+                let skipped = leave_out(&mut m.detections, &rejected);
                 let stamp = stamp_or_log_time(m.stamp, log_time);
-                frame(stamp, Boxes::Detections(m.detections), m.frame_id)
+                frame(stamp, Boxes::Detections(m.detections), m.frame_id, skipped)
             }
             Decoder::Ros2Tracks(layout) => tracks(ros2_tracks::decode_tracks(data, *layout)?),
             Decoder::AutowareTracks(order) => tracks(autoware_tracks::decode_tracks(data, *order)?),
             Decoder::Tracks(enc) => tracks(msgs::decode::<Tracks3D>(data, *enc)?),
         })
     }
+}
+
+/// Removes the boxes at the `rejected` positions (ascending) from `boxes`; their reasons.
+fn leave_out(boxes: &mut Vec<Detection3D>, rejected: &[(u32, SkipReason)]) -> Vec<SkipReason> {
+    if rejected.is_empty() {
+        return Vec::new();
+    }
+    let mut index = 0u32;
+    boxes.retain(|_| {
+        let keep = rejected.binary_search_by_key(&index, |r| r.0).is_err();
+        index += 1;
+        keep
+    });
+    rejected.iter().map(|r| r.1).collect()
 }
 
 /// Reads the requested topics of `path` in one pass. A topic the file lacks gives `None`; a

@@ -208,8 +208,8 @@ impl DetectionSource {
     }
 
     /// Decodes one message, with the boxes to reject for a string that is not UTF-8 (see
-    /// [`Self::decode_frame`]) as `(index, reason)`.
-    fn decode_lenient(
+    /// [`Self::decode_frame`]) as `(index, reason)`, ascending: the read every command shares.
+    pub fn decode_lenient(
         &self,
         bytes: &[u8],
     ) -> Result<(Detections3D, Vec<(u32, SkipReason)>), DecodeError> {

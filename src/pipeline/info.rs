@@ -51,6 +51,9 @@ pub struct ChannelSummary {
     pub per_label: BTreeMap<String, u64>,
     /// Messages of a detections/tracks channel that failed to decode.
     pub undecodable: u64,
+    /// Boxes of a detections channel that `track` skips because their label or id is not
+    /// UTF-8 (the rest of their message is read; not in `per_label`).
+    pub boxes_not_utf8: u64,
 }
 
 /// The whole file.
@@ -253,10 +256,15 @@ impl InfoState {
         let enc = Encoding::from_message_encoding(&ch.message_encoding);
         let source = self.sources.get(&header.channel_id);
         match (ch.role.as_str(), enc, source) {
-            ("detections", _, Some(source)) => match source.decode(data) {
-                Ok(m) => {
-                    for d in m.detections {
-                        *ch.per_label.entry(d.label).or_default() += 1;
+            ("detections", _, Some(source)) => match source.decode_lenient(data) {
+                Ok((m, rejected)) => {
+                    let mut rejected = rejected.iter().map(|r| r.0 as usize).peekable();
+                    for (i, d) in m.detections.into_iter().enumerate() {
+                        if rejected.next_if_eq(&i).is_some() {
+                            ch.boxes_not_utf8 += 1;
+                        } else {
+                            *ch.per_label.entry(d.label).or_default() += 1;
+                        }
                     }
                 }
                 Err(_) => ch.undecodable += 1,

@@ -104,6 +104,13 @@ impl FileSummary {
             if c.undecodable > 0 {
                 let _ = writeln!(s, "        {} messages could not be decoded", c.undecodable);
             }
+            if c.boxes_not_utf8 > 0 {
+                let n = c.boxes_not_utf8;
+                let _ = writeln!(
+                    s,
+                    "        {n} boxes have a label or id that is not UTF-8 (track skips them)"
+                );
+            }
         }
         let det: Vec<&str> = self
             .channels

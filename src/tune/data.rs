@@ -117,7 +117,12 @@ impl TuneLog {
                     return Ok(());
                 }
                 FrameEvent::Frame(_, m) => match m.boxes {
-                    Boxes::Detections(d) => (m.stamp, d),
+                    Boxes::Detections(d) => {
+                        for &reason in &m.skipped {
+                            *skipped.entry(reason).or_default() += 1;
+                        }
+                        (m.stamp, d)
+                    }
                     Boxes::Tracks(_) => unreachable!("a detections request gives detections"),
                 },
             };

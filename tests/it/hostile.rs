@@ -230,12 +230,9 @@ fn messages_sharing_a_stamp_are_named() {
     assert_eq!(tracks(&out, "/tracks").len(), city.len() - 1);
 }
 
-/// A box whose label is not UTF-8 is skipped and counted; the rest of its message is tracked.
-#[test]
-fn a_label_that_is_not_utf8_skips_only_its_box() {
-    let dir = tempfile::tempdir().unwrap();
-    let input = dir.path().join("in.mcap");
-    city_with_messages(&input, "/detections", |i, data| {
+/// A copy of city.mcap in which the label of box 1 of `/detections` message 4 is not UTF-8.
+fn city_with_bad_label(path: &Path) {
+    city_with_messages(path, "/detections", |i, data| {
         let mut m = Detections3D::decode(data).unwrap();
         if i != 4 {
             return m.encode_to_vec();
@@ -246,6 +243,14 @@ fn a_label_that_is_not_utf8_skips_only_its_box() {
         bytes[at..at + 4].copy_from_slice(&[0xc3, 0x28, 0xff, b'r']);
         bytes
     });
+}
+
+/// A box whose label is not UTF-8 is skipped and counted; the rest of its message is tracked.
+#[test]
+fn a_label_that_is_not_utf8_skips_only_its_box() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.mcap");
+    city_with_bad_label(&input);
     let out = dir.path().join("out.mcap");
     let s = summary(&track(&input, &out, &[]));
     assert_eq!(s["detections"]["skipped"]["label_not_utf8"], 1, "{s}");
@@ -258,6 +263,51 @@ fn a_label_that_is_not_utf8_skips_only_its_box() {
     assert!(s["warnings"]
         .to_string()
         .contains("label not valid UTF-8 at topic /detections"));
+}
+
+/// The other commands that read detections take such a message as `track` does: `info`
+/// counts the box apart, `fit` skips it with the same reason, `plot` draws the rest.
+#[test]
+fn every_command_reads_a_message_with_a_label_that_is_not_utf8() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in.mcap");
+    city_with_bad_label(&input);
+    let city = detections(&repo("sample_logs/city.mcap"), "/detections");
+    let boxes: u64 = city.iter().map(|m| m.detections.len() as u64).sum();
+
+    let info = summary(&probmot(&["info", input.to_str().unwrap(), "--json"]));
+    let ch = &info["channels"][0];
+    assert_eq!(ch["topic"], "/detections");
+    assert_eq!(
+        (&ch["undecodable"], &ch["boxes_not_utf8"]),
+        (&0.into(), &1.into()),
+        "{ch}"
+    );
+    let per_label: u64 = (ch["per_label"].as_object().unwrap().values())
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(per_label, boxes - 1);
+    let text = probmot(&["info", input.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&text.stdout)
+        .contains("1 boxes have a label or id that is not UTF-8 (track skips them)"));
+
+    let noise = dir.path().join("noise.json");
+    let fit = summary(&probmot(&[
+        "fit",
+        input.to_str().unwrap(),
+        "-o",
+        noise.to_str().unwrap(),
+        "--json",
+    ]));
+    assert_eq!(fit["detections"], boxes - 1, "{fit}");
+    assert!(fit["warnings"]
+        .to_string()
+        .contains("skipped 1 detection boxes (label not valid UTF-8)"));
+
+    let png = dir.path().join("city.png");
+    let plot = ["plot", input.to_str().unwrap(), "-o", png.to_str().unwrap()];
+    let r = probmot(&[&plot[..], &["--layers", "detections"]].concat());
+    assert!(r.status.success() && png.exists(), "{}", stderr(&r));
 }
 
 /// A read-only output is not replaced: an error names it, and it keeps its bytes and mode.
