@@ -196,7 +196,8 @@ impl DetectionSource {
     /// message carries none.
     /// A box whose label is not UTF-8 is rejected and the rest of the message kept: a probmot
     /// protobuf label ([`lenient_label`]), a ROS 2 vision_msgs class id of any hypothesis or
-    /// per-object id ([`ros2_vision::decode_lenient`]).
+    /// per-object id ([`ros2_vision::decode_lenient`]), a Foxglove entity's label or id
+    /// ([`foxglove_scene::decode_lenient`]).
     pub fn decode_frame(&self, bytes: &[u8], log_time: u64) -> Result<DetectionFrame, DecodeError> {
         let (msg, rejected) = self.decode_lenient(bytes)?;
         let mut frame = DetectionFrame::from_message(msg, log_time);
@@ -215,6 +216,7 @@ impl DetectionSource {
     ) -> Result<(Detections3D, Vec<(u32, SkipReason)>), DecodeError> {
         match *self {
             DetectionSource::Ros2Vision(layout) => ros2_vision::decode_lenient(bytes, layout),
+            DetectionSource::FoxgloveScene => foxglove_scene::decode_lenient(bytes),
             DetectionSource::Probmot(Encoding::Protobuf) => match self.decode(bytes) {
                 Ok(msg) => Ok((msg, Vec::new())),
                 Err(e) => {

@@ -28,6 +28,7 @@ pub mod ros2_tracks;
 pub mod ros2_vision;
 pub mod scene_update;
 pub mod track_encode;
+pub mod utf8_repair;
 
 /// Serialized `google.protobuf.FileDescriptorSet` holding every probmot schema file, as stored in
 /// the data of each MCAP schema record (schema encoding `protobuf`).

@@ -138,3 +138,39 @@ fn foxglove_metadata_convention() {
     // Bad protobuf bytes.
     assert!(foxglove_scene::decode(&[0x12, 0x40, 0x01]).is_err());
 }
+
+/// An entity label that is not UTF-8 costs that entity's cubes, not the run: `track` tracks
+/// the rest of the update and counts the boxes as it does for the other inputs.
+#[test]
+fn a_label_that_is_not_utf8_skips_only_its_entity() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(repo(FOXGLOVE_FIXTURE)).unwrap();
+    let mut messages = Vec::new();
+    let mut schema = None;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        schema.get_or_insert(m.channel.schema.clone().unwrap());
+        messages.push(m.data.to_vec());
+    }
+    let all: usize = (messages.iter())
+        .map(|m| foxglove_scene::decode(m).unwrap().detections.len())
+        .sum();
+    // The first label value of message 4: a KeyValuePair `label` = its bytes.
+    let at = (messages[4].windows(8))
+        .position(|w| w == b"\x0a\x05label\x12")
+        .expect("a label pair");
+    messages[4][at + 9] = 0xff;
+    assert!(SceneUpdate::decode(messages[4].as_slice()).is_err());
+    let schema = schema.unwrap();
+    let path = dir.path().join("in.mcap");
+    let (name, enc) = (schema.name.as_str(), schema.encoding.as_str());
+    let s = (name, enc, &schema.data[..]);
+    super::ros2_messages::write_mcap(&path, s, "/detections", "protobuf", &messages);
+    let out = dir.path().join("out.mcap");
+    let s = track_json(&path, &out, &[]);
+    assert_eq!(s["detections"]["skipped"]["label_not_utf8"], 1, "{s}");
+    let boxes: u64 = (s["detections"]["per_label"].as_object().unwrap().values())
+        .map(|v| v.as_u64().unwrap())
+        .sum();
+    assert_eq!(boxes as usize, all - 1, "{s}");
+}

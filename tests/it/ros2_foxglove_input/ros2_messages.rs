@@ -302,7 +302,7 @@ fn malformed_cdr_is_an_error_not_a_panic_nor_a_huge_allocation() {
 }
 
 /// Writes an MCAP with one channel and the given messages.
-fn write_mcap(
+pub(super) fn write_mcap(
     path: &Path,
     schema: (&str, &str, &[u8]),
     topic: &str,

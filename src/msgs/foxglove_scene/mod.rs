@@ -16,6 +16,14 @@
 //! (spheres, lines, text, ...) and `deletions` are ignored. Stamp and frame: those of the first
 //! entity (no entities: the MCAP log_time); entities in different frames are an error, since
 //! the boxes of one message are tracked in one frame.
+//!
+//! A string that is not UTF-8 makes prost refuse the whole update; [`decode_lenient`] reads it
+//! anyway when that string is an entity's label or id (its cubes are then rejected, as
+//! `track` rejects such a box of the other inputs) or lies where no detection is read from.
+
+mod lenient;
+
+pub use lenient::decode_lenient;
 
 use foxglove::schemas::{SceneEntity, SceneUpdate};
 use prost::Message as _;
@@ -33,6 +41,7 @@ pub const SCORE_KEY: &str = "score";
 /// Score of a cube whose entity has no `score` metadata.
 pub const DEFAULT_SCORE: f64 = 1.0;
 
+/// The value of the first metadata pair of `e` with this key.
 fn meta<'a>(e: &'a SceneEntity, key: &str) -> Option<&'a str> {
     e.metadata
         .iter()
@@ -42,7 +51,11 @@ fn meta<'a>(e: &'a SceneEntity, key: &str) -> Option<&'a str> {
 
 /// Decodes one protobuf `foxglove.SceneUpdate` into detections.
 pub fn decode(bytes: &[u8]) -> Result<Detections3D, DecodeError> {
-    let update = SceneUpdate::decode(bytes)?;
+    detections(&SceneUpdate::decode(bytes)?)
+}
+
+/// The detections of a decoded update: one per cube, entity by entity.
+fn detections(update: &SceneUpdate) -> Result<Detections3D, DecodeError> {
     let mut out = Detections3D::default();
     if let Some(first) = update.entities.first() {
         out.stamp = first.timestamp.map(|t| t.total_nanos());
