@@ -52,23 +52,46 @@ pub struct Occupancy {
     sums: Vec<u32>,
 }
 
-impl Occupancy {
-    /// The grid of `cell`-pixel cells over `area` with the segments drawn in it.
-    pub fn new(area: PxRect, cell: f64, segments: &[[(f64, f64); 2]]) -> Occupancy {
+/// An [`Occupancy`] being filled segment by segment, so that the segments need not be held.
+pub struct OccupancyGrid {
+    area: PxRect,
+    cell: f64,
+    cols: usize,
+    rows: usize,
+    hit: Vec<bool>,
+}
+
+impl OccupancyGrid {
+    /// An empty grid of `cell`-pixel cells over `area`.
+    pub fn new(area: PxRect, cell: f64) -> OccupancyGrid {
         let cols = (area.width() / cell).ceil().max(1.0) as usize;
         let rows = (area.height() / cell).ceil().max(1.0) as usize;
-        let mut hit = vec![false; cols * rows];
-        for [a, b] in segments {
-            let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()) / (cell / 2.0)).ceil() as usize;
-            for i in 0..=n.min(100_000) {
-                let t = if n == 0 { 0.0 } else { i as f64 / n as f64 };
-                let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
-                let (c, r) = ((x - area.x0) / cell, (y - area.y0) / cell);
-                if c >= 0.0 && r >= 0.0 && (c as usize) < cols && (r as usize) < rows {
-                    hit[r as usize * cols + c as usize] = true;
-                }
+        OccupancyGrid {
+            area,
+            cell,
+            cols,
+            rows,
+            hit: vec![false; cols * rows],
+        }
+    }
+
+    /// Marks the cells the segment from `a` to `b` crosses (sampled every half cell).
+    pub fn mark(&mut self, a: (f64, f64), b: (f64, f64)) {
+        let (area, cell, cols, rows) = (self.area, self.cell, self.cols, self.rows);
+        let n = ((b.0 - a.0).abs().max((b.1 - a.1).abs()) / (cell / 2.0)).ceil() as usize;
+        for i in 0..=n.min(100_000) {
+            let t = if n == 0 { 0.0 } else { i as f64 / n as f64 };
+            let (x, y) = (a.0 + t * (b.0 - a.0), a.1 + t * (b.1 - a.1));
+            let (c, r) = ((x - area.x0) / cell, (y - area.y0) / cell);
+            if c >= 0.0 && r >= 0.0 && (c as usize) < cols && (r as usize) < rows {
+                self.hit[r as usize * cols + c as usize] = true;
             }
         }
+    }
+
+    /// The finished grid, with its summed-area table.
+    pub fn finish(self) -> Occupancy {
+        let (cols, rows, hit) = (self.cols, self.rows, self.hit);
         let mut sums = vec![0u32; (cols + 1) * (rows + 1)];
         for r in 0..rows {
             for c in 0..cols {
@@ -79,12 +102,23 @@ impl Occupancy {
             }
         }
         Occupancy {
-            area,
-            cell,
+            area: self.area,
+            cell: self.cell,
             cols,
             rows,
             sums,
         }
+    }
+}
+
+impl Occupancy {
+    /// The grid of `cell`-pixel cells over `area` with the segments drawn in it.
+    pub fn new(area: PxRect, cell: f64, segments: &[[(f64, f64); 2]]) -> Occupancy {
+        let mut grid = OccupancyGrid::new(area, cell);
+        for &[a, b] in segments {
+            grid.mark(a, b);
+        }
+        grid.finish()
     }
 
     /// Share (0 to 1) of the cells under `r` that hold lines.

@@ -42,10 +42,20 @@ fn drawn_detection(d: Detection3D) -> LabelledBox {
 
 /// The boxes of a decoded message as drawn.
 pub(crate) fn drawn_boxes(boxes: Boxes) -> Vec<LabelledBox> {
+    // Extended into a vector of exactly their number: `collect` would reuse the decoded
+    // message's larger allocation, and a plot holds every frame's boxes to the end.
+    let mut drawn = Vec::new();
     match boxes {
-        Boxes::Detections(d) => d.into_iter().map(drawn_detection).collect(),
-        Boxes::Tracks(t) => t.into_iter().map(drawn_track).collect(),
+        Boxes::Detections(d) => {
+            drawn.reserve_exact(d.len());
+            drawn.extend(d.into_iter().map(drawn_detection));
+        }
+        Boxes::Tracks(t) => {
+            drawn.reserve_exact(t.len());
+            drawn.extend(t.into_iter().map(drawn_track));
+        }
     }
+    drawn
 }
 
 /// Boxes of one frame: `(stamp in ns, boxes)`.
@@ -170,6 +180,11 @@ impl FileLayers {
         self.layers.iter().find(|l| l.layer == layer)
     }
 
+    /// The frames read for one layer, to take boxes out of.
+    pub fn get_mut(&mut self, layer: Layer) -> Option<&mut LayerFrames> {
+        self.layers.iter_mut().find(|l| l.layer == layer)
+    }
+
     /// Earliest frame stamp over all layers read, ns.
     pub fn first_stamp(&self) -> Option<u64> {
         if let Some((first, _)) = self.span {
@@ -269,6 +284,16 @@ impl Selection {
             })
             .collect()
     }
+
+    /// [`Self::apply`], moving the frames out of `frames` (left empty) instead of copying them.
+    pub fn take(&self, frames: &mut Vec<Frame>, t0: u64) -> Vec<Frame> {
+        let mut kept = std::mem::take(frames);
+        kept.retain(|(s, _)| self.in_window(*s, t0));
+        for (_, boxes) in &mut kept {
+            boxes.retain(|b| self.keeps_class(&b.label));
+        }
+        kept
+    }
 }
 
 #[cfg(test)]
@@ -330,5 +355,8 @@ mod tests {
         let all = Selection::default().apply(&frames, t0);
         assert_eq!(all.len(), 10);
         assert_eq!(all[0].1.len(), 2);
+        let mut read = frames.clone();
+        assert_eq!(sel.take(&mut read, t0), out);
+        assert!(read.is_empty());
     }
 }

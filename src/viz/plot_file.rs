@@ -249,7 +249,7 @@ impl Plot<'_> {
         )));
         let read = read_window(self.file, &all, &drawn, o.from_s, o.to_s);
         progress(Progress::Done);
-        let read = read?;
+        let mut read = read?;
         let layers = self.present_layers(&read, asked, explicit)?;
         let (Some(t0), Some(t_end)) = (read.first_stamp(), read.last_stamp()) else {
             bail!(
@@ -266,11 +266,14 @@ impl Plot<'_> {
             to_s: o.to_s,
         };
         let span = (t0, t_end);
-        let (mut panels, stamps, boxes) = self.build_panels(&read, &layers, &sel, span)?;
+        // The panels take the boxes they draw out of `read`, so what else is asked of the
+        // boxes read is gathered first.
+        let present = present_classes(&read, &layers);
+        let (mut panels, stamps, boxes) = self.build_panels(&mut read, &layers, &sel, span)?;
         if boxes == 0 {
-            return Err(self.no_boxes(&read, &layers, &sel, span));
+            return Err(self.no_boxes(&present, &layers, &sel, span));
         }
-        self.warn_absent_classes(&read, &layers);
+        self.warn_absent_classes(&present);
         let marks = self.colour_and_marks(&read, &mut panels, &sel, &stamps)?;
         let (w0, w1) = (
             *stamps.first().expect("non-empty"),
@@ -337,10 +340,12 @@ impl Plot<'_> {
         Ok(wanted)
     }
 
-    /// The panels of the window: `(panels, stamps of the window, boxes drawn)`.
+    /// The panels of the window: `(panels, stamps of the window, boxes drawn)`. The boxes of
+    /// each layer but the ground truth are moved out of `read` (a plot of a long log holds
+    /// each box once); the ground truth, which the tracks' colours follow, stays whole.
     fn build_panels(
         &self,
-        read: &FileLayers,
+        read: &mut FileLayers,
         layers: &[Layer],
         sel: &Selection,
         (t0, t_end): (u64, u64),
@@ -349,8 +354,11 @@ impl Plot<'_> {
         let mut window_stamps = BTreeSet::new();
         let mut boxes_total = 0usize;
         for &l in layers {
-            let lf = read.get(l).expect("checked above");
-            let frames = sel.apply(&lf.frames, t0);
+            let lf = read.get_mut(l).expect("checked above");
+            let frames = match l {
+                Layer::GroundTruth => sel.apply(&lf.frames, t0),
+                _ => sel.take(&mut lf.frames, t0),
+            };
             if frames.is_empty() {
                 bail!(
                     "{}: topic {} has no frame in the window {} (the file's frames span {:.2} to \
@@ -403,10 +411,9 @@ impl Plot<'_> {
 
     /// A warning for each asked class that no box read has (a typo among classes that are
     /// drawn would otherwise go unnoticed).
-    fn warn_absent_classes(&self, read: &FileLayers, layers: &[Layer]) {
-        let present = present_classes(read, layers);
+    fn warn_absent_classes(&self, present: &BTreeSet<String>) {
         for c in (self.o.classes.iter()).filter(|c| !present.contains(c.as_str())) {
-            let has: Vec<&str> = present.iter().copied().collect();
+            let has: Vec<&str> = present.iter().map(String::as_str).collect();
             (self.warn)(&format!(
                 "{}: no box of class {c} on the plotted topics (classes: {})",
                 self.file.display(),
@@ -418,12 +425,11 @@ impl Plot<'_> {
     /// The error when the window holds no box of the classes asked for.
     fn no_boxes(
         &self,
-        read: &FileLayers,
+        present: &BTreeSet<String>,
         layers: &[Layer],
         sel: &Selection,
         (t0, t_end): (u64, u64),
     ) -> anyhow::Error {
-        let present = present_classes(read, layers);
         let join = |v: Vec<String>| v.join(", ");
         anyhow::anyhow!(
             "{}: no box{} in the window {} on {} (classes in the file: {})",
@@ -441,7 +447,7 @@ impl Plot<'_> {
             ),
             match present.is_empty() {
                 true => "none".to_string(),
-                false => join(present.into_iter().map(String::from).collect()),
+                false => join(present.iter().cloned().collect()),
             }
         )
     }
@@ -517,12 +523,13 @@ impl Plot<'_> {
 }
 
 /// The classes of the boxes read for `layers`.
-fn present_classes<'a>(read: &'a FileLayers, layers: &[Layer]) -> BTreeSet<&'a str> {
-    (layers.iter())
+fn present_classes(read: &FileLayers, layers: &[Layer]) -> BTreeSet<String> {
+    let labels: BTreeSet<&str> = (layers.iter())
         .filter_map(|l| read.get(*l))
         .flat_map(|lf| lf.frames.iter().flat_map(|f| f.1.iter()))
         .map(|b| b.label.as_str())
-        .collect()
+        .collect();
+    labels.into_iter().map(String::from).collect()
 }
 
 fn window_text(sel: &Selection, t_end: u64, t0: u64) -> String {

@@ -9,7 +9,7 @@ use plotters::coord::Shift;
 use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 
-use super::labels::{place_labels, Obstacles, Occupancy};
+use super::labels::{place_labels, Obstacles, OccupancyGrid};
 use super::plot_layout::{LabelLayout, PanelLayout, PxRect, View};
 use super::plot_scene::{Scene, Sizes, Stroke};
 use super::plot_types::{draw_err, equal_aspect, rgb, EventMark, Extent, Panel, FONT};
@@ -197,11 +197,19 @@ where
     let title_px = (16.0 * sz.k).round();
     let (title_area, body) = area.split_vertically((title_px * 1.8).round() as u32);
     let (_chart, view) = chart_for(&body, ext, sz)?;
-    let scene = Scene::build(panel, &view, marks, sz);
-    let segments: Vec<[(f64, f64); 2]> = (scene.strokes.iter().chain(&scene.bold))
-        .map(|s| [s.a, s.b])
-        .collect();
-    let lines = Occupancy::new(view.area, 2.0, &segments);
+    // The thin lines are drawn as they come (nothing else is drawn before the bold ones), and
+    // only their cells are kept, for the labels.
+    let mut grid = OccupancyGrid::new(view.area, 2.0);
+    let scene = Scene::build(panel, &view, marks, sz, &mut |strokes: &mut Vec<Stroke>| {
+        for s in strokes.iter() {
+            grid.mark(s.a, s.b);
+        }
+        draw_strokes(canvas, strokes)
+    })?;
+    for s in &scene.bold {
+        grid.mark(s.a, s.b);
+    }
+    let lines = grid.finish();
     let mut obstacles = Obstacles {
         marks: Vec::new(),
         boxes: scene.last_boxes.iter().map(|r| r.grown(1.0)).collect(),
@@ -228,7 +236,6 @@ where
         })
         .collect();
     let labels_left_out = placed.iter().filter(|p| p.is_none()).count();
-    draw_strokes(canvas, &scene.strokes)?;
     draw_strokes(canvas, &scene.bold)?;
     draw_marks(canvas, &scene, sz)?;
     draw_labels(canvas, &labels, sz)?;

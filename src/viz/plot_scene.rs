@@ -1,7 +1,9 @@
-//! What one panel of `probmot plot` draws, in picture pixels, before anything is drawn: every box
-//! outline, heading tick and path step clipped to the plotting area, the bold last box of each
-//! id, the event marks, and the labels to place (events first, then the ids the events involve,
-//! then the other ids, longest-lived first).
+//! What one panel of `probmot plot` draws, in picture pixels: every box outline, heading tick
+//! and path step clipped to the plotting area, the bold last box of each id, the event marks,
+//! and the labels to place (events first, then the ids the events involve, then the other ids,
+//! longest-lived first). The thin lines, several for every box, are handed to the caller in
+//! batches as they are made (and drawn at once), so a panel of millions of boxes does not hold
+//! them; the rest waits for the labels to be placed.
 
 use std::collections::{BTreeMap, BTreeSet};
 
@@ -39,11 +41,14 @@ pub(super) struct Pending {
     pub request: LabelRequest,
 }
 
+/// Thin lines handed over at a time.
+const THIN_BATCH: usize = 4096;
+
 /// The panel's geometry.
 #[derive(Debug, Default)]
 pub(super) struct Scene {
-    /// Thin lines: boxes, ticks, paths.
-    pub strokes: Vec<Stroke>,
+    /// Thin lines not yet handed over: boxes, ticks, paths.
+    strokes: Vec<Stroke>,
     /// Bold lines: the last box of each id.
     pub bold: Vec<Stroke>,
     /// Bounding boxes of the bold last boxes in view.
@@ -146,8 +151,27 @@ impl Scene {
         }
     }
 
-    /// Builds the panel's geometry in `view`; `marks` are drawn on panels with ids.
-    pub fn build(panel: &Panel, view: &View, marks: &[EventMark], sz: Sizes) -> Scene {
+    /// Hands the thin lines to `thin` once there are [`THIN_BATCH`] of them.
+    fn hand_over_full_batch<E>(
+        &mut self,
+        thin: &mut dyn FnMut(&mut Vec<Stroke>) -> Result<(), E>,
+    ) -> Result<(), E> {
+        if self.strokes.len() >= THIN_BATCH {
+            thin(&mut self.strokes)?;
+            self.strokes.clear();
+        }
+        Ok(())
+    }
+
+    /// Builds the panel's geometry in `view`; `marks` are drawn on panels with ids. The thin
+    /// lines go to `thin` in order, in batches (it may empty the vector it gets).
+    pub fn build<E>(
+        panel: &Panel,
+        view: &View,
+        marks: &[EventMark],
+        sz: Sizes,
+        thin: &mut dyn FnMut(&mut Vec<Stroke>) -> Result<(), E>,
+    ) -> Result<Scene, E> {
         let mut scene = Scene::default();
         let involved = scene.add_marks(panel, view, marks, sz);
         let mut ids: Vec<(bool, usize, u64, Pending)> = Vec::new();
@@ -157,6 +181,7 @@ impl Scene {
                 let color = box_color(panel, id, stamp);
                 scene.line(view, &[c[0], c[1], c[2], c[3], c[0]], color, 1.0, 1.0);
                 scene.line(view, &heading_tick(b), color, 1.0, 1.0);
+                scene.hand_over_full_batch(thin)?;
             }
             if !panel.layer.has_ids() {
                 continue;
@@ -166,6 +191,7 @@ impl Scene {
                 let (a, b) = (w[0].1.center, w[1].1.center);
                 let color = box_color(panel, id, w[1].0);
                 scene.line(view, &[(a[0], a[1]), (b[0], b[1])], color, 0.6, 1.0);
+                scene.hand_over_full_batch(thin)?;
             }
             let Some(&(stamp, last)) = boxes.last() else {
                 continue;
@@ -176,7 +202,9 @@ impl Scene {
         }
         ids.sort_by_key(|(not_involved, rank, id, _)| (*not_involved, *rank, *id));
         scene.labels.extend(ids.into_iter().map(|t| t.3));
-        scene
+        thin(&mut scene.strokes)?;
+        scene.strokes = Vec::new();
+        Ok(scene)
     }
 
     /// Draws the bold last box of an id when its centre is in view, and returns its label.
@@ -302,5 +330,84 @@ pub(super) fn kind_key(k: Kind) -> &'static str {
         Kind::FalsePositive => "false_positive",
         Kind::Miss => "miss",
         Kind::Match => "match",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A panel of `n` boxes on a line, all in view, in `layer`.
+    fn panel(layer: Layer, n: u64) -> Panel {
+        let boxes = (0..n)
+            .map(|i| LabelledBox {
+                id: if layer.has_ids() { 1 + i % 7 } else { 0 },
+                label: "car".into(),
+                center: [(i % 100) as f64, (i / 100) as f64, 0.8],
+                size: [0.5, 0.3, 1.6],
+                ..Default::default()
+            })
+            .collect();
+        Panel {
+            title: "t".into(),
+            layer,
+            frames: vec![(0, boxes)],
+            truth_of: None,
+        }
+    }
+
+    fn view() -> View {
+        View {
+            area: PxRect {
+                x0: 0.0,
+                x1: 1000.0,
+                y0: 0.0,
+                y1: 1000.0,
+            },
+            extent: (-5.0, 105.0, -5.0, 105.0),
+        }
+    }
+
+    /// The thin lines come in batches of about [`THIN_BATCH`], all of them (four edges and a
+    /// heading tick per box in view), and the scene keeps none.
+    #[test]
+    fn thin_lines_are_handed_over_in_batches() {
+        for (layer, n) in [
+            (Layer::Detections, 1000),
+            (Layer::Detections, 10),
+            (Layer::Tracks, 1000),
+        ] {
+            let mut batches = Vec::new();
+            let mut thin = |s: &mut Vec<Stroke>| -> Result<(), ()> {
+                batches.push(s.len());
+                s.clear();
+                Ok(())
+            };
+            let scene =
+                Scene::build(&panel(layer, n), &view(), &[], Sizes::new(1.0), &mut thin).unwrap();
+            assert!(scene.strokes.is_empty());
+            let total: usize = batches.iter().sum();
+            let paths = match layer.has_ids() {
+                true => n as usize - 7, // one step between consecutive boxes of each of 7 ids
+                false => 0,
+            };
+            assert_eq!(total, 5 * n as usize + paths, "{layer:?} {n}: {batches:?}");
+            assert!(batches.iter().all(|&b| b < THIN_BATCH + 5), "{batches:?}");
+            assert_eq!(batches.len(), total / THIN_BATCH + 1, "{batches:?}");
+        }
+    }
+
+    /// An error of the caller stops the build.
+    #[test]
+    fn an_error_in_drawing_stops_the_build() {
+        let mut fail = |_: &mut Vec<Stroke>| -> Result<(), &str> { Err("disk full") };
+        let r = Scene::build(
+            &panel(Layer::Detections, 1000),
+            &view(),
+            &[],
+            Sizes::new(1.0),
+            &mut fail,
+        );
+        assert_eq!(r.err(), Some("disk full"));
     }
 }
