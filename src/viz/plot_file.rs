@@ -498,7 +498,7 @@ impl Plot<'_> {
         (minutes > LONG_LOG_MIN).then(|| {
             format!(
                 "{} is {minutes:.0} minutes long: a plot of all of it holds every box in memory \
-                 (about 600 bytes each) and draws every track on one picture; --from/--to \
+                 (about 330 bytes each) and draws every track on one picture; --from/--to \
                  (seconds from the first frame) draws a window, e.g. --from 0 --to 30",
                 self.file.display()
             )
