@@ -46,10 +46,10 @@ pub struct EvalArgs {
     #[arg(long, value_name = "TRACKED", num_args = 1..)]
     pub(super) tracks: Vec<PathBuf>,
     /// Ground-truth topic.
-    #[arg(long, default_value = "/ground_truth")]
+    #[arg(long, default_value = "/ground_truth", value_name = "TOPIC")]
     pub(super) truth_topic: String,
     /// Tracks topic.
-    #[arg(long, default_value = "/tracks")]
+    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
     pub(super) tracks_topic: String,
     /// Protocol.
     #[arg(long, value_parser = choice::<Protocol>(), default_value = "nuscenes")]

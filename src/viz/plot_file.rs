@@ -323,6 +323,22 @@ impl Plot<'_> {
             }
             return Ok(wanted);
         }
+        // A topic other than the default was named on purpose: its layer must be there (a
+        // misspelt topic would otherwise only drop its panel).
+        let defaults = LayerTopics::default();
+        let named = |l: &Layer| self.o.topics.of(*l) != defaults.of(*l);
+        if let Some(l) = wanted.iter().find(|l| named(l) && read.get(**l).is_none()) {
+            let flag = match l {
+                Layer::Detections => "--detections-topic",
+                Layer::Tracks => "--tracks-topic",
+                Layer::GroundTruth => "--truth-topic",
+            };
+            bail!(
+                "{file} has no topic {} for the {l} layer (topics: {}); check {flag}",
+                self.o.topics.of(*l),
+                topics()
+            );
+        }
         wanted.retain(|l| read.get(*l).is_some());
         if wanted.is_empty() {
             let t = &self.o.topics;

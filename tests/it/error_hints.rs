@@ -1,5 +1,7 @@
-//! Three first-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its
-//! file as a positional argument, and `info`'s count of boxes without a class.
+//! First-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its file
+//! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
+//! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
+//! topic option `export` spelt differently from the other commands.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -61,6 +63,91 @@ fn info_names_boxes_without_a_class() {
         let list = l.split("boxes per class:").nth(1).unwrap();
         for part in list.split(", ") {
             assert!(!part.starts_with("  ") && part.trim().contains(' '), "{l}");
+        }
+    }
+}
+
+#[test]
+fn track_names_the_topics_beside_a_misspelt_detections_topic() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.mcap");
+    let city = repo("sample_logs/city.mcap");
+    let err = stderr_of_failure(&[
+        "track",
+        s(&city),
+        "-o",
+        s(&out),
+        "--detections-topic",
+        "/dets",
+    ]);
+    assert!(err.contains("no channel with topic /dets"), "{err}");
+    assert!(err.contains("topics: /detections, /ground_truth"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn plot_refuses_a_named_topic_the_file_lacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("p.png");
+    let city = repo("sample_logs/city.mcap");
+    let err = stderr_of_failure(&["plot", s(&city), "-o", s(&png), "--truth-topic", "/gt"]);
+    assert!(
+        err.contains("no topic /gt for the ground_truth layer"),
+        "{err}"
+    );
+    assert!(err.contains("--truth-topic"), "{err}");
+    assert!(!png.exists());
+    // The default topics stay optional: the untracked log has no /tracks and plots.
+    probmot_ok(&["plot", s(&city), "-o", s(&png), "-q"]);
+}
+
+#[test]
+fn a_file_that_is_not_mcap_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("drive.mcap");
+    std::fs::write(&bag, b"#ROSBAG V2.0\nnot an mcap file at all").unwrap();
+    let out = dir.path().join("t.mcap");
+    for args in [vec!["info", s(&bag)], vec!["track", s(&bag), "-o", s(&out)]] {
+        let err = stderr_of_failure(&args);
+        assert!(err.contains(&bag.display().to_string()), "{err}");
+        assert!(err.contains("not an MCAP file"), "{err}");
+        assert!(err.contains("mcap convert"), "{err}");
+    }
+    assert!(!out.exists());
+}
+
+#[test]
+fn export_takes_tracks_topic_like_the_other_commands() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let (a, b) = (dir.path().join("a.txt"), dir.path().join("b.txt"));
+    let truth = "/ground_truth";
+    probmot_ok(&[
+        "export",
+        "kitti",
+        s(&city),
+        "-o",
+        s(&a),
+        "--topic",
+        truth,
+        "-q",
+    ]);
+    probmot_ok(&[
+        "export",
+        "kitti",
+        s(&city),
+        "-o",
+        s(&b),
+        "--tracks-topic",
+        truth,
+        "-q",
+    ]);
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    // Every topic option shows its value as TOPIC.
+    for cmd in [&["eval"][..], &["export", "kitti"], &["export", "nuscenes"]] {
+        let help = String::from_utf8(probmot_ok(&[cmd, &["--help"]].concat()).stdout).unwrap();
+        for l in help.lines().filter(|l| l.contains("-topic <")) {
+            assert!(l.contains("-topic <TOPIC>"), "{cmd:?}: {l}");
         }
     }
 }
