@@ -21,7 +21,7 @@ use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 /// Exit status: 0 ok, 2 error, 3 the gate (--max-drop) failed.
 ///
 /// Examples:
-///   probmot eval --truth drive.tracked.mcap
+///   probmot eval --truth city.tracked.mcap                   # from the first `track` example
 ///   probmot eval --truth drive.mcap --tracks drive.tracked.mcap --json
 ///   probmot eval --truth gt.mcap --tracks new.mcap --baseline old.mcap --max-drop 1
 ///   probmot eval --truth gt/ --tracks new/ --baseline old/ --bootstrap 1000 --max-drop 1

@@ -41,7 +41,7 @@ use super::choice::choice;
 /// options, whatever --jobs.
 ///
 /// Examples:
-///   probmot tune logs/*.mcap -o tuned.json
+///   probmot tune sample_logs/*.mcap -o tuned.json
 ///   probmot tune logs/*.mcap -o tuned.json --folds 2 --budget 100 --jobs 2 --json
 ///   probmot tune logs/*.mcap -o tuned.json --min-tracks 20 --margin 0.01
 ///   probmot tune logs/*.mcap -o nms.json --search nms_iou     # what NMS alone gives

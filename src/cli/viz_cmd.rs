@@ -21,7 +21,7 @@ use super::layer_topics::LayerTopics;
 /// without it, use scripts/to_rerun.py.
 ///
 /// Examples:
-///   probmot viz drive.tracked.mcap -o drive.rrd && rerun drive.rrd
+///   probmot viz city.tracked.mcap -o city.rrd && rerun city.rrd
 ///   probmot viz drive.tracked.mcap -o cars.rrd --class car --trail 50
 ///   probmot viz hour.tracked.mcap -o minute.rrd --from 600 --to 660
 #[derive(Debug, Args)]
