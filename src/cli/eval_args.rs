@@ -56,7 +56,7 @@ pub struct EvalArgs {
     pub(super) protocol: Protocol,
     /// Classes to evaluate, comma separated (default: the seven nuScenes classes; for kitti:
     /// car, pedestrian, cyclist).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', visible_alias = "class")]
     pub(super) classes: Vec<String>,
     /// KITTI only: minimum 3D IoU of a match [default: 0.25; 0.5 and 0.7 are also used].
     #[arg(long, value_name = "IOU")]

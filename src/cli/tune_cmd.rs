@@ -96,7 +96,12 @@ pub struct TuneArgs {
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     backfill: Option<bool>,
     /// Classes to tune and score, comma-separated (default: the protocol's classes).
-    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "LIST",
+        visible_alias = "class"
+    )]
     classes: Vec<String>,
     /// Search only these options, comma-separated (default: all but two_point_speed): noise,
     /// gate, matcher, min_hits, max_age, coast, backfill, angular_velocity, motion, q_factor,

@@ -36,7 +36,12 @@ pub struct VizArgs {
     #[arg(long, value_name = "N", default_value_t = 20)]
     trail: usize,
     /// Only boxes of these classes (comma-separated or repeated); default: every class.
-    #[arg(long, value_name = "CLASS", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "CLASS",
+        value_delimiter = ',',
+        visible_alias = "classes"
+    )]
     class: Vec<String>,
     /// Window start, seconds after the first frame; with --from or --to only the chunks that
     /// overlap the window are read (a minute of an hour-long drive reads a minute).

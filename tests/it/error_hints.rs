@@ -1,7 +1,8 @@
 //! First-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its file
 //! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
 //! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
-//! topic option `export` spelt differently from the other commands.
+//! options spelt differently from one command to the next (`export --topic`, `plot --class`
+//! beside `eval --classes`).
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -150,4 +151,27 @@ fn export_takes_tracks_topic_like_the_other_commands() {
             assert!(l.contains("-topic <TOPIC>"), "{cmd:?}: {l}");
         }
     }
+}
+
+#[test]
+fn class_and_classes_are_one_option_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracked = dir.path().join("city.tracked.mcap");
+    probmot_ok(&[
+        "track",
+        s(&repo("sample_logs/city.mcap")),
+        "-o",
+        s(&tracked),
+        "-q",
+    ]);
+    let stdout = |args: &[&str]| probmot_ok(args).stdout;
+    let eval = ["eval", "--truth", s(&tracked), "--json", "-q"];
+    assert_eq!(
+        stdout(&[&eval[..], &["--classes", "car,bus"]].concat()),
+        stdout(&[&eval[..], &["--class", "car,bus"]].concat())
+    );
+    let (one, two) = (dir.path().join("1.png"), dir.path().join("2.png"));
+    probmot_ok(&["plot", s(&tracked), "-o", s(&one), "--class", "car", "-q"]);
+    probmot_ok(&["plot", s(&tracked), "-o", s(&two), "--classes", "car", "-q"]);
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap());
 }
