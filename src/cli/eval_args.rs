@@ -94,7 +94,7 @@ pub struct EvalArgs {
     /// interval (both runs resampled alike). Resampled are whole logs when there are 20 or more,
     /// else time blocks within them (--block).
     /// Example: --bootstrap 1000
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, u64::MAX))]
     pub(super) bootstrap: Option<u64>,
     /// Seed of the bootstrap's draws: the same seed gives the same intervals, whatever the
     /// number of threads. Example: --seed 7
@@ -124,7 +124,7 @@ pub struct EvalArgs {
     #[arg(
         long,
         value_name = "N",
-        value_parser = clap::value_parser!(u64).range(1..)
+        value_parser = super::count::count_in(1, u64::MAX)
     )]
     pub(super) min_points: Option<u64>,
     /// nuScenes only: remove bicycle and motorcycle boxes (ground truth and tracks) whose centre

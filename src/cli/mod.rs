@@ -2,6 +2,7 @@
 
 mod choice;
 mod config_cmd;
+mod count;
 mod eval_args;
 mod eval_cmd;
 mod fit_cmd;
@@ -40,7 +41,7 @@ pub struct Cli {
     /// guard against a small file that expands to gigabytes; memory grows with the largest
     /// record, not with this limit.
     #[arg(long, global = true, value_name = "MIB",
-          value_parser = clap::value_parser!(u64).range(1..=(1 << 40)))]
+          value_parser = count::count_in(1, 1 << 40))]
     max_chunk_mib: Option<u64>,
 }
 

@@ -2,7 +2,7 @@
 //! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
 //! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
 //! options spelt differently from one command to the next (`export --topic`, `plot --class`
-//! beside `eval --classes`).
+//! beside `eval --classes`), and a count of 0 refused with the largest u64 in the message.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -174,4 +174,27 @@ fn class_and_classes_are_one_option_everywhere() {
     probmot_ok(&["plot", s(&tracked), "-o", s(&one), "--class", "car", "-q"]);
     probmot_ok(&["plot", s(&tracked), "-o", s(&two), "--classes", "car", "-q"]);
     assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap());
+}
+
+#[test]
+fn counts_out_of_range_are_refused_in_words() {
+    let city = repo("sample_logs/city.mcap");
+    for (flag, words) in [
+        ("--bootstrap", "0 is too small: give at least 1"),
+        ("--min-points", "0 is too small: give at least 1"),
+        (
+            "--max-chunk-mib",
+            "0 is out of range: give 1 to 1099511627776",
+        ),
+    ] {
+        let err = stderr_of_failure(&["eval", "--truth", s(&city), flag, "0"]);
+        assert!(err.contains(&format!("for '{flag} <")), "{err}");
+        assert!(err.contains(words), "{err}");
+        assert!(!err.contains("18446744073709551615"), "{err}");
+    }
+    let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "many"]);
+    assert!(err.contains("`many` is not a whole number"), "{err}");
+    // In range, the value is taken.
+    let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "1"]);
+    assert!(err.contains("/tracks"), "{err}");
 }
