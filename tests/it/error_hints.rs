@@ -2,7 +2,8 @@
 //! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
 //! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
 //! options spelt differently from one command to the next (`export --topic`, `plot --class`
-//! beside `eval --classes`), and a count of 0 refused with the largest u64 in the message.
+//! beside `eval --classes`), a count of 0 refused with the largest u64 in the message, and
+//! `plot -o /dev/null` refused for its name.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -197,4 +198,31 @@ fn counts_out_of_range_are_refused_in_words() {
     // In range, the value is taken.
     let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "1"]);
     assert!(err.contains("/tracks"), "{err}");
+}
+
+#[test]
+fn plot_writes_into_a_device_or_fifo_whatever_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("picture");
+    crate::common::mkfifo(&fifo);
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let city = repo("sample_logs/city.mcap");
+    let run = probmot(&["plot", s(&city), "-o", s(&fifo), "-q"]);
+    if !run.status.success() {
+        // Let the reader's open return, so that the failure below is reported, not a hang.
+        drop(std::fs::OpenOptions::new().write(true).open(&fifo));
+    }
+    let png = reader.join().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(png.starts_with(b"\x89PNG"));
+    // A regular file still needs the .png its format takes.
+    let err = stderr_of_failure(&["plot", s(&city), "-o", s(&dir.path().join("p.jpg"))]);
+    assert!(err.contains("must end in .png"), "{err}");
 }
