@@ -28,6 +28,10 @@ use probmot::pipeline::progress::Progress;
 /// (Kalman filter, Mahalanobis distance, greedy matching, noise from data) and writes the
 /// recording back with a tracks channel added.
 ///
+/// Exit status: 0 success, 2 error (bad input, missing file, invalid config), 3 the evaluation
+/// gate failed (eval --max-drop); 130, 143 or 129 when interrupted by SIGINT, SIGTERM or SIGHUP
+/// (nothing half-written is left behind).
+///
 /// Examples:
 ///   probmot track sample_logs/city.mcap -o city.tracked.mcap
 ///   probmot eval --truth city.tracked.mcap

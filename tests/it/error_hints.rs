@@ -3,7 +3,7 @@
 //! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
 //! options spelt differently from one command to the next (`export --topic`, `plot --class`
 //! beside `eval --classes`), a count of 0 refused with the largest u64 in the message, and
-//! `plot -o /dev/null` refused for its name.
+//! `plot -o /dev/null` refused for its name; and the exit statuses only the README gave.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -225,4 +225,19 @@ fn plot_writes_into_a_device_or_fifo_whatever_its_name() {
     // A regular file still needs the .png its format takes.
     let err = stderr_of_failure(&["plot", s(&city), "-o", s(&dir.path().join("p.jpg"))]);
     assert!(err.contains("must end in .png"), "{err}");
+}
+
+#[test]
+fn the_top_help_gives_the_exit_statuses() {
+    let help = String::from_utf8(probmot_ok(&["--help"]).stdout).unwrap();
+    let status = help.split_once("Exit status:").map(|(_, rest)| rest);
+    let status = status.unwrap_or_else(|| panic!("no exit status in:\n{help}"));
+    for code in [
+        "0 success",
+        "2 error",
+        "3 the evaluation",
+        "130, 143 or 129",
+    ] {
+        assert!(status.contains(code), "{code}: {help}");
+    }
 }
