@@ -21,7 +21,7 @@ use probmot::formats::nuscenes::BIKE_RACKS_TOPIC;
 /// Exit status: 0 ok, 2 error, 3 the gate (--max-drop) failed.
 ///
 /// Examples:
-///   probmot eval --truth drive.tracked.mcap
+///   probmot eval --truth city.tracked.mcap                   # from the first `track` example
 ///   probmot eval --truth drive.mcap --tracks drive.tracked.mcap --json
 ///   probmot eval --truth gt.mcap --tracks new.mcap --baseline old.mcap --max-drop 1
 ///   probmot eval --truth gt/ --tracks new/ --baseline old/ --bootstrap 1000 --max-drop 1
@@ -46,17 +46,17 @@ pub struct EvalArgs {
     #[arg(long, value_name = "TRACKED", num_args = 1..)]
     pub(super) tracks: Vec<PathBuf>,
     /// Ground-truth topic.
-    #[arg(long, default_value = "/ground_truth")]
+    #[arg(long, default_value = "/ground_truth", value_name = "TOPIC")]
     pub(super) truth_topic: String,
     /// Tracks topic.
-    #[arg(long, default_value = "/tracks")]
+    #[arg(long, default_value = "/tracks", value_name = "TOPIC")]
     pub(super) tracks_topic: String,
     /// Protocol.
     #[arg(long, value_parser = choice::<Protocol>(), default_value = "nuscenes")]
     pub(super) protocol: Protocol,
     /// Classes to evaluate, comma separated (default: the seven nuScenes classes; for kitti:
     /// car, pedestrian, cyclist).
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', visible_alias = "class")]
     pub(super) classes: Vec<String>,
     /// KITTI only: minimum 3D IoU of a match [default: 0.25; 0.5 and 0.7 are also used].
     #[arg(long, value_name = "IOU")]
@@ -94,7 +94,7 @@ pub struct EvalArgs {
     /// interval (both runs resampled alike). Resampled are whole logs when there are 20 or more,
     /// else time blocks within them (--block).
     /// Example: --bootstrap 1000
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, u64::MAX))]
     pub(super) bootstrap: Option<u64>,
     /// Seed of the bootstrap's draws: the same seed gives the same intervals, whatever the
     /// number of threads. Example: --seed 7
@@ -124,7 +124,7 @@ pub struct EvalArgs {
     #[arg(
         long,
         value_name = "N",
-        value_parser = clap::value_parser!(u64).range(1..)
+        value_parser = super::count::count_in(1, u64::MAX)
     )]
     pub(super) min_points: Option<u64>,
     /// nuScenes only: remove bicycle and motorcycle boxes (ground truth and tracks) whose centre

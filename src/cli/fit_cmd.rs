@@ -31,7 +31,7 @@ use super::show_progress;
 /// treats them); the config gets the wrapped one unless --fold-yaw.
 ///
 /// Examples:
-///   probmot fit train/*.mcap -o noise.json
+///   probmot fit sample_logs/*.mcap -o noise.json
 ///   probmot fit drive.mcap -o noise.json --fold-yaw --base-preset ab3dmot-2019 --json
 ///   probmot track drive.mcap -o out.mcap --config noise.json
 #[derive(Debug, Args)]

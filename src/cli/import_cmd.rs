@@ -127,8 +127,13 @@ enum ExportFormat {
 struct ExportKitti {
     /// Tracked MCAP file (imported with `probmot import kitti`).
     input: PathBuf,
-    /// Topic to export.
-    #[arg(long, default_value = "/tracks")]
+    /// Topic to export (a tracks or ground-truth channel), e.g. /ground_truth.
+    #[arg(
+        long,
+        default_value = "/tracks",
+        value_name = "TOPIC",
+        visible_alias = "tracks-topic"
+    )]
     topic: String,
     /// Output text file.
     #[arg(short, long)]
@@ -212,7 +217,12 @@ struct ExportNuscenes {
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Topic to export (probmot.Tracks3D), e.g. /ground_truth.
-    #[arg(long, default_value = "/tracks")]
+    #[arg(
+        long,
+        default_value = "/tracks",
+        value_name = "TOPIC",
+        visible_alias = "tracks-topic"
+    )]
     topic: String,
     /// Output JSON file.
     #[arg(short, long)]

@@ -2,6 +2,7 @@
 
 mod choice;
 mod config_cmd;
+mod count;
 mod eval_args;
 mod eval_cmd;
 mod fit_cmd;
@@ -27,6 +28,10 @@ use probmot::pipeline::progress::Progress;
 /// (Kalman filter, Mahalanobis distance, greedy matching, noise from data) and writes the
 /// recording back with a tracks channel added.
 ///
+/// Exit status: 0 success, 2 error (bad input, missing file, invalid config), 3 the evaluation
+/// gate failed (eval --max-drop); 130, 143 or 129 when interrupted by SIGINT, SIGTERM or SIGHUP
+/// (nothing half-written is left behind).
+///
 /// Examples:
 ///   probmot track sample_logs/city.mcap -o city.tracked.mcap
 ///   probmot eval --truth city.tracked.mcap
@@ -40,7 +45,7 @@ pub struct Cli {
     /// guard against a small file that expands to gigabytes; memory grows with the largest
     /// record, not with this limit.
     #[arg(long, global = true, value_name = "MIB",
-          value_parser = clap::value_parser!(u64).range(1..=(1 << 40)))]
+          value_parser = count::count_in(1, 1 << 40))]
     max_chunk_mib: Option<u64>,
 }
 

@@ -47,7 +47,12 @@ pub struct PlotArgs {
     #[arg(short, long, value_name = "OUT.png")]
     output: PathBuf,
     /// Only boxes of these classes (comma-separated or repeated); default: every class.
-    #[arg(long, value_name = "CLASS", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "CLASS",
+        value_delimiter = ',',
+        visible_alias = "classes"
+    )]
     class: Vec<String>,
     /// Window start, seconds after the file's first frame (inclusive). With --events, the
     /// region shown is that of the window's identity switches and fragmentations.

@@ -50,7 +50,7 @@ use super::viz_cmd::NEEDS_FEATURE;
 ///                                      box from pose and shape, velocity from the twist
 ///
 /// Examples:
-///   probmot track drive.mcap -o drive.tracked.mcap
+///   probmot track sample_logs/city.mcap -o city.tracked.mcap
 ///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks: see --tracks-format)
 ///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out; a split
 ///                                                 bag is one drive)

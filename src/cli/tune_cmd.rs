@@ -41,7 +41,7 @@ use super::choice::choice;
 /// options, whatever --jobs.
 ///
 /// Examples:
-///   probmot tune logs/*.mcap -o tuned.json
+///   probmot tune sample_logs/*.mcap -o tuned.json
 ///   probmot tune logs/*.mcap -o tuned.json --folds 2 --budget 100 --jobs 2 --json
 ///   probmot tune logs/*.mcap -o tuned.json --min-tracks 20 --margin 0.01
 ///   probmot tune logs/*.mcap -o nms.json --search nms_iou     # what NMS alone gives
@@ -96,7 +96,12 @@ pub struct TuneArgs {
     #[arg(long, value_name = "BOOL", num_args = 0..=1, default_missing_value = "true")]
     backfill: Option<bool>,
     /// Classes to tune and score, comma-separated (default: the protocol's classes).
-    #[arg(long, value_delimiter = ',', value_name = "LIST")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        value_name = "LIST",
+        visible_alias = "class"
+    )]
     classes: Vec<String>,
     /// Search only these options, comma-separated (default: all but two_point_speed): noise,
     /// gate, matcher, min_hits, max_age, coast, backfill, angular_velocity, motion, q_factor,

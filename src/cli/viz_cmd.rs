@@ -21,7 +21,7 @@ use super::layer_topics::LayerTopics;
 /// without it, use scripts/to_rerun.py.
 ///
 /// Examples:
-///   probmot viz drive.tracked.mcap -o drive.rrd && rerun drive.rrd
+///   probmot viz city.tracked.mcap -o city.rrd && rerun city.rrd
 ///   probmot viz drive.tracked.mcap -o cars.rrd --class car --trail 50
 ///   probmot viz hour.tracked.mcap -o minute.rrd --from 600 --to 660
 #[derive(Debug, Args)]
@@ -36,7 +36,12 @@ pub struct VizArgs {
     #[arg(long, value_name = "N", default_value_t = 20)]
     trail: usize,
     /// Only boxes of these classes (comma-separated or repeated); default: every class.
-    #[arg(long, value_name = "CLASS", value_delimiter = ',')]
+    #[arg(
+        long,
+        value_name = "CLASS",
+        value_delimiter = ',',
+        visible_alias = "classes"
+    )]
     class: Vec<String>,
     /// Window start, seconds after the first frame; with --from or --to only the chunks that
     /// overlap the window are read (a minute of an hour-long drive reads a minute).

@@ -150,6 +150,13 @@ pub fn read_records_while<R: Read>(
                      messages it holds"
                 }
                 mcap::McapError::RecordTooLarge { len, .. } => &format!("; {}", limit_hint(len)),
+                // Some other file named .mcap: a ROS 1 bag or a sqlite3 rosbag2 file is the
+                // likely one.
+                mcap::McapError::BadMagic => {
+                    "; it does not start with MCAP's magic bytes, so it is not an MCAP file (a ROS \
+                     1 .bag or a ROS 2 .db3 file converts with `mcap convert IN OUT.mcap`, the \
+                     mcap CLI, https://mcap.dev)"
+                }
                 _ => "",
             };
             anyhow::Error::new(e).context(format!(

@@ -339,7 +339,7 @@ pub fn no_channel(
     };
     let autoware_hint = format!(
         "; the file has Autoware tracks on {0} (`probmot track` writes them there for an \
-         Autoware input): name that topic (--tracks-topic {0}; export: --topic)",
+         Autoware input): name that topic (--tracks-topic {0})",
         autoware_tracks::TRACKING_TOPIC
     );
     let hint = match topic {

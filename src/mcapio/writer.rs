@@ -323,6 +323,12 @@ pub fn library_string() -> String {
     format!("probmot {}", env!("CARGO_PKG_VERSION"))
 }
 
+/// Whether `dest` exists as something other than a regular file or a directory (a device such
+/// as `/dev/null`, a FIFO): written in place, so its name need not give the format.
+pub fn is_device_or_fifo(dest: &Path) -> bool {
+    std::fs::metadata(dest).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
 /// Checks an output path before any work: it is not a directory (nor written as one, with a
 /// trailing slash), its directory exists and it is not the input.
 pub fn check_output_path(input: Option<&Path>, dest: &Path) -> Result<()> {

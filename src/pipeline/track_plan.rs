@@ -159,7 +159,14 @@ impl Scan {
         }
         for t in &opts.detection_topics {
             if !self.topics.contains(t) {
-                bail!("{file}: no channel with topic {t} (given with --detections-topic)");
+                // The topics the file has, sorted, as the other commands name them.
+                let mut has: Vec<&str> = self.topics.iter().map(String::as_str).collect();
+                has.sort_unstable();
+                let has = match has.is_empty() {
+                    true => "the file has no channels".to_string(),
+                    false => format!("topics: {}", has.join(", ")),
+                };
+                bail!("{file}: no channel with topic {t} (given with --detections-topic; {has})");
             }
         }
         Ok(())

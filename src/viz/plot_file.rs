@@ -12,7 +12,7 @@ use super::truth_colors::{marks, match_by_distance, match_from_events};
 use super::window::{read_events, read_window};
 use super::{FileLayers, Layer, Selection};
 use crate::mcapio::reader::read_summary_records;
-use crate::mcapio::writer::{check_output_path, write_file_atomic};
+use crate::mcapio::writer::{check_output_path, is_device_or_fifo, write_file_atomic};
 use crate::msgs::eval_events::EVENTS_TOPIC;
 use crate::pipeline::progress::{Progress, ProgressFn};
 use crate::pipeline::rosbag_dir::resolve_input;
@@ -174,7 +174,7 @@ pub fn plot_file(
 /// Checks the options that need no file.
 fn check(file: &Path, output: &Path, o: &PlotFileOptions) -> Result<()> {
     let is_png = (output.extension()).is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    if !is_png {
+    if !is_png && !is_device_or_fifo(output) {
         bail!(
             "output {} must end in .png (probmot plot writes PNG pictures)",
             output.display()
@@ -325,6 +325,22 @@ impl Plot<'_> {
                 );
             }
             return Ok(wanted);
+        }
+        // A topic other than the default was named on purpose: its layer must be there (a
+        // misspelt topic would otherwise only drop its panel).
+        let defaults = LayerTopics::default();
+        let named = |l: &Layer| self.o.topics.of(*l) != defaults.of(*l);
+        if let Some(l) = wanted.iter().find(|l| named(l) && read.get(**l).is_none()) {
+            let flag = match l {
+                Layer::Detections => "--detections-topic",
+                Layer::Tracks => "--tracks-topic",
+                Layer::GroundTruth => "--truth-topic",
+            };
+            bail!(
+                "{file} has no topic {} for the {l} layer (topics: {}); check {flag}",
+                self.o.topics.of(*l),
+                topics()
+            );
         }
         wanted.retain(|l| read.get(*l).is_some());
         if wanted.is_empty() {

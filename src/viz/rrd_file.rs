@@ -8,21 +8,21 @@ use anyhow::{bail, Result};
 
 pub use super::rrd_options::{RrdSummary, VizOptions};
 use crate::mcapio::destination::{destination, Destination};
-use crate::mcapio::writer::check_output_path;
+use crate::mcapio::writer::{check_output_path, is_device_or_fifo};
 use crate::pipeline::progress::{Progress, ProgressFn};
 use crate::pipeline::rosbag_dir::{open_bag, resolve_input};
 
 /// The error without the `rerun` feature: how to enable it, or the script to use instead.
 pub const NEEDS_FEATURE: &str = "this probmot was built without the `rerun` cargo feature; \
-     rebuild with `cargo build --release --features rerun` (or `cargo install --path . \
-     --features rerun`), or convert a tracked file with `python3 scripts/to_rerun.py \
+     rebuild with `cargo build --release --features rerun` (or `cargo install --locked --path \
+     . --features rerun`), or convert a tracked file with `python3 scripts/to_rerun.py \
      TRACKED.mcap -o OUT.rrd` (needs `python3 -m pip install -r scripts/requirements-view.txt`, \
      the viewer only, about 770 MB)";
 
 /// Checks the output path of a recording before any work.
 pub fn check_rrd_output(input: Option<&Path>, out: &Path) -> Result<()> {
     let is_rrd = (out.extension()).is_some_and(|e| e.eq_ignore_ascii_case("rrd"));
-    if !is_rrd {
+    if !is_rrd && !is_device_or_fifo(out) {
         bail!(
             "output {} must end in .rrd (a Rerun recording)",
             out.display()

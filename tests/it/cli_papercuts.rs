@@ -94,6 +94,53 @@ fn every_help_has_an_example() {
     }
 }
 
+/// The first example of each `--help` that works on the shipped samples runs as printed, from a
+/// folder laid out like the repository's root (`sample_logs/`), in the order a reader meets them
+/// (`probmot --help` first writes the city.tracked.mcap the later ones read). `import` and
+/// `export` stay out: their examples need the user's dataset files.
+#[test]
+fn first_help_examples_run_from_the_repo_root() {
+    let dir = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink(repo("sample_logs"), dir.path().join("sample_logs")).unwrap();
+    let bin_dir = std::path::Path::new(env!("CARGO_BIN_EXE_probmot"))
+        .parent()
+        .unwrap();
+    let path = format!("{}:{}", bin_dir.display(), std::env::var("PATH").unwrap());
+    let mut commands = vec![
+        "", "track", "info", "simulate", "config", "eval", "fit", "plot", "tune",
+    ];
+    if cfg!(feature = "rerun") {
+        commands.push("viz");
+    }
+    for c in commands {
+        let args: Vec<&str> = [c, "--help"]
+            .into_iter()
+            .filter(|a| !a.is_empty())
+            .collect();
+        let help = String::from_utf8(probmot_ok(&args).stdout).unwrap();
+        let line = help
+            .split_once("Example")
+            .and_then(|(_, rest)| rest.lines().nth(1))
+            .unwrap_or_default();
+        // The command without its comment (`# ...`, `(...)`) and what follows `&&` (a viewer).
+        let cmd = line.split("  #").next().unwrap();
+        let cmd = cmd.split("  (").next().unwrap();
+        let cmd = cmd.split(" && ").next().unwrap().trim();
+        assert!(cmd.starts_with("probmot "), "probmot {c} --help: {line}");
+        let run = std::process::Command::new("sh")
+            .args(["-c", cmd])
+            .current_dir(dir.path())
+            .env("PATH", &path)
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "probmot {c} --help: `{cmd}` failed: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+}
+
 /// The class entries of the config `probmot ARGS` prints.
 fn config_classes(args: &[&str]) -> serde_json::Map<String, serde_json::Value> {
     let v: serde_json::Value = serde_json::from_slice(&probmot_ok(args).stdout).unwrap();

@@ -1,5 +1,9 @@
-//! Three first-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its
-//! file as a positional argument, and `info`'s count of boxes without a class.
+//! First-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its file
+//! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
+//! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
+//! options spelt differently from one command to the next (`export --topic`, `plot --class`
+//! beside `eval --classes`), a count of 0 refused with the largest u64 in the message, and
+//! `plot -o /dev/null` refused for its name; and the exit statuses only the README gave.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -62,5 +66,178 @@ fn info_names_boxes_without_a_class() {
         for part in list.split(", ") {
             assert!(!part.starts_with("  ") && part.trim().contains(' '), "{l}");
         }
+    }
+}
+
+#[test]
+fn track_names_the_topics_beside_a_misspelt_detections_topic() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.mcap");
+    let city = repo("sample_logs/city.mcap");
+    let err = stderr_of_failure(&[
+        "track",
+        s(&city),
+        "-o",
+        s(&out),
+        "--detections-topic",
+        "/dets",
+    ]);
+    assert!(err.contains("no channel with topic /dets"), "{err}");
+    assert!(err.contains("topics: /detections, /ground_truth"), "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn plot_refuses_a_named_topic_the_file_lacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("p.png");
+    let city = repo("sample_logs/city.mcap");
+    let err = stderr_of_failure(&["plot", s(&city), "-o", s(&png), "--truth-topic", "/gt"]);
+    assert!(
+        err.contains("no topic /gt for the ground_truth layer"),
+        "{err}"
+    );
+    assert!(err.contains("--truth-topic"), "{err}");
+    assert!(!png.exists());
+    // The default topics stay optional: the untracked log has no /tracks and plots.
+    probmot_ok(&["plot", s(&city), "-o", s(&png), "-q"]);
+}
+
+#[test]
+fn a_file_that_is_not_mcap_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let bag = dir.path().join("drive.mcap");
+    std::fs::write(&bag, b"#ROSBAG V2.0\nnot an mcap file at all").unwrap();
+    let out = dir.path().join("t.mcap");
+    for args in [vec!["info", s(&bag)], vec!["track", s(&bag), "-o", s(&out)]] {
+        let err = stderr_of_failure(&args);
+        assert!(err.contains(&bag.display().to_string()), "{err}");
+        assert!(err.contains("not an MCAP file"), "{err}");
+        assert!(err.contains("mcap convert"), "{err}");
+    }
+    assert!(!out.exists());
+}
+
+#[test]
+fn export_takes_tracks_topic_like_the_other_commands() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let (a, b) = (dir.path().join("a.txt"), dir.path().join("b.txt"));
+    let truth = "/ground_truth";
+    probmot_ok(&[
+        "export",
+        "kitti",
+        s(&city),
+        "-o",
+        s(&a),
+        "--topic",
+        truth,
+        "-q",
+    ]);
+    probmot_ok(&[
+        "export",
+        "kitti",
+        s(&city),
+        "-o",
+        s(&b),
+        "--tracks-topic",
+        truth,
+        "-q",
+    ]);
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    // Every topic option shows its value as TOPIC.
+    for cmd in [&["eval"][..], &["export", "kitti"], &["export", "nuscenes"]] {
+        let help = String::from_utf8(probmot_ok(&[cmd, &["--help"]].concat()).stdout).unwrap();
+        for l in help.lines().filter(|l| l.contains("-topic <")) {
+            assert!(l.contains("-topic <TOPIC>"), "{cmd:?}: {l}");
+        }
+    }
+}
+
+#[test]
+fn class_and_classes_are_one_option_everywhere() {
+    let dir = tempfile::tempdir().unwrap();
+    let tracked = dir.path().join("city.tracked.mcap");
+    probmot_ok(&[
+        "track",
+        s(&repo("sample_logs/city.mcap")),
+        "-o",
+        s(&tracked),
+        "-q",
+    ]);
+    let stdout = |args: &[&str]| probmot_ok(args).stdout;
+    let eval = ["eval", "--truth", s(&tracked), "--json", "-q"];
+    assert_eq!(
+        stdout(&[&eval[..], &["--classes", "car,bus"]].concat()),
+        stdout(&[&eval[..], &["--class", "car,bus"]].concat())
+    );
+    let (one, two) = (dir.path().join("1.png"), dir.path().join("2.png"));
+    probmot_ok(&["plot", s(&tracked), "-o", s(&one), "--class", "car", "-q"]);
+    probmot_ok(&["plot", s(&tracked), "-o", s(&two), "--classes", "car", "-q"]);
+    assert_eq!(std::fs::read(&one).unwrap(), std::fs::read(&two).unwrap());
+}
+
+#[test]
+fn counts_out_of_range_are_refused_in_words() {
+    let city = repo("sample_logs/city.mcap");
+    for (flag, words) in [
+        ("--bootstrap", "0 is too small: give at least 1"),
+        ("--min-points", "0 is too small: give at least 1"),
+        (
+            "--max-chunk-mib",
+            "0 is out of range: give 1 to 1099511627776",
+        ),
+    ] {
+        let err = stderr_of_failure(&["eval", "--truth", s(&city), flag, "0"]);
+        assert!(err.contains(&format!("for '{flag} <")), "{err}");
+        assert!(err.contains(words), "{err}");
+        assert!(!err.contains("18446744073709551615"), "{err}");
+    }
+    let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "many"]);
+    assert!(err.contains("`many` is not a whole number"), "{err}");
+    // In range, the value is taken.
+    let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "1"]);
+    assert!(err.contains("/tracks"), "{err}");
+}
+
+#[test]
+fn plot_writes_into_a_device_or_fifo_whatever_its_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("picture");
+    crate::common::mkfifo(&fifo);
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let city = repo("sample_logs/city.mcap");
+    let run = probmot(&["plot", s(&city), "-o", s(&fifo), "-q"]);
+    if !run.status.success() {
+        // Let the reader's open return, so that the failure below is reported, not a hang.
+        drop(std::fs::OpenOptions::new().write(true).open(&fifo));
+    }
+    let png = reader.join().unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(png.starts_with(b"\x89PNG"));
+    // A regular file still needs the .png its format takes.
+    let err = stderr_of_failure(&["plot", s(&city), "-o", s(&dir.path().join("p.jpg"))]);
+    assert!(err.contains("must end in .png"), "{err}");
+}
+
+#[test]
+fn the_top_help_gives_the_exit_statuses() {
+    let help = String::from_utf8(probmot_ok(&["--help"]).stdout).unwrap();
+    let status = help.split_once("Exit status:").map(|(_, rest)| rest);
+    let status = status.unwrap_or_else(|| panic!("no exit status in:\n{help}"));
+    for code in [
+        "0 success",
+        "2 error",
+        "3 the evaluation",
+        "130, 143 or 129",
+    ] {
+        assert!(status.contains(code), "{code}: {help}");
     }
 }

@@ -554,7 +554,7 @@ fn filters_need_their_inputs() {
     for (args, want) in [
         (vec!["--min-points", "1"], "nuscenes_num_lidar_pts"),
         (vec!["--bike-racks"], "no channel with topic /bicycle_racks"),
-        (vec!["--min-points", "0"], "0 is not in 1.."),
+        (vec!["--min-points", "0"], "0 is too small: give at least 1"),
     ] {
         let mut a = vec!["eval", "--truth", perfect.to_str().unwrap()];
         a.extend(args);

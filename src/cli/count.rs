@@ -1,0 +1,22 @@
+//! Whole-number options with bounds, refused in words (`0 is too small: give at least 1`)
+//! rather than as clap's `0 is not in 1..18446744073709551615`.
+
+/// The value parser of an option taking a whole number in `lo..=hi`.
+pub fn count_in(
+    lo: u64,
+    hi: u64,
+) -> impl Fn(&str) -> Result<u64, String> + Clone + Send + Sync + 'static {
+    move |s| {
+        let n: u64 = s
+            .trim()
+            .parse()
+            .map_err(|_| format!("`{s}` is not a whole number"))?;
+        if (lo..=hi).contains(&n) {
+            Ok(n)
+        } else if hi == u64::MAX {
+            Err(format!("{n} is too small: give at least {lo}"))
+        } else {
+            Err(format!("{n} is out of range: give {lo} to {hi}"))
+        }
+    }
+}
