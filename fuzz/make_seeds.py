@@ -11,6 +11,7 @@ decode_sources:   a selector byte (0: vision_msgs 4.x, 1: vision_msgs 2.x, 2: fo
                   3: Autoware autoware_perception_msgs DetectedObjects, 4: the same of
                   autoware_auto_perception_msgs) and a message of the ROS 2 and Foxglove test
                   fixtures, or of a bag made by scripts/make_autoware_bag.py (both packages).
+bag_metadata:     metadata.yaml files of bags of scripts/make_autoware_bag.py and hand-made ones.
 frame_reader:     runs of the decode_protobuf messages, each a little-endian u16 length and the
                   message, in the framing of probmot_fuzz::frame_reader::read_frames.
 transforms:       the transform messages of tests/fixtures/ros2_tf/tf.mcap and two Foxglove frame
@@ -41,7 +42,7 @@ CORPUS = ROOT / "fuzz" / "corpus"
 SAMPLES = sorted((ROOT / "sample_logs").glob("*.mcap"))
 FIXTURES = ROOT / "tests" / "fixtures"
 TARGETS = ("read_path", "decode_protobuf", "decode_json", "decode_sources", "transforms",
-           "frame_reader")
+           "frame_reader", "bag_metadata")
 # Channel numbers of probmot_fuzz::read_transforms (TRANSFORM_CHANNELS), by topic.
 TRANSFORM_CHANNEL = {"/tf": 0, "/tf_static": 1, "/odom": 2, "/frame": 3, "/frames": 4}
 
@@ -174,13 +175,28 @@ def source_and_transform_seeds() -> None:
 
 def autoware_seeds() -> None:
     """decode_sources seeds of selectors 3 and 4: messages 0, 1 and 20 of a 30-frame bag of
-    scripts/make_autoware_bag.py (six objects, the UNKNOWN one among them) in each package."""
+    scripts/make_autoware_bag.py (six objects, the UNKNOWN one among them) in each package;
+    bag_metadata seeds: the metadata.yaml of those bags (rosbags' writer) and hand-made ones
+    (a split bag in flow and block style, quoted names, zstd and message compression)."""
+    for text in (
+        "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n"
+        "  relative_file_paths: [drive_0.mcap, 'drive_1.mcap', \"drive_2.mcap\"]\n"
+        "  compression_format: ''\n  compression_mode: ''\n",
+        "rosbag2_bagfile_information:\n    storage_identifier: mcap  # comment\n"
+        "    relative_file_paths:\n    - d_0.mcap.zstd\n    - \"d_\\u0031.mcap.zstd\"\n"
+        "    compression_format: zstd\n    compression_mode: FILE\n"
+        "    topics_with_message_count:\n      - topic_metadata:\n          name: /tf\n",
+        "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n"
+        "  relative_file_paths:\n  - 'it''s.db3'\n  compression_mode: message\n",
+    ):
+        put("bag_metadata", text.encode())
     for selector, flags in ((3, []), (4, ["--auto", "--ego"])):
         with tempfile.TemporaryDirectory() as d:
             bag = pathlib.Path(d) / "bag"
             subprocess.run([sys.executable, str(ROOT / "scripts" / "make_autoware_bag.py"),
                             str(bag), "--frames", "30", *flags], check=True,
                            stdout=subprocess.DEVNULL)
+            put("bag_metadata", (bag / "metadata.yaml").read_bytes())
             for path in bag.glob("*.mcap"):
                 with open(path, "rb") as f:
                     messages = make_reader(f).iter_messages(
