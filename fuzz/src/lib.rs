@@ -272,19 +272,10 @@ pub fn read_transforms(data: &[u8]) {
 }
 
 /// Parses `data` as the text of a rosbag2 `metadata.yaml` (not UTF-8: refused before parsing,
-/// as `read_metadata` does). Invariant besides no panic: every file name it lists is a line's
-/// text (the parser never makes up a name longer than its input).
+/// as `read_metadata` does). Errors are fine; a panic or a hang is not.
 pub fn parse_bag_metadata(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else {
         return;
     };
-    if let Ok(m) = probmot::pipeline::bag_metadata::parse_metadata(text) {
-        for f in &m.files {
-            assert!(
-                f.len() <= text.len(),
-                "file name {f:?} longer than the input"
-            );
-        }
-        std::hint::black_box(m);
-    }
+    std::hint::black_box(probmot::pipeline::bag_metadata::parse_metadata(text).ok());
 }
