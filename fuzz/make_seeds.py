@@ -2,7 +2,8 @@
 """Writes the seed corpora of the fuzz targets into fuzz/corpus/ (not committed).
 
 read_path:        the sample logs of at most 64 KiB, plus small MCAP files made here (unchunked, lz4 chunks, a JSON
-                  detections channel, stamps out of order, attachments and metadata).
+                  detections channel, stamps out of order, attachments and metadata) and by
+                  scripts/make_autoware_bag.py (Autoware detections and /tf).
 decode_protobuf:  /detections payloads of the sample logs, and a few hand-made messages (with the
                   absurd values of issue #36: huge centres and sizes, NaN velocities, a label
                   that is not UTF-8; read_path gets a log with a u64::MAX stamp and a shared one).
@@ -176,8 +177,9 @@ def source_and_transform_seeds() -> None:
 def autoware_seeds() -> None:
     """decode_sources seeds of selectors 3 and 4: messages 0, 1 and 20 of a 30-frame bag of
     scripts/make_autoware_bag.py (six objects, the UNKNOWN one among them) in each package;
-    bag_metadata seeds: the metadata.yaml of those bags (rosbags' writer) and hand-made ones
-    (a split bag in flow and block style, quoted names, zstd and message compression)."""
+    read_path: an 8-frame bag of it; bag_metadata seeds: the metadata.yaml of those bags
+    (rosbags' writer) and hand-made ones (a split bag in flow and block style, quoted names,
+    zstd and message compression)."""
     for text in (
         "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n"
         "  relative_file_paths: [drive_0.mcap, 'drive_1.mcap', \"drive_2.mcap\"]\n"
@@ -204,6 +206,13 @@ def autoware_seeds() -> None:
                     for i, (_, _, message) in enumerate(messages):
                         if i in (0, 1, 20):
                             put("decode_sources", bytes([selector]) + message.data)
+    # read_path: an 8-frame Autoware bag's MCAP file with the ego pose on /tf (~40 KB).
+    with tempfile.TemporaryDirectory() as d:
+        bag = pathlib.Path(d) / "bag"
+        subprocess.run([sys.executable, str(ROOT / "scripts" / "make_autoware_bag.py"), str(bag),
+                        "--frames", "8", "--ego"], check=True, stdout=subprocess.DEVNULL)
+        for path in bag.glob("*.mcap"):
+            put("read_path", path.read_bytes())
 
 
 def frame_reader_seeds(Detections3D, messages) -> None:
