@@ -2,18 +2,24 @@
 """Writes the seed corpora of the fuzz targets into fuzz/corpus/ (not committed).
 
 read_path:        the sample logs of at most 64 KiB, plus small MCAP files made here (unchunked, lz4 chunks, a JSON
-                  detections channel, stamps out of order, attachments and metadata).
+                  detections channel, stamps out of order, attachments and metadata) and by
+                  scripts/make_autoware_bag.py (Autoware detections and /tf).
 decode_protobuf:  /detections payloads of the sample logs, and a few hand-made messages (with the
                   absurd values of issue #36: huge centres and sizes, NaN velocities, a label
                   that is not UTF-8; read_path gets a log with a u64::MAX stamp and a shared one).
 decode_json:      the same messages in probmot's JSON form (serde, proto field names).
-decode_sources:   a selector byte (0: vision_msgs 4.x, 1: vision_msgs 2.x, 2: foxglove.SceneUpdate)
-                  and a message of the ROS 2 and Foxglove test fixtures.
+decode_sources:   a selector byte (0: vision_msgs 4.x, 1: vision_msgs 2.x, 2: foxglove.SceneUpdate,
+                  3: Autoware autoware_perception_msgs DetectedObjects, 4: the same of
+                  autoware_auto_perception_msgs) and a message of the ROS 2 and Foxglove test
+                  fixtures, or of a bag made by scripts/make_autoware_bag.py (both packages).
+bag_metadata:     metadata.yaml files of bags of scripts/make_autoware_bag.py and hand-made ones.
+frame_reader:     runs of the decode_protobuf messages, each a little-endian u16 length and the
+                  message, in the framing of probmot_fuzz::frame_reader::read_frames.
 transforms:       the transform messages of tests/fixtures/ros2_tf/tf.mcap and two Foxglove frame
                   transform messages made here, in the framing of probmot_fuzz::read_transforms.
 
 Needs the Python packages of scripts/requirements.txt (mcap, protobuf, foxglove-schemas-protobuf,
-lz4, zstandard).
+lz4, zstandard, rosbags, numpy).
 Run from anywhere: python3 fuzz/make_seeds.py
 """
 
@@ -22,6 +28,9 @@ import io
 import json
 import pathlib
 import shutil
+import subprocess
+import sys
+import tempfile
 
 from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
 from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
@@ -33,7 +42,8 @@ ROOT = pathlib.Path(__file__).resolve().parent.parent
 CORPUS = ROOT / "fuzz" / "corpus"
 SAMPLES = sorted((ROOT / "sample_logs").glob("*.mcap"))
 FIXTURES = ROOT / "tests" / "fixtures"
-TARGETS = ("read_path", "decode_protobuf", "decode_json", "decode_sources", "transforms")
+TARGETS = ("read_path", "decode_protobuf", "decode_json", "decode_sources", "transforms",
+           "frame_reader", "bag_metadata")
 # Channel numbers of probmot_fuzz::read_transforms (TRANSFORM_CHANNELS), by topic.
 TRANSFORM_CHANNEL = {"/tf": 0, "/tf_static": 1, "/odom": 2, "/frame": 3, "/frames": 4}
 
@@ -142,6 +152,8 @@ def source_and_transform_seeds() -> None:
                 if i in (0, 1, 20):
                     put("decode_sources", bytes([selector]) + message.data)
 
+    autoware_seeds()
+
     tf = b""
     with open(FIXTURES / "ros2_tf" / "tf.mcap", "rb") as f:
         for _, channel, message in make_reader(f).iter_messages(log_time_order=True):
@@ -160,6 +172,68 @@ def source_and_transform_seeds() -> None:
                                        frame_transform(0, "base_link", "lidar", 1.2, 1.0)])
     put("transforms", tf + framed("/frame", 10, one.SerializeToString())
         + framed("/frames", 20, many.SerializeToString()))
+
+
+def autoware_seeds() -> None:
+    """decode_sources seeds of selectors 3 and 4: messages 0, 1 and 20 of a 30-frame bag of
+    scripts/make_autoware_bag.py (six objects, the UNKNOWN one among them) in each package;
+    read_path: an 8-frame bag of it; bag_metadata seeds: the metadata.yaml of those bags
+    (rosbags' writer) and hand-made ones (a split bag in flow and block style, quoted names,
+    zstd and message compression)."""
+    for text in (
+        "rosbag2_bagfile_information:\n  version: 8\n  storage_identifier: mcap\n"
+        "  relative_file_paths: [drive_0.mcap, 'drive_1.mcap', \"drive_2.mcap\"]\n"
+        "  compression_format: ''\n  compression_mode: ''\n",
+        "rosbag2_bagfile_information:\n    storage_identifier: mcap  # comment\n"
+        "    relative_file_paths:\n    - d_0.mcap.zstd\n    - \"d_\\u0031.mcap.zstd\"\n"
+        "    compression_format: zstd\n    compression_mode: FILE\n"
+        "    topics_with_message_count:\n      - topic_metadata:\n          name: /tf\n",
+        "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n"
+        "  relative_file_paths:\n  - 'it''s.db3'\n  compression_mode: message\n",
+    ):
+        put("bag_metadata", text.encode())
+    for selector, flags in ((3, []), (4, ["--auto", "--ego"])):
+        with tempfile.TemporaryDirectory() as d:
+            bag = pathlib.Path(d) / "bag"
+            subprocess.run([sys.executable, str(ROOT / "scripts" / "make_autoware_bag.py"),
+                            str(bag), "--frames", "30", *flags], check=True,
+                           stdout=subprocess.DEVNULL)
+            put("bag_metadata", (bag / "metadata.yaml").read_bytes())
+            for path in bag.glob("*.mcap"):
+                with open(path, "rb") as f:
+                    messages = make_reader(f).iter_messages(
+                        topics=["/perception/object_recognition/detection/objects"])
+                    for i, (_, _, message) in enumerate(messages):
+                        if i in (0, 1, 20):
+                            put("decode_sources", bytes([selector]) + message.data)
+    # read_path: an 8-frame Autoware bag's MCAP file with the ego pose on /tf (~40 KB).
+    with tempfile.TemporaryDirectory() as d:
+        bag = pathlib.Path(d) / "bag"
+        subprocess.run([sys.executable, str(ROOT / "scripts" / "make_autoware_bag.py"), str(bag),
+                        "--frames", "8", "--ego"], check=True, stdout=subprocess.DEVNULL)
+        for path in bag.glob("*.mcap"):
+            put("read_path", path.read_bytes())
+
+
+def frame_reader_seeds(Detections3D, messages) -> None:
+    """Runs of `messages` (protobuf payloads) for one FrameReader, and a run whose boxes keep,
+    change, add and drop attributes and labels from one message to the next."""
+    def run(payloads) -> bytes:
+        return b"".join(len(p).to_bytes(2, "little") + p for p in payloads)
+
+    for i in range(0, len(messages), 3):
+        put("frame_reader", run(messages[i:i + 4]))
+    put("frame_reader", run(list(reversed(messages))[:8]))
+    runs = []
+    for attrs, label in (({"id": "7"}, "car"), ({"id": "8"}, "truck"),
+                         ({"id": "9", "sim_truth_id": "3"}, "car"), ({}, "pedestrian")):
+        m = Detections3D(stamp=len(runs) + 1, frame_id="lidar" if attrs else "")
+        for k in range(2):
+            d = m.detections.add(label=label, score=0.5)
+            d.center.x, d.size.length, d.size.width, d.size.height = k, 4.5, 1.9, 1.6
+            d.attributes.update(attrs)
+        runs.append(m.SerializeToString())
+    put("frame_reader", run(runs))
 
 
 def hostile_value_seeds(Detections3D, hand) -> list:
@@ -249,6 +323,8 @@ def main() -> None:
     put("read_path", small_mcap(descriptor, js, encoding="json"))
     put("read_path", small_mcap(descriptor, hostile, chunked=False))
     source_and_transform_seeds()
+    frame_reader_seeds(Detections3D, [d for _, d in picked]
+                       + [m.SerializeToString() for m in hand] + [hostile[-1][1]])
     for t in TARGETS:
         files = list((CORPUS / t).iterdir())
         print(f"{t}: {len(files)} seeds, {sum(f.stat().st_size for f in files)} bytes")

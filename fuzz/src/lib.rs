@@ -1,15 +1,19 @@
 //! Shared harness code of the fuzz targets (see `fuzz/README.md`).
 
+pub mod frame_reader;
 pub mod read_path;
 
 use std::collections::BTreeMap;
 
 use mcap::records::{Channel, MessageHeader};
-use probmot::msgs::detection_frame::DetectionFrame;
+use probmot::msgs::detection_frame::{stamp_or_log_time, DetectionFrame};
+use probmot::msgs::detection_reader::FrameReader;
 use probmot::msgs::detection_source::DetectionSource;
 use probmot::msgs::ros2_tf::{ODOMETRY_SCHEMA, TF_MESSAGE_SCHEMA};
 use probmot::msgs::ros2_vision::VisionLayout;
-use probmot::msgs::{self, Detection3D, Detections3D, DetectionsEnvelope, Encoding, Vector3};
+use probmot::msgs::{
+    self, autoware, Detection3D, Detections3D, DetectionsEnvelope, Encoding, Vector3,
+};
 use probmot::pipeline::detections::{convert, reject, InputCounters, Origin};
 use probmot::pipeline::ego::{EgoMotion, EgoOptions};
 use probmot::tracker::{Tracker, TrackerConfig};
@@ -48,37 +52,45 @@ pub fn decode_and_track(data: &[u8], encoding: Encoding) {
 }
 
 /// The first byte of `data` picks a detection input other than probmot's own (0: ROS 2
-/// `vision_msgs` 4.x layout, 1: its 2.x layout, 2: `foxglove.SceneUpdate`, modulo 3); the rest
-/// is one message of it. Decodes it fully and as `track`'s first pass does, and tracks a decoded
-/// message as [`decode_and_track`] does. Invariant besides no panic: the first pass's stamp and
-/// box count agree with the full decode, and both fail or succeed together.
+/// `vision_msgs` 4.x layout, 1: its 2.x layout, 2: `foxglove.SceneUpdate`, 3: Autoware
+/// `autoware_perception_msgs/msg/DetectedObjects`, 4: the same of `autoware_auto_perception_msgs`,
+/// modulo 5); the rest is one message of it. Reads it as `track`'s first pass does
+/// (`stamp_and_count`) and as its second pass does (`FrameReader::read`, which leaves these
+/// inputs to `DetectionSource::decode_frame`: the lenient decode that rejects a box whose label
+/// or id is not UTF-8, and for Autoware marks the classes that are none of probmot's), and
+/// tracks a decoded frame as [`decode_and_track`] does. Invariant besides no panic: the first
+/// pass's stamp and count (kept and rejected boxes) agree with the frame, and both passes fail
+/// or succeed together.
 pub fn decode_source_and_track(data: &[u8]) {
     let Some((&selector, bytes)) = data.split_first() else {
         return;
     };
-    let source = match selector % 3 {
+    let source = match selector % 5 {
         0 => DetectionSource::Ros2Vision(VisionLayout::V4),
         1 => DetectionSource::Ros2Vision(VisionLayout::V2),
-        _ => DetectionSource::FoxgloveScene,
+        2 => DetectionSource::FoxgloveScene,
+        3 => DetectionSource::Autoware(autoware::Package::Perception),
+        _ => DetectionSource::Autoware(autoware::Package::AutoPerception),
     };
+    const LOG_TIME: u64 = 77;
     let counted = source.stamp_and_count(bytes);
-    let msg = match source.decode(bytes) {
-        Ok(m) => m,
+    let frame = match FrameReader::default().read(&source, bytes, LOG_TIME) {
+        Ok(f) => f,
         Err(_) => {
             assert!(
                 counted.is_err(),
-                "the first pass read a message the full decode refused"
+                "the first pass read a message the second pass refused"
             );
             return;
         }
     };
-    let counted = counted.expect("a message that decodes fully is counted by the first pass");
+    let (stamp, count) = counted.expect("a message the second pass reads is counted by the first");
     assert_eq!(
-        counted,
-        (msg.stamp, msg.detections.len()),
+        (stamp_or_log_time(stamp, LOG_TIME), count),
+        (frame.stamp, frame.boxes.len() + frame.rejected.len()),
         "stamp and count"
     );
-    track_decoded(DetectionFrame::from_message(msg, 0));
+    track_decoded(frame);
 }
 
 /// Runs the boxes of a checked message through `reject` (refused ones) and `convert` (with and
@@ -257,4 +269,13 @@ pub fn read_transforms(data: &[u8]) {
     }
     let mut warnings = Vec::new();
     std::hint::black_box(ego.finish("fuzz", &mut warnings));
+}
+
+/// Parses `data` as the text of a rosbag2 `metadata.yaml` (not UTF-8: refused before parsing,
+/// as `read_metadata` does). Errors are fine; a panic or a hang is not.
+pub fn parse_bag_metadata(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    std::hint::black_box(probmot::pipeline::bag_metadata::parse_metadata(text).ok());
 }
