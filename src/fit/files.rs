@@ -11,6 +11,7 @@ use super::{
     fit_gathered, fitted_config, ClassFit, FitAccumulator, FitOptions, FitReport, YawMode,
 };
 use crate::mcapio::writer::{check_output_path, write_file_atomic};
+use crate::pipeline::log_pairs::refuse_repeats;
 use crate::pipeline::progress::{Progress, ProgressFn};
 use crate::pipeline::rosbag_dir::resolve_input;
 use crate::tracker::{Preset, TrackerConfig};
@@ -69,6 +70,7 @@ pub fn fit_files(
     let inputs: Vec<PathBuf> = (inputs.iter())
         .map(|p| resolve_input(p))
         .collect::<Result<_>>()?;
+    refuse_repeats(&inputs)?;
     ensure!(o.min_samples >= 1, "--min-samples must be at least 1");
     for input in &inputs {
         check_output_path(Some(input), output)?;

@@ -40,14 +40,39 @@ pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-/// Expands the truth and tracks arguments ([`expand`]) and pairs them ([`pair_logs`]).
+/// Refuses a list of logs that names one file twice (also through another path to it, e.g.
+/// `a.mcap` and `./a.mcap`, or overlapping patterns): the log would count twice in the metrics
+/// or statistics, and in a cross-validation could sit in a training and a held-out fold at
+/// once. Paths that cannot be resolved are left to the read that fails on them.
+pub fn refuse_repeats(files: &[PathBuf]) -> Result<()> {
+    let mut seen: BTreeMap<PathBuf, &PathBuf> = BTreeMap::new();
+    for f in files {
+        let Ok(real) = std::fs::canonicalize(f) else {
+            continue;
+        };
+        if let Some(first) = seen.insert(real, f) {
+            bail!(
+                "{} is the same file as {}, given before it: give each log once (it would \
+                 count twice)",
+                f.display(),
+                first.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Expands the truth and tracks arguments ([`expand`]), refuses a file named twice in either
+/// list ([`refuse_repeats`]) and pairs them ([`pair_logs`]).
 pub fn log_pairs(truth: &[PathBuf], tracks: &[PathBuf]) -> Result<Vec<(PathBuf, PathBuf)>> {
     let truth = expand(truth)?;
+    refuse_repeats(&truth)?;
     let tracks = if tracks.is_empty() {
         Vec::new()
     } else {
         expand(tracks)?
     };
+    refuse_repeats(&tracks)?;
     pair_logs(&truth, &tracks)
 }
 

@@ -14,6 +14,7 @@ use crate::fit::timing::mixed_periods;
 use crate::mcapio::writer::{check_output_path, write_file_atomic};
 use crate::msgs::detection_frame::describe_skips;
 use crate::pipeline::kitti_io::is_kitti_import;
+use crate::pipeline::log_pairs::refuse_repeats;
 use crate::pipeline::overrides::Overrides;
 use crate::pipeline::progress::{Progress, ProgressFn};
 use crate::pipeline::rosbag_dir::resolve_input;
@@ -122,6 +123,7 @@ pub fn tune_files(
     let inputs: Vec<PathBuf> = (inputs.iter())
         .map(|p| resolve_input(p))
         .collect::<Result<_>>()?;
+    refuse_repeats(&inputs)?;
     check(&inputs, output, o)?;
     let inferred = o.protocol.is_none();
     let protocol = protocol_of(&inputs, o.protocol)?;

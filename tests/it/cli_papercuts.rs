@@ -759,3 +759,33 @@ fn a_log_at_another_rate_than_the_preset_is_named() {
     probmot_ok(&["fit", s(&log), "-o", s(&fitted), "-q"]);
     assert_eq!(warning(&["--config", s(&fitted)]), None);
 }
+
+/// A log named twice (here through two paths to one file, or an overlapping pattern) would count
+/// twice in `eval`'s metrics and `fit`'s statistics, and could sit in a training and a held-out
+/// fold of `tune` at once: each command refuses it, naming both.
+#[test]
+fn a_log_given_twice_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let again = repo("sample_logs/../sample_logs/city.mcap");
+    let (city, again) = (s(&city), s(&again));
+    let out = dir.path().join("out.json");
+    let runs: [Vec<&str>; 4] = [
+        vec!["fit", city, again, "-o", s(&out)],
+        vec!["tune", city, again, "-o", s(&out), "--budget", "2"],
+        vec!["eval", "--truth", city, "--truth", again],
+        vec!["eval", "--truth", city, "--tracks", city, "--tracks", again],
+    ];
+    for args in runs {
+        let r = probmot(&args);
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {err}");
+        let named = format!("{again} is the same file as {city}, given before it");
+        assert!(err.contains(&named), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?}");
+    }
+    let pattern = format!("{}/*.mcap", repo("sample_logs").display());
+    let r = probmot(&["eval", "--truth", &pattern, "--truth", city]);
+    assert_eq!(r.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&r.stderr).contains("give each log once"));
+}
