@@ -10,7 +10,7 @@ use super::accumulate::FitAccumulator;
 use super::data::{assemble_frames, FitFrame, FitLog};
 use crate::mcapio::recording::{self, Boxes, FrameEvent, TopicKind, TopicRequest};
 use crate::mcapio::LabelledBox;
-use crate::msgs::detection_frame::{check_box, SkipReason};
+use crate::msgs::detection_frame::{check_box, count_skips, SkipReason};
 use crate::msgs::{Detection3D, Track3D};
 
 /// `(stamp, boxes)` per message of one topic.
@@ -40,7 +40,7 @@ fn read_topics(
                 out[i].get_or_insert_with(Vec::new);
             }
             FrameEvent::Frame(i, f) => {
-                count_skipped(&f.skipped, &mut skipped);
+                count_skips(&mut skipped, &f.skipped);
                 // Extended into a new vector: `collect` would keep the decoded messages'
                 // larger allocation in place for as long as the log is held.
                 let mut boxes = Vec::new();
@@ -90,13 +90,6 @@ fn detection_box(d: Detection3D, skipped: &mut Skipped) -> Option<LabelledBox> {
             *skipped.entry(reason).or_default() += 1;
             None
         }
-    }
-}
-
-/// Counts the boxes the decoder already left out (a string that is not UTF-8), as `track` does.
-fn count_skipped(reasons: &[SkipReason], skipped: &mut Skipped) {
-    for &reason in reasons {
-        *skipped.entry(reason).or_default() += 1;
     }
 }
 
@@ -213,7 +206,7 @@ fn stream_ordered(
                 }
             }
             Boxes::Detections(d) => {
-                count_skipped(&f.skipped, &mut skipped);
+                count_skips(&mut skipped, &f.skipped);
                 let kept = d.into_iter().filter_map(|d| detection_box(d, &mut skipped));
                 p.detections.extend(kept);
                 p.detection_messages += 1;

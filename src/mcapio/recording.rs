@@ -64,8 +64,7 @@ pub struct Frame {
     /// Its boxes.
     pub boxes: Boxes,
     /// Detection boxes left out of `boxes` because a string of theirs is not UTF-8, one
-    /// reason per box (as `track` rejects them, [`DetectionSource::decode_frame`]): the rest
-    /// of their message is read, so every command accepts the messages `track` accepts.
+    /// reason per box ([`DetectionSource::decode_kept`]).
     pub skipped: Vec<SkipReason>,
 }
 
@@ -200,8 +199,7 @@ impl Decoder {
         };
         Ok(match self {
             Decoder::Detections(source) => {
-                let (mut m, rejected) = source.decode_lenient(data)?;
-                let skipped = leave_out(&mut m.detections, &rejected);
+                let (m, skipped) = source.decode_kept(data)?;
                 let stamp = stamp_or_log_time(m.stamp, log_time);
                 frame(stamp, Boxes::Detections(m.detections), m.frame_id, skipped)
             }
@@ -210,20 +208,6 @@ impl Decoder {
             Decoder::Tracks(enc) => tracks(msgs::decode::<Tracks3D>(data, *enc)?),
         })
     }
-}
-
-/// Removes the boxes at the `rejected` positions (ascending) from `boxes`; their reasons.
-fn leave_out(boxes: &mut Vec<Detection3D>, rejected: &[(u32, SkipReason)]) -> Vec<SkipReason> {
-    if rejected.is_empty() {
-        return Vec::new();
-    }
-    let mut index = 0u32;
-    boxes.retain(|_| {
-        let keep = rejected.binary_search_by_key(&index, |r| r.0).is_err();
-        index += 1;
-        keep
-    });
-    rejected.iter().map(|r| r.1).collect()
 }
 
 /// Reads the requested topics of `path` in one pass. A topic the file lacks gives `None`; a
@@ -322,6 +306,17 @@ pub fn for_each_frame_with(
     Ok(topics)
 }
 
+/// `topics: a, b` (sorted), or that the file has none: what an error about a missing topic
+/// names beside it.
+pub fn topic_list<'a>(topics: impl IntoIterator<Item = &'a String>) -> String {
+    let mut names: Vec<&str> = topics.into_iter().map(String::as_str).collect();
+    names.sort_unstable();
+    match names.is_empty() {
+        true => "the file has no channels".to_string(),
+        false => format!("topics: {}", names.join(", ")),
+    }
+}
+
 /// The error for a topic the file has no channel for: it names the topics the file has, and for
 /// `/tracks` (the tracks `probmot track` writes) says where they come from, since an untracked
 /// log is the usual cause.
@@ -330,13 +325,7 @@ pub fn no_channel(
     topic: &str,
     topics: &BTreeSet<String>,
 ) -> anyhow::Error {
-    let has = match topics.is_empty() {
-        true => "the file has no channels".to_string(),
-        false => {
-            let names: Vec<&str> = topics.iter().map(String::as_str).collect();
-            format!("topics: {}", names.join(", "))
-        }
-    };
+    let has = topic_list(topics);
     let autoware_hint = format!(
         "; the file has Autoware tracks on {0} (`probmot track` writes them there for an \
          Autoware input): name that topic (--tracks-topic {0})",

@@ -106,6 +106,13 @@ pub struct DetectionFrame {
     pub rejected: Vec<Rejected>,
 }
 
+/// Adds one box per reason to `skipped` (the boxes a reader left out, counted by reason).
+pub fn count_skips(skipped: &mut BTreeMap<SkipReason, u64>, reasons: &[SkipReason]) {
+    for &reason in reasons {
+        *skipped.entry(reason).or_default() += 1;
+    }
+}
+
 /// `N detection boxes (reason)`, or `N detection boxes: a (reason), b (reason)` for several
 /// reasons: the boxes a reader of detections skipped, as `track`, `fit` and `tune` report them.
 pub fn describe_skips(skipped: &BTreeMap<SkipReason, u64>) -> String {

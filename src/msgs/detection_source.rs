@@ -208,9 +208,29 @@ impl DetectionSource {
         Ok(frame)
     }
 
+    /// Decodes one message without the boxes [`Self::decode_frame`] rejects for a string that
+    /// is not UTF-8, and their reasons: the read of the commands that take boxes as decoded
+    /// (`fit`, `tune`, `plot`, `viz`, `info`), so they accept the messages `track` accepts.
+    pub fn decode_kept(
+        &self,
+        bytes: &[u8],
+    ) -> Result<(Detections3D, Vec<SkipReason>), DecodeError> {
+        let (mut msg, rejected) = self.decode_lenient(bytes)?;
+        if rejected.is_empty() {
+            return Ok((msg, Vec::new()));
+        }
+        let mut index = 0u32;
+        msg.detections.retain(|_| {
+            let keep = rejected.binary_search_by_key(&index, |r| r.0).is_err();
+            index += 1;
+            keep
+        });
+        Ok((msg, rejected.into_iter().map(|r| r.1).collect()))
+    }
+
     /// Decodes one message, with the boxes to reject for a string that is not UTF-8 (see
-    /// [`Self::decode_frame`]) as `(index, reason)`, ascending: the read every command shares.
-    pub fn decode_lenient(
+    /// [`Self::decode_frame`]) as `(index, reason)`, ascending.
+    fn decode_lenient(
         &self,
         bytes: &[u8],
     ) -> Result<(Detections3D, Vec<(u32, SkipReason)>), DecodeError> {

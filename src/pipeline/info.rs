@@ -256,15 +256,11 @@ impl InfoState {
         let enc = Encoding::from_message_encoding(&ch.message_encoding);
         let source = self.sources.get(&header.channel_id);
         match (ch.role.as_str(), enc, source) {
-            ("detections", _, Some(source)) => match source.decode_lenient(data) {
-                Ok((m, rejected)) => {
-                    let mut rejected = rejected.iter().map(|r| r.0 as usize).peekable();
-                    for (i, d) in m.detections.into_iter().enumerate() {
-                        if rejected.next_if_eq(&i).is_some() {
-                            ch.boxes_not_utf8 += 1;
-                        } else {
-                            *ch.per_label.entry(d.label).or_default() += 1;
-                        }
+            ("detections", _, Some(source)) => match source.decode_kept(data) {
+                Ok((m, skipped)) => {
+                    ch.boxes_not_utf8 += skipped.len() as u64;
+                    for d in m.detections {
+                        *ch.per_label.entry(d.label).or_default() += 1;
                     }
                 }
                 Err(_) => ch.undecodable += 1,

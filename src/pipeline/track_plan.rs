@@ -16,6 +16,7 @@ use super::progress::Progress;
 use super::stamp_check::{LogSpan, StampWindow};
 use super::track_options::TrackOptions;
 use super::track_records::{check_count, note_stamp, undecodable};
+use crate::mcapio::recording::topic_list;
 use crate::mcapio::source::RecordSource;
 use crate::msgs;
 use crate::msgs::detection_frame::stamp_or_log_time;
@@ -159,13 +160,7 @@ impl Scan {
         }
         for t in &opts.detection_topics {
             if !self.topics.contains(t) {
-                // The topics the file has, sorted, as the other commands name them.
-                let mut has: Vec<&str> = self.topics.iter().map(String::as_str).collect();
-                has.sort_unstable();
-                let has = match has.is_empty() {
-                    true => "the file has no channels".to_string(),
-                    false => format!("topics: {}", has.join(", ")),
-                };
+                let has = topic_list(&self.topics);
                 bail!("{file}: no channel with topic {t} (given with --detections-topic; {has})");
             }
         }

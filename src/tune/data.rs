@@ -17,7 +17,7 @@ use crate::mcapio::recording::{
     for_each_frame, no_channel, Boxes, FrameEvent, TopicKind, TopicRequest,
 };
 use crate::mcapio::LabelledBox;
-use crate::msgs::detection_frame::{check_box, SkipReason};
+use crate::msgs::detection_frame::{check_box, count_skips, SkipReason};
 use crate::tracker::Box3;
 
 /// One detection, reduced to what tracking and scoring need.
@@ -118,9 +118,7 @@ impl TuneLog {
                 }
                 FrameEvent::Frame(_, m) => match m.boxes {
                     Boxes::Detections(d) => {
-                        for &reason in &m.skipped {
-                            *skipped.entry(reason).or_default() += 1;
-                        }
+                        count_skips(&mut skipped, &m.skipped);
                         (m.stamp, d)
                     }
                     Boxes::Tracks(_) => unreachable!("a detections request gives detections"),
