@@ -10,10 +10,14 @@ splits, every file declares every topic, and the files after the first declare t
 order (so the same topic has other channel and schema ids in each file).
 
     python3 scripts/split_bag.py SRC_BAG OUT_BAG [--parts 2 | --at 10 --at 20] [--compress]
+        [--compress-messages] [--storage sqlite3 [--no-definitions]]
 
 --compress writes each file compressed whole with zstd (`compression_mode: file`, files named
-NAME.mcap.zstd), as `ros2 bag record --compression-mode file` does. With --parts 1 it is the
-whole bag in one file.
+NAME.mcap.zstd), as `ros2 bag record --compression-mode file` does; --compress-messages
+compresses each message on its own (`compression_mode: message`). With --parts 1 it is the
+whole bag in one file. --storage sqlite3 writes `.db3` files (rosbag2's sqlite3 storage, the
+default up to ROS 2 Humble); --no-definitions then removes the message_definitions table and
+sets the schema version to 3, as a Humble bag is (it stores no message definitions).
 
 Needs `rosbags` (scripts/requirements.txt).
 """
@@ -22,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import shutil
+import sqlite3
 import sys
 import tempfile
 from pathlib import Path
@@ -35,11 +40,14 @@ except ImportError as e:  # pragma: no cover - depends on the environment
     sys.exit(2)
 
 
-def write_part(path: Path, conns, msgs, reverse: bool, compress: bool) -> dict:
+def write_part(path: Path, conns, msgs, reverse: bool, args) -> dict:
     """Writes `msgs` ([(conn, t, raw)]) as the one-file bag `path`; returns its metadata."""
-    w = Writer(path, version=8, storage_plugin=StoragePlugin.MCAP)
-    if compress:
+    storage = StoragePlugin.SQLITE3 if args.storage == "sqlite3" else StoragePlugin.MCAP
+    w = Writer(path, version=8, storage_plugin=storage)
+    if args.compress:
         w.set_compression(CompressionMode.FILE, CompressionFormat.ZSTD)
+    if args.compress_messages:
+        w.set_compression(CompressionMode.MESSAGE, CompressionFormat.ZSTD)
     with w:
         out = {}
         for c in reversed(conns) if reverse else conns:
@@ -53,6 +61,14 @@ def write_part(path: Path, conns, msgs, reverse: bool, compress: bool) -> dict:
             )
         for c, t, raw in msgs:
             w.write(out[c.id], t, raw)
+    if args.no_definitions:
+        for db in path.glob("*.db3"):
+            con = sqlite3.connect(db)
+            con.executescript(
+                "DROP TABLE message_definitions; UPDATE schema SET schema_version = 3;"
+            )
+            con.commit()
+            con.close()
     yaml = YAML(typ="safe")
     return yaml.load((path / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
 
@@ -64,6 +80,9 @@ def main() -> int:
     ap.add_argument("--parts", type=int, default=2)
     ap.add_argument("--at", type=int, action="append", default=[], help="message index a file starts at")
     ap.add_argument("--compress", action="store_true", help="zstd file compression")
+    ap.add_argument("--compress-messages", action="store_true", help="zstd message compression")
+    ap.add_argument("--storage", choices=["mcap", "sqlite3"], default="mcap")
+    ap.add_argument("--no-definitions", action="store_true", help="sqlite3: as ROS 2 Humble")
     args = ap.parse_args()
     with Reader(args.src) as r:
         conns = list(r.connections)
@@ -77,9 +96,9 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for k in range(len(bounds) - 1):
             part = Path(tmp) / f"{name}_{k}"
-            meta = write_part(part, conns, msgs[bounds[k]:bounds[k + 1]], k > 0, args.compress)
+            meta = write_part(part, conns, msgs[bounds[k]:bounds[k + 1]], k > 0, args)
             (src,) = meta["relative_file_paths"]
-            dst = f"{name}_{k}" + src[src.index(".mcap"):]
+            dst = f"{name}_{k}" + src[len(part.name):]
             shutil.move(str(part / src), str(args.out / dst))
             metas.append(meta)
             files.append({**meta["files"][0], "path": dst})

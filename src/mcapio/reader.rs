@@ -154,8 +154,9 @@ pub fn read_records_while<R: Read>(
                 // likely one.
                 mcap::McapError::BadMagic => {
                     "; it does not start with MCAP's magic bytes, so it is not an MCAP file (a ROS \
-                     1 .bag or a ROS 2 .db3 file converts with `mcap convert IN OUT.mcap`, the \
-                     mcap CLI, https://mcap.dev)"
+                     2 .db3 file: `probmot track` reads it, or its bag directory, and writes \
+                     MCAP; a ROS 1 .bag converts with `mcap convert IN OUT.mcap`, the mcap CLI, \
+                     https://mcap.dev)"
                 }
                 _ => "",
             };

@@ -9,6 +9,11 @@
 //! | `vision_msgs/msg/Detection3DArray` | `ros2msg` | `cdr` |
 //! | `foxglove.SceneUpdate` | `protobuf` | `protobuf` |
 //! | `autoware_perception_msgs/msg/DetectedObjects` (or `autoware_auto_perception_msgs`) | `ros2msg` or `ros2idl` | `cdr` |
+//!
+//! A ROS 2 channel whose schema record has no text (a bag that stores no message definitions:
+//! rosbag2's sqlite3 storage before ROS 2 Iron, or a type rosbag2 could not find) is read with
+//! the layout of ROS 2 Humble: vision_msgs 4.x, or Autoware's one `DetectedObjects` layout.
+//! A message of another layout then fails to decode, naming the message.
 
 use super::detection_frame::{DetectionFrame, SkipReason};
 use super::{
@@ -113,6 +118,9 @@ impl DetectionSource {
                      encoding '{message_encoding}' (probmot reads ros2msg + cdr)"
                 ));
             }
+            if schema_data.is_empty() {
+                return Ok(DetectionSource::Ros2Vision(ros2_vision::VisionLayout::V4));
+            }
             return match ros2_vision::detect_layout(schema_data) {
                 Ok(layout) => Ok(DetectionSource::Ros2Vision(layout)),
                 Err(why) => Err(format!(
@@ -135,6 +143,12 @@ impl DetectionSource {
                     "schema '{schema_name}' with message encoding '{message_encoding}' (probmot \
                      reads cdr)"
                 ));
+            }
+            if let (true, Some(package)) = (
+                schema_data.is_empty(),
+                autoware::Package::of_schema(schema_name),
+            ) {
+                return Ok(DetectionSource::Autoware(package));
             }
             return match autoware::detect_package(schema_name, schema_encoding, schema_data) {
                 Ok(package) => Ok(DetectionSource::Autoware(package)),
@@ -262,6 +276,31 @@ impl DetectionSource {
                 let (m, _) = self.decode_lenient(bytes)?;
                 Ok((m.stamp, m.detections.len()))
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A ROS 2 detection channel whose schema has no text (a bag that stores no definitions)
+    /// is read with the Humble layout; a text that is not a known layout is still refused.
+    #[test]
+    fn a_schema_without_text_is_read_with_the_humble_layout() {
+        let vision = "vision_msgs/msg/Detection3DArray";
+        assert_eq!(
+            DetectionSource::for_channel(vision, "ros2msg", b"", "cdr"),
+            Ok(DetectionSource::Ros2Vision(ros2_vision::VisionLayout::V4))
+        );
+        assert!(DetectionSource::for_channel(vision, "ros2msg", b"int8 x", "cdr").is_err());
+        for name in autoware::DETECTED_SCHEMA_NAMES {
+            let package = autoware::Package::of_schema(name).unwrap();
+            assert_eq!(
+                DetectionSource::for_channel(name, "ros2msg", b"", "cdr"),
+                Ok(DetectionSource::Autoware(package))
+            );
+            assert!(DetectionSource::for_channel(name, "ros2msg", b"int8 x", "cdr").is_err());
         }
     }
 }

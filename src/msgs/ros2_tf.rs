@@ -22,6 +22,48 @@ use super::ros2_common::{Header, Point, Pose, Quaternion, Time, Vector3};
 
 /// Schema name of a ROS 2 transform channel (`/tf`, `/tf_static`).
 pub const TF_MESSAGE_SCHEMA: &str = "tf2_msgs/msg/TFMessage";
+/// The `ros2msg` schema text of `tf2_msgs/msg/TFMessage` with every dependency, in the layout
+/// rosbag2 writes: the field lines of the upstream `.msg` files named above (ROS 2 Humble),
+/// comments left out. Written for a bag that stores no definitions (a Humble sqlite3 bag), so
+/// that the output's `/tf` stays readable by tools that decode by the definition.
+pub const TF_MESSAGE_TEXT: &str = "\
+geometry_msgs/TransformStamped[] transforms
+
+================================================================================
+MSG: geometry_msgs/TransformStamped
+std_msgs/Header header
+string child_frame_id
+Transform transform
+
+================================================================================
+MSG: std_msgs/Header
+builtin_interfaces/Time stamp
+string frame_id
+
+================================================================================
+MSG: builtin_interfaces/Time
+int32 sec
+uint32 nanosec
+
+================================================================================
+MSG: geometry_msgs/Transform
+Vector3 translation
+Quaternion rotation
+
+================================================================================
+MSG: geometry_msgs/Vector3
+float64 x
+float64 y
+float64 z
+
+================================================================================
+MSG: geometry_msgs/Quaternion
+float64 x 0
+float64 y 0
+float64 z 0
+float64 w 1
+";
+
 /// Schema name of a ROS 2 odometry channel.
 pub const ODOMETRY_SCHEMA: &str = "nav_msgs/msg/Odometry";
 

@@ -11,14 +11,17 @@ use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 
-/// How a bag's files are compressed as wholes (`ros2 bag record --compression-mode file`).
+/// How a bag's data is compressed (`ros2 bag record --compression-mode`, zstd being rosbag2's
+/// only compressor).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum FileCompression {
+pub enum BagCompression {
     /// Plain storage files (the MCAP files may compress their chunks themselves).
     #[default]
     None,
-    /// Each file is one zstd stream (`NAME.mcap.zstd`): rosbag2's only file compressor.
-    Zstd,
+    /// Each file is one zstd stream (`NAME.mcap.zstd`; `--compression-mode file`).
+    FileZstd,
+    /// Each message's bytes are one zstd frame (`--compression-mode message`).
+    MessageZstd,
 }
 
 /// What `metadata.yaml` says about the data of a bag.
@@ -29,7 +32,7 @@ pub struct BagMetadata {
     /// `relative_file_paths`, in recording order (empty when not given).
     pub files: Vec<String>,
     /// From `compression_mode` and `compression_format`.
-    pub compression: FileCompression,
+    pub compression: BagCompression,
 }
 
 /// A scalar: plain, 'single-quoted' or "double-quoted".
@@ -113,16 +116,12 @@ pub fn parse_metadata(text: &str) -> Result<BagMetadata> {
         }
     }
     m.compression = match mode.to_ascii_lowercase().as_str() {
-        "" | "none" => FileCompression::None,
-        "file" if format == "zstd" => FileCompression::Zstd,
-        "file" => bail!(
-            "compression_format {format:?}: probmot reads zstd file compression (the one \
-             rosbag2 writes)"
-        ),
-        "message" => bail!(
-            "compression_mode message: each message is compressed on its own; probmot reads \
-             bags compressed per file (`--compression-mode file`) or not at all; decompress \
-             it with `ros2 bag convert` first"
+        "" | "none" => BagCompression::None,
+        "file" if format == "zstd" => BagCompression::FileZstd,
+        "message" if format == "zstd" => BagCompression::MessageZstd,
+        "file" | "message" => bail!(
+            "compression_format {format:?}: probmot reads zstd compression (the one rosbag2 \
+             writes)"
         ),
         other => bail!("unknown compression_mode {other:?}"),
     };
@@ -176,11 +175,11 @@ mod tests {
         assert_eq!(m.files, ["drive_0.mcap.zstd", "drive_1.mcap.zstd"]);
         assert_eq!(
             (m.storage.as_str(), m.compression),
-            ("mcap", FileCompression::Zstd)
+            ("mcap", BagCompression::FileZstd)
         );
         let m = parse_metadata(ROSBAGS).unwrap();
         assert_eq!(m.files, ["b_0.mcap"]);
-        assert_eq!(m.compression, FileCompression::None);
+        assert_eq!(m.compression, BagCompression::None);
         let flow = "rosbag2_bagfile_information:\n  relative_file_paths: [\"a.mcap\", 'b.mcap']\n";
         assert_eq!(parse_metadata(flow).unwrap().files, ["a.mcap", "b.mcap"]);
     }
@@ -191,7 +190,12 @@ mod tests {
         let e = format!("{:#}", parse_metadata(&lz4).unwrap_err());
         assert!(e.contains("lz4"), "{e}");
         let msg = ROSBAG2.replace("mode: FILE", "mode: MESSAGE");
-        assert!(format!("{:#}", parse_metadata(&msg).unwrap_err()).contains("ros2 bag convert"));
+        assert_eq!(
+            parse_metadata(&msg).unwrap().compression,
+            BagCompression::MessageZstd
+        );
+        let msg_lz4 = lz4.replace("mode: FILE", "mode: MESSAGE");
+        assert!(format!("{:#}", parse_metadata(&msg_lz4).unwrap_err()).contains("lz4"));
         assert!(parse_metadata("other: 1\n").is_err());
         let bad = "rosbag2_bagfile_information:\n  relative_file_paths: \"a\n";
         assert!(format!("{:#}", parse_metadata(bad).unwrap_err()).contains("line 2"));

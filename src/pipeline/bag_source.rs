@@ -11,6 +11,11 @@
 //! A zstd-compressed file (`compression_mode: file`) is decompressed as it is read, a stream
 //! with a window of at most a few MiB: no temporary copy. Such a file has no readable summary
 //! (that needs seeking), so its bag is tracked in two passes, each decompressing it again.
+//! A compressed message (`compression_mode: message`) is decompressed as it is handed on, into
+//! one buffer reused for every message, no larger than the record size limit.
+//!
+//! A sqlite3 file (`.db3`) is read as MCAP records by [`super::db3_file`]; it has no summary
+//! either.
 
 use std::cell::Cell;
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -23,7 +28,10 @@ use std::rc::Rc;
 use anyhow::{bail, Context, Result};
 use mcap::records::{Channel, Record, SchemaHeader, Statistics};
 
-use super::bag_metadata::FileCompression;
+use super::bag_metadata::BagCompression;
+use super::db3_file::read_db3;
+use super::rosbag_dir::{Bag, Storage};
+use crate::mcapio::chunk_stream::{limit_hint, size_limit};
 use crate::mcapio::reader::{read_records_while, read_summary_records, McapInput, ReadStats};
 use crate::mcapio::source::{OnRecord, RecordSource};
 
@@ -33,8 +41,77 @@ pub struct BagSource {
     pub name: String,
     /// Its files, in recording order.
     pub files: Vec<PathBuf>,
-    /// How they are compressed.
-    pub compression: FileCompression,
+    /// What the files are.
+    pub storage: Storage,
+    /// How they, or their messages, are compressed.
+    pub compression: BagCompression,
+}
+
+impl BagSource {
+    /// The source of the bag `bag`.
+    pub fn of(bag: &Bag) -> Self {
+        BagSource {
+            name: bag.dir.display().to_string(),
+            files: bag.files.clone(),
+            storage: bag.storage,
+            compression: bag.compression,
+        }
+    }
+
+    /// The source of one sqlite3 storage file named on its own (no bag directory around it).
+    pub fn sqlite_file(path: &std::path::Path) -> Self {
+        BagSource {
+            name: path.display().to_string(),
+            files: vec![path.to_path_buf()],
+            storage: Storage::Sqlite3,
+            compression: BagCompression::None,
+        }
+    }
+}
+
+/// Decompresses the messages of a bag written with `compression_mode: message`.
+#[derive(Default)]
+struct MessageInflater {
+    buf: Vec<u8>,
+}
+
+impl MessageInflater {
+    /// The bytes of the zstd frame `data`, refused when they would pass the record size limit.
+    fn inflate(&mut self, data: &[u8]) -> Result<&[u8]> {
+        let limit = size_limit();
+        self.buf.clear();
+        let decoder = zstd::stream::read::Decoder::with_buffer(data)
+            .context("cannot start zstd on a compressed message")?;
+        let mut capped = decoder.take(limit.saturating_add(1));
+        std::io::copy(&mut capped, &mut self.buf)
+            .context("not a zstd frame (the bag says its messages are compressed)")?;
+        if self.buf.len() as u64 > limit {
+            bail!(
+                "a compressed message decompresses beyond {}",
+                limit_hint(limit + 1)
+            );
+        }
+        Ok(&self.buf)
+    }
+
+    /// `rec`, its message data decompressed.
+    fn message<'a>(&'a mut self, rec: Record<'a>) -> Result<Record<'a>> {
+        Ok(match rec {
+            Record::Message { header, data } => {
+                let bytes = self.inflate(&data).with_context(|| {
+                    format!(
+                        "message at log_time {} on channel {}",
+                        header.log_time, header.channel_id
+                    )
+                })?;
+                Record::Message {
+                    header,
+                    data: std::borrow::Cow::Borrowed(bytes),
+                }
+            }
+            other => other,
+        })
+    }
 }
 
 /// Schema and channel ids of the stream, from each file's own.
@@ -169,8 +246,8 @@ impl BagSource {
             count: count.clone(),
         };
         let bytes: Box<dyn Read> = match self.compression {
-            FileCompression::None => Box::new(raw),
-            FileCompression::Zstd => Box::new(
+            BagCompression::None | BagCompression::MessageZstd => Box::new(raw),
+            BagCompression::FileZstd => Box::new(
                 zstd::stream::read::Decoder::with_buffer(BufReader::new(raw))
                     .with_context(|| format!("{}: cannot start zstd", path.display()))?,
             ),
@@ -187,13 +264,31 @@ impl BagSource {
         base: u64,
         f: &mut OnRecord<'_>,
     ) -> Result<bool> {
-        let (bytes, count) = self.open(i)?;
         let name = self.files[i].display().to_string();
+        let mut inflater = MessageInflater::default();
+        let inflate = self.compression == BagCompression::MessageZstd;
+        ids.next_file();
+        let mut hand_on = |rec: Record<'_>, bytes: u64| -> Result<ControlFlow<()>> {
+            let rec = ids.map(rec).with_context(|| name.clone())?;
+            let rec = match inflate {
+                true => inflater.message(rec).with_context(|| name.clone())?,
+                false => rec,
+            };
+            f(
+                rec,
+                ReadStats {
+                    bytes_read: base + bytes,
+                },
+            )
+        };
+        if self.storage == Storage::Sqlite3 {
+            return read_db3(&self.files[i], &mut hand_on);
+        }
+        let (bytes, count) = self.open(i)?;
         let mut input = McapInput {
             name: name.clone(),
             source: bytes,
         };
-        ids.next_file();
         let (mut in_data, mut stopped) = (true, false);
         read_records_while(&mut input, |rec, _| {
             if !in_data {
@@ -202,11 +297,7 @@ impl BagSource {
             if matches!(rec, Record::DataEnd(_)) {
                 in_data = false;
             }
-            let rec = ids.map(rec).with_context(|| name.clone())?;
-            let stats = ReadStats {
-                bytes_read: base + count.get(),
-            };
-            let flow = f(rec, stats)?;
+            let flow = hand_on(rec, count.get())?;
             stopped = flow.is_break();
             Ok(flow)
         })?;
@@ -228,7 +319,7 @@ impl RecordSource for BagSource {
     /// The files' summaries as one: their schemas and channels in the stream's ids, and the
     /// message counts added up; `None` when a file has no readable summary (or is compressed).
     fn summary(&mut self) -> Option<(Record<'static>, Vec<Record<'static>>)> {
-        if self.compression != FileCompression::None {
+        if self.compression == BagCompression::FileZstd || self.storage == Storage::Sqlite3 {
             return None;
         }
         let mut ids = IdMap::default();

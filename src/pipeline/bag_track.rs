@@ -75,11 +75,7 @@ fn write_bag(
     let paths: Vec<PathBuf> = (0..bag.files.len())
         .map(|i| Ok(dir.join(bag.output_name(i)?)))
         .collect::<Result<_>>()?;
-    let mut source = BagSource {
-        name: bag.dir.display().to_string(),
-        files: bag.files.clone(),
-        compression: bag.compression,
-    };
+    let mut source = BagSource::of(bag);
     let open = |profile| {
         let out_opts = OutputOptions {
             profile,

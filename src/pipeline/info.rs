@@ -10,6 +10,7 @@ use mcap::records::Record;
 use std::ops::ControlFlow;
 
 use super::bag_source::BagSource;
+use super::db3_file::is_sqlite_file;
 use super::progress::{Progress, ProgressFn};
 use super::rosbag_dir::open_bag;
 use crate::mcapio::reader::{read_records_while, McapInput};
@@ -94,14 +95,16 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
 /// compressed) are read as one drive, its schema and channel ids as one numbering
 /// ([`super::bag_source`]).
 pub fn path_info(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
+    if is_sqlite_file(path) {
+        let mut source = BagSource::sqlite_file(path);
+        let name = source.name.clone();
+        return info_of(name, |f| source.read_while(f), progress);
+    }
     let Some(bag) = open_bag(path)? else {
         return file_info_progress(path, progress);
     };
-    let mut source = BagSource {
-        name: path.display().to_string(),
-        files: bag.files,
-        compression: bag.compression,
-    };
+    let mut source = BagSource::of(&bag);
+    source.name = path.display().to_string();
     let name = source.name.clone();
     info_of(name, |f| source.read_while(f), progress)
 }

@@ -19,6 +19,19 @@ pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
                 .collect();
             if files.is_empty() {
+                let db3 = std::fs::read_dir(a)
+                    .into_iter()
+                    .flatten()
+                    .flatten()
+                    .any(|e| (e.file_name().to_string_lossy()).ends_with(".db3"));
+                if db3 {
+                    bail!(
+                        "{}: a rosbag2 bag with sqlite3 storage (.db3); this command reads MCAP \
+                         files: `probmot track {} -o OUT_BAG` writes an MCAP bag",
+                        a.display(),
+                        a.display()
+                    );
+                }
                 bail!("{}: no .mcap file in this directory", a.display());
             }
             files.sort();

@@ -15,11 +15,17 @@ use super::track::{TrackOptions, TrackSummary};
 use crate::mcapio::destination::resolved_file;
 use crate::mcapio::writer::{check_output_path, refuse_outputs_onto_inputs};
 
-/// The output of `input` in `dir`: the same file name.
+/// The output of `input` in `dir`: the same file name (`NAME.mcap` for a sqlite3 file
+/// `NAME.db3`, whose output is MCAP).
 pub fn output_in(dir: &Path, input: &Path) -> Result<PathBuf> {
     let name = input
         .file_name()
         .with_context(|| format!("{} has no file name", input.display()))?;
+    if let Some(stem) = name.to_str().and_then(|n| n.strip_suffix(".db3")) {
+        if input.is_file() {
+            return Ok(dir.join(format!("{stem}.mcap")));
+        }
+    }
     Ok(dir.join(name))
 }
 

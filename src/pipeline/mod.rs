@@ -3,6 +3,7 @@
 pub mod bag_metadata;
 pub mod bag_source;
 pub mod bag_track;
+pub mod db3_file;
 pub mod detections;
 pub mod ego;
 pub mod frame_schedule;

@@ -1,6 +1,7 @@
-//! rosbag2 bag directories (as `ros2 bag record -s mcap` writes them: a folder with
-//! `metadata.yaml` and the bag's `.mcap` files, one or several when the recording was split,
-//! each maybe compressed whole as `.mcap.zstd`; a folder without `metadata.yaml` is refused):
+//! rosbag2 bag directories (as `ros2 bag record` writes them: a folder with `metadata.yaml` and
+//! the bag's storage files, `.mcap` or sqlite3 `.db3`, one or several when the recording was
+//! split, MCAP files maybe compressed whole as `.mcap.zstd`, messages maybe compressed one by
+//! one; a folder without `metadata.yaml` is refused):
 //! [`open_bag`] finds the files, [`write_metadata`] writes the `metadata.yaml` of an output
 //! bag. `track BAG_DIR -o OUT_DIR` ([`super::bag_track`]) tracks the files as one drive.
 //!
@@ -8,8 +9,8 @@
 //! statistics), in the layout of rosbag2 metadata version 5 (ROS 2 Humble; newer rosbag2
 //! versions read it too): per topic its name, type (schema name), serialization_format (message
 //! encoding), offered_qos_profiles (the channel's metadata value, as rosbag2 stores it) and
-//! message count; per file its name, starting time, duration and message count. A sqlite3
-//! (`.db3`) bag is refused with what to do instead.
+//! message count; per file its name, starting time, duration and message count. The output of
+//! a sqlite3 bag is an MCAP bag (its files named `NAME_0.mcap` for `NAME_0.db3`).
 
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
@@ -18,18 +19,30 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
-use super::bag_metadata::{read_metadata, FileCompression};
+use super::bag_metadata::{read_metadata, BagCompression};
 use crate::mcapio::reader::read_summary_records;
 
-/// A rosbag2 bag: its directory, its files in recording order, their compression.
+/// The storage plugin a bag was written with (`storage_identifier`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Storage {
+    /// MCAP files (`ros2 bag record -s mcap`, the default from ROS 2 Iron).
+    Mcap,
+    /// SQLite databases (`.db3`, the default up to ROS 2 Humble), read by
+    /// [`super::db3_file`].
+    Sqlite3,
+}
+
+/// A rosbag2 bag: its directory, its files in recording order, their storage and compression.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct Bag {
     /// The bag directory.
     pub dir: PathBuf,
     /// Its storage files, in recording order.
     pub files: Vec<PathBuf>,
-    /// Whether each file is compressed whole.
-    pub compression: FileCompression,
+    /// What the files are.
+    pub storage: Storage,
+    /// Whether the files, or each message, are compressed.
+    pub compression: BagCompression,
 }
 
 impl Bag {
@@ -39,9 +52,13 @@ impl Bag {
         let f = &self.files[i];
         let name = (f.file_name().and_then(|n| n.to_str()))
             .with_context(|| format!("{}: file name is not UTF-8", f.display()))?;
-        Ok(match self.compression {
-            FileCompression::Zstd => name.strip_suffix(".zstd").unwrap_or(name).to_string(),
-            FileCompression::None => name.to_string(),
+        let name = match self.compression {
+            BagCompression::FileZstd => name.strip_suffix(".zstd").unwrap_or(name),
+            _ => name,
+        };
+        Ok(match self.storage {
+            Storage::Sqlite3 => format!("{}.mcap", name.strip_suffix(".db3").unwrap_or(name)),
+            Storage::Mcap => name.to_string(),
         })
     }
 }
@@ -49,69 +66,60 @@ impl Bag {
 /// The bag at `path`, or `None` when `path` is not a directory. A directory is a bag only with
 /// rosbag2's `metadata.yaml`: a folder of logs is not one log, and taking it for a bag would make
 /// `-o` a directory without a word. Its files are those `metadata.yaml` lists
-/// (`relative_file_paths`), or with a `metadata.yaml` that lists none, its one `.mcap` file.
+/// (`relative_file_paths`), or with a `metadata.yaml` that lists none, its one storage file.
 pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
     if !path.is_dir() {
         return Ok(None);
     }
-    let mut mcaps = Vec::new();
-    let (mut db3, mut metadata) = (false, false);
+    let (mut mcaps, mut db3s, mut metadata) = (Vec::new(), Vec::new(), false);
     for entry in
         std::fs::read_dir(path).with_context(|| format!("cannot read {}", path.display()))?
     {
         let p = entry?.path();
         let name = p.file_name().and_then(|n| n.to_str()).unwrap_or("");
-        match p.extension().and_then(|e| e.to_str()) {
-            Some("mcap") => mcaps.push(p),
-            _ if name.ends_with(".mcap.zstd") => mcaps.push(p),
-            Some("db3") => db3 = true,
-            _ => metadata |= name == "metadata.yaml",
+        if name.ends_with(".mcap") || name.ends_with(".mcap.zstd") {
+            mcaps.push(p);
+        } else if name.ends_with(".db3") || name.ends_with(".db3.zstd") {
+            db3s.push(p);
+        } else {
+            metadata |= name == "metadata.yaml";
         }
     }
     mcaps.sort();
-    let dir = path.display();
-    let sqlite = || {
-        anyhow::anyhow!(
-            "{dir}: a rosbag2 bag with sqlite3 storage (.db3); probmot reads MCAP storage: \
-             convert it with `ros2 bag convert` to storage_id mcap, or record with `ros2 bag \
-             record -s mcap`"
-        )
-    };
+    db3s.sort();
     if !metadata {
-        match mcaps.len() {
-            0 if db3 => return Err(sqlite()),
-            0 => bail!("{dir}: a directory without an .mcap file"),
-            1 => bail!(
-                "{dir}: a directory with one .mcap file but no metadata.yaml, so not a rosbag2 \
-                 bag: name the file instead ({}); a bag whose recording was cut gets its \
-                 metadata.yaml back with `ros2 bag reindex`",
-                mcaps[0].display()
-            ),
-            n => bail!(
-                "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 \
-                 bag: name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` \
-                 tracks them all, `fit` and `tune` take them all as `{dir}/*.mcap`; `info`, \
-                 `plot` and `viz` read one file, `eval --truth {dir}` the folder)"
-            ),
-        }
+        no_metadata(path, &mcaps, &db3s)?;
     }
     let md = read_metadata(path)?;
-    if md.storage == "sqlite3" || (md.files.is_empty() && mcaps.is_empty() && db3) {
-        return Err(sqlite());
-    }
-    if !md.storage.is_empty() && md.storage != "mcap" {
+    let dir = path.display();
+    let storage = match md.storage.as_str() {
+        "mcap" => Storage::Mcap,
+        "sqlite3" => Storage::Sqlite3,
+        "" if mcaps.is_empty() && !db3s.is_empty() => Storage::Sqlite3,
+        "" => Storage::Mcap,
+        other => {
+            bail!("{dir}: storage_identifier {other:?}; probmot reads mcap and sqlite3 storage")
+        }
+    };
+    if storage == Storage::Sqlite3 && md.compression == BagCompression::FileZstd {
         bail!(
-            "{dir}: storage_identifier {:?}; probmot reads mcap storage",
-            md.storage
+            "{dir}: a sqlite3 bag compressed file by file (.db3.zstd), which SQLite cannot read \
+             as it is; probmot reads sqlite3 bags plain or compressed message by message: \
+             convert it with `ros2 bag convert` (storage_id mcap, and compression_mode file if \
+             you want it small), which probmot reads as a stream"
         );
     }
+    let (found, kind) = match storage {
+        Storage::Mcap => (mcaps, ".mcap"),
+        Storage::Sqlite3 => (db3s, ".db3"),
+    };
     let files = if md.files.is_empty() {
-        match mcaps.len() {
-            0 => bail!("{dir}: a directory without an .mcap file"),
-            1 => mcaps,
+        match found.len() {
+            0 => bail!("{dir}: a directory without an {kind} file"),
+            1 => found,
             n => bail!(
                 "{dir}: metadata.yaml lists no files (relative_file_paths) and the directory \
-                 has {n} .mcap files; `ros2 bag reindex {dir}` writes the list"
+                 has {n} {kind} files; `ros2 bag reindex {dir}` writes the list"
             ),
         }
     } else {
@@ -130,9 +138,39 @@ pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
     let bag = Bag {
         dir: path.to_path_buf(),
         files,
+        storage,
         compression: md.compression,
     };
     Ok(Some(bag))
+}
+
+/// The error for a directory without `metadata.yaml`, by the storage files it holds.
+fn no_metadata(path: &Path, mcaps: &[PathBuf], db3s: &[PathBuf]) -> Result<()> {
+    let dir = path.display();
+    let (files, kind) = if mcaps.is_empty() {
+        (db3s, ".db3")
+    } else {
+        (mcaps, ".mcap")
+    };
+    match files.len() {
+        0 => bail!("{dir}: a directory without an .mcap file"),
+        1 => bail!(
+            "{dir}: a directory with one {kind} file but no metadata.yaml, so not a rosbag2 \
+             bag: name the file instead ({}); a bag whose recording was cut gets its \
+             metadata.yaml back with `ros2 bag reindex`",
+            files[0].display()
+        ),
+        _ if kind == ".db3" => bail!(
+            "{dir}: a directory of .db3 files without metadata.yaml, not a rosbag2 bag; \
+             `ros2 bag reindex {dir}` writes it back"
+        ),
+        n => bail!(
+            "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 \
+             bag: name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` \
+             tracks them all, `fit` and `tune` take them all as `{dir}/*.mcap`; `info`, \
+             `plot` and `viz` read one file, `eval --truth {dir}` the folder)"
+        ),
+    }
 }
 
 /// The MCAP file of a one-file bag, or `None` when `path` is not a directory: what the commands
@@ -143,10 +181,18 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
         return Ok(None);
     };
     let dir = path.display();
-    if bag.compression != FileCompression::None {
+    let what = match (bag.storage, bag.compression) {
+        (Storage::Sqlite3, _) => Some("a bag with sqlite3 storage (.db3)"),
+        (_, BagCompression::FileZstd) => Some("a bag of compressed files (compression_mode file)"),
+        (_, BagCompression::MessageZstd) => {
+            Some("a bag of compressed messages (compression_mode message)")
+        }
+        (Storage::Mcap, BagCompression::None) => None,
+    };
+    if let Some(what) = what {
         bail!(
-            "{dir}: a bag of compressed files (compression_mode file); this command reads an \
-             MCAP file: `probmot track {dir} -o OUT_BAG` writes an uncompressed bag"
+            "{dir}: {what}; this command reads an MCAP file: `probmot track {dir} -o OUT_BAG` \
+             writes a plain MCAP bag"
         );
     }
     if bag.files.len() > 1 {
@@ -328,7 +374,7 @@ mod tests {
         assert!(e.contains("without an .mcap"), "{e}");
         std::fs::write(d.path().join("b_0.db3"), b"").unwrap();
         let e = open_bag(d.path()).unwrap_err().to_string();
-        assert!(e.contains("ros2 bag convert"), "{e}");
+        assert!(e.contains("one .db3 file but no metadata.yaml"), "{e}");
         std::fs::write(d.path().join("b_0.mcap"), b"").unwrap();
         std::fs::write(d.path().join("metadata.yaml"), b"x: 1").unwrap();
         let e = format!("{:#}", open_bag(d.path()).unwrap_err());
@@ -353,6 +399,38 @@ mod tests {
         assert_eq!(bag.files, order, "in the order metadata.yaml lists them");
         let e = bag_mcap(d.path()).unwrap_err().to_string();
         assert!(e.contains("split into 2"), "{e}");
+    }
+
+    /// A sqlite3 bag is found by its `storage_identifier` (or, without one, by holding only
+    /// `.db3` files); its output files are MCAP files; the commands that read one MCAP file
+    /// send it to `track`; compressed whole, it is refused with what to do.
+    #[test]
+    fn a_sqlite3_bag_is_opened_and_its_output_is_mcap() {
+        let d = tempfile::tempdir().unwrap();
+        std::fs::write(d.path().join("b_0.db3"), b"").unwrap();
+        std::fs::write(d.path().join("b_1.db3"), b"").unwrap();
+        let listed = "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n  \
+                      relative_file_paths:\n  - b_0.db3\n  - b_1.db3\n";
+        std::fs::write(d.path().join("metadata.yaml"), listed).unwrap();
+        let bag = open_bag(d.path()).unwrap().unwrap();
+        assert_eq!(bag.storage, Storage::Sqlite3);
+        assert_eq!(bag.output_name(1).unwrap(), "b_1.mcap");
+        let e = bag_mcap(d.path()).unwrap_err().to_string();
+        assert!(e.contains("sqlite3") && e.contains("probmot track"), "{e}");
+        let unnamed = listed.replace("  storage_identifier: sqlite3\n", "");
+        std::fs::write(d.path().join("metadata.yaml"), unnamed).unwrap();
+        assert_eq!(
+            open_bag(d.path()).unwrap().unwrap().storage,
+            Storage::Sqlite3
+        );
+        let zstd = listed.replace(".db3\n", ".db3.zstd\n")
+            + "  compression_mode: file\n  compression_format: zstd\n";
+        std::fs::write(d.path().join("metadata.yaml"), zstd).unwrap();
+        let e = open_bag(d.path()).unwrap_err().to_string();
+        assert!(
+            e.contains(".db3.zstd") && e.contains("ros2 bag convert"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -19,6 +19,8 @@ use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 
+use super::bag_source::BagSource;
+use super::db3_file::is_sqlite_file;
 use super::ego::EgoMotion;
 use super::frame_schedule::{Replan, Schedule};
 use super::progress::Progress;
@@ -57,9 +59,12 @@ pub fn track_file(
 ) -> Result<TrackSummary> {
     let started = Instant::now();
     check_output_path(Some(input), output)?;
-    let mut source = McapInput::open_regular(input)?;
     let open = |profile| open_output(output, opts, profile);
-    let (out, mut summary) = track_input(&mut source, opts, progress, open)?;
+    let (out, mut summary) = if is_sqlite_file(input) {
+        track_input(&mut BagSource::sqlite_file(input), opts, progress, open)?
+    } else {
+        track_input(&mut McapInput::open_regular(input)?, opts, progress, open)?
+    };
     out.commit()?;
     progress(Progress::Done);
     summary.output = output.display().to_string();

@@ -1,0 +1,454 @@
+//! One file of a rosbag2 bag with sqlite3 storage (`NAME_0.db3`, the default storage of ROS 2
+//! Humble and older) read as the MCAP records a rosbag2 MCAP file of the same recording holds
+//! ([`read_db3`]): a header (profile `ros2`), a schema per message type, a channel per topic,
+//! every message in timestamp order, then the end of the data section. Everything after this
+//! reader (the bag stream of [`super::bag_source`], tracking, the output bag) sees MCAP records
+//! only, so a sqlite3 bag is tracked like an MCAP one and its output is an MCAP bag.
+//!
+//! The tables read are those rosbag2's sqlite3 plugin writes (its schema versions 1 to 4):
+//! `topics(id, name, type, serialization_format[, offered_qos_profiles])`,
+//! `messages(id, topic_id, timestamp, data)` and, from version 4 (ROS 2 Iron and later),
+//! `message_definitions(topic_type, encoding, encoded_message_definition)`. A type with no
+//! stored definition (any Humble bag) gets the definition probmot reads it with when it has one
+//! (`vision_msgs/msg/Detection3DArray` 4.x, `tf2_msgs/msg/TFMessage`: [`assumed_definition`]),
+//! and otherwise a schema record with no text, as rosbag2 leaves a definition it cannot find.
+//!
+//! The file is opened read-only and with SQLite's defensive settings, and only tables are read
+//! (a `messages` view is refused, so a hostile file cannot make a query of it). A message longer
+//! than the record size limit (`--max-chunk-mib`) is refused before its bytes are read, as an
+//! MCAP record of that size is.
+
+use std::borrow::Cow;
+use std::collections::{BTreeMap, HashMap};
+use std::ops::ControlFlow;
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use mcap::records::{Channel, DataEnd, Header, MessageHeader, Record, SchemaHeader};
+use rusqlite::types::ValueRef;
+use rusqlite::{Connection, OpenFlags};
+
+use crate::mcapio::chunk_stream::{limit_hint, size_limit};
+use crate::msgs::{ros2_tf, ros2_tracks};
+
+/// The callback of [`read_db3`]: each record, and the bytes of the file read so far (an
+/// estimate from the messages read, for progress).
+pub type OnDb3Record<'f> = dyn FnMut(Record<'_>, u64) -> Result<ControlFlow<()>> + 'f;
+
+/// Whether `path` is a regular file that starts as a SQLite database does (a `.db3` file named
+/// on its own, without its bag directory). Reads 16 bytes; anything but a regular file is not
+/// read at all (a FIFO's bytes would be lost).
+pub fn is_sqlite_file(path: &Path) -> bool {
+    use std::io::Read;
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
+    let mut magic = [0u8; 16];
+    (std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut magic)))
+        .is_ok_and(|()| &magic == b"SQLite format 3\0")
+}
+
+/// One row of `topics`.
+struct Topic {
+    id: i64,
+    name: String,
+    msgtype: String,
+    serialization: String,
+    qos: String,
+}
+
+/// Opens `path` read-only, refusing what is not a rosbag2 sqlite3 file.
+fn open(path: &Path) -> Result<Connection> {
+    let flags = OpenFlags::SQLITE_OPEN_READ_ONLY | OpenFlags::SQLITE_OPEN_NO_MUTEX;
+    let conn = Connection::open_with_flags(path, flags).context("cannot open it with SQLite")?;
+    // A hostile file's schema cannot run SQL functions or make a corrupt page look valid.
+    conn.set_db_config(rusqlite::config::DbConfig::SQLITE_DBCONFIG_DEFENSIVE, true)?;
+    conn.execute_batch("PRAGMA trusted_schema = OFF; PRAGMA cell_size_check = ON;")?;
+    for table in ["topics", "messages"] {
+        if !has_table(&conn, table)? {
+            bail!("not a rosbag2 sqlite3 file: it has no `{table}` table");
+        }
+    }
+    Ok(conn)
+}
+
+/// Whether the file has a table (not a view) called `name`.
+fn has_table(conn: &Connection, name: &str) -> Result<bool> {
+    let n: i64 = conn
+        .query_row(
+            "SELECT count(*) FROM sqlite_master WHERE type = 'table' AND name = ?1",
+            [name],
+            |r| r.get(0),
+        )
+        .context("not a readable SQLite file")?;
+    Ok(n > 0)
+}
+
+/// The column names of `table`.
+fn columns(conn: &Connection, table: &str) -> Result<Vec<String>> {
+    let mut stmt = conn.prepare(&format!("PRAGMA table_info({table})"))?;
+    let names = stmt.query_map([], |r| r.get::<_, String>(1))?;
+    Ok(names.collect::<rusqlite::Result<_>>()?)
+}
+
+/// The rows of `topics`, by id.
+fn topics(conn: &Connection) -> Result<Vec<Topic>> {
+    let has_qos = columns(conn, "topics")?
+        .iter()
+        .any(|c| c == "offered_qos_profiles");
+    let qos = if has_qos {
+        "offered_qos_profiles"
+    } else {
+        "''"
+    };
+    let sql = format!("SELECT id, name, type, serialization_format, {qos} FROM topics ORDER BY id");
+    let mut stmt = conn.prepare(&sql).context("reading the topics table")?;
+    let rows = stmt.query_map([], |r| {
+        Ok(Topic {
+            id: r.get(0)?,
+            name: r.get(1)?,
+            msgtype: r.get(2)?,
+            serialization: r.get(3)?,
+            qos: r.get(4)?,
+        })
+    })?;
+    rows.collect::<rusqlite::Result<_>>()
+        .context("reading the topics table")
+}
+
+/// The stored definition of each type (`message_definitions`, schema version 4): its schema
+/// encoding (`ros2msg`, `ros2idl`) and text. Empty texts are left out.
+fn definitions(conn: &Connection) -> Result<HashMap<String, (String, String)>> {
+    let mut out = HashMap::new();
+    if !has_table(conn, "message_definitions")? {
+        return Ok(out);
+    }
+    let mut stmt = conn
+        .prepare(
+            "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions \
+             ORDER BY id",
+        )
+        .context("reading the message_definitions table")?;
+    let rows = stmt.query_map([], |r| {
+        Ok((
+            r.get::<_, String>(0)?,
+            r.get::<_, String>(1)?,
+            r.get::<_, String>(2)?,
+        ))
+    })?;
+    for row in rows {
+        let (msgtype, encoding, text) = row.context("reading the message_definitions table")?;
+        if !text.is_empty() {
+            out.entry(msgtype).or_insert((encoding, text));
+        }
+    }
+    Ok(out)
+}
+
+/// The `ros2msg` definition probmot decodes `msgtype` with when a bag stores none: the layout of
+/// ROS 2 Humble, written into the output so that it decodes by its schemas.
+pub fn assumed_definition(msgtype: &str) -> Option<&'static str> {
+    match msgtype {
+        ros2_tracks::SCHEMA_NAME => Some(ros2_tracks::SCHEMA_TEXT),
+        ros2_tf::TF_MESSAGE_SCHEMA => Some(ros2_tf::TF_MESSAGE_TEXT),
+        _ => None,
+    }
+}
+
+/// Hands on the header, schema and channel records of `topics`; returns the channel id of each
+/// topic id, or `None` when `f` stopped the read.
+fn declare(
+    topics: &[Topic],
+    defs: &HashMap<String, (String, String)>,
+    f: &mut OnDb3Record<'_>,
+) -> Result<Option<HashMap<i64, u16>>> {
+    let header = Header {
+        profile: "ros2".into(),
+        library: "rosbag2 sqlite3 storage".into(),
+    };
+    if f(Record::Header(header), 0)?.is_break() {
+        return Ok(None);
+    }
+    let mut schema_ids: HashMap<&str, u16> = HashMap::new();
+    let mut channel_ids = HashMap::new();
+    for (i, t) in topics.iter().enumerate() {
+        let next = schema_ids.len() + 1;
+        let schema_id = match schema_ids.get(t.msgtype.as_str()) {
+            Some(&id) => id,
+            None => {
+                let id = u16::try_from(next).context("more than 65535 message types")?;
+                schema_ids.insert(&t.msgtype, id);
+                let assumed = assumed_definition(&t.msgtype).unwrap_or("");
+                let (encoding, text) = (defs.get(&t.msgtype))
+                    .map_or(("ros2msg", assumed), |(e, t)| (e.as_str(), t.as_str()));
+                let header = SchemaHeader {
+                    id,
+                    name: t.msgtype.clone(),
+                    encoding: encoding.into(),
+                };
+                let data = Cow::Borrowed(text.as_bytes());
+                if f(Record::Schema { header, data }, 0)?.is_break() {
+                    return Ok(None);
+                }
+                id
+            }
+        };
+        let id = u16::try_from(i + 1).context("more than 65535 topics")?;
+        let metadata = BTreeMap::from([("offered_qos_profiles".to_string(), t.qos.clone())]);
+        let channel = Channel {
+            id,
+            topic: t.name.clone(),
+            schema_id,
+            message_encoding: t.serialization.clone(),
+            metadata,
+        };
+        if f(Record::Channel(channel), 0)?.is_break() {
+            return Ok(None);
+        }
+        channel_ids.insert(t.id, id);
+    }
+    Ok(Some(channel_ids))
+}
+
+/// Reads the sqlite3 storage file `path` as MCAP records, handing each to `f` until it says
+/// [`ControlFlow::Break`]; returns whether it did. Messages come in timestamp order (ties in
+/// the order they were written), each with its log and publish time set to the timestamp.
+pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
+    let name = path.display();
+    let conn = open(path).with_context(|| format!("{name}"))?;
+    let topics = topics(&conn).with_context(|| format!("{name}"))?;
+    let defs = definitions(&conn).with_context(|| format!("{name}"))?;
+    let Some(channels) = declare(&topics, &defs, f)? else {
+        return Ok(true);
+    };
+    let stopped = read_messages(&conn, &channels, path, f).with_context(|| format!("{name}"))?;
+    if !stopped {
+        let end = Record::DataEnd(DataEnd {
+            data_section_crc: 0,
+        });
+        return Ok(f(end, std::fs::metadata(path).map_or(0, |m| m.len()))?.is_break());
+    }
+    Ok(stopped)
+}
+
+/// Hands on every row of `messages`; returns whether `f` stopped the read.
+fn read_messages(
+    conn: &Connection,
+    channels: &HashMap<i64, u16>,
+    path: &Path,
+    f: &mut OnDb3Record<'_>,
+) -> Result<bool> {
+    let file_len = std::fs::metadata(path).map_or(0, |m| m.len());
+    let count: i64 = conn.query_row("SELECT count(*) FROM messages", [], |r| r.get(0))?;
+    let mut stmt = conn.prepare(
+        "SELECT id, topic_id, timestamp, length(data), data FROM messages \
+         ORDER BY timestamp, id",
+    )?;
+    let mut rows = stmt.query([])?;
+    let mut read = 0u64;
+    while let Some(row) = rows.next().context("reading the messages table")? {
+        let id: i64 = row.get(0)?;
+        let at = || format!("message {id} of the messages table");
+        let topic_id: i64 = row.get(1)?;
+        let timestamp: i64 = row.get(2).with_context(at)?;
+        let channel_id = *channels
+            .get(&topic_id)
+            .with_context(|| format!("{}: topic_id {topic_id} is not in the topics table", at()))?;
+        let log_time = u64::try_from(timestamp)
+            .map_err(|_| anyhow::anyhow!("{}: negative timestamp {timestamp}", at()))?;
+        let len: i64 = row.get(3).with_context(at)?;
+        if u64::try_from(len).unwrap_or(0) > size_limit() {
+            bail!("{}: {len} bytes long; {}", at(), limit_hint(len as u64));
+        }
+        let data = match row.get_ref(4).with_context(at)? {
+            ValueRef::Blob(b) | ValueRef::Text(b) => b,
+            other => bail!("{}: its data is {:?}, not bytes", at(), other.data_type()),
+        };
+        let header = MessageHeader {
+            channel_id,
+            sequence: 0,
+            log_time,
+            publish_time: log_time,
+        };
+        read += 1;
+        let bytes = file_len.saturating_mul(read) / count.max(1) as u64;
+        let rec = Record::Message {
+            header,
+            data: Cow::Borrowed(data),
+        };
+        if f(rec, bytes)?.is_break() {
+            return Ok(true);
+        }
+    }
+    Ok(false)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A sqlite3 storage file made by `sql` (after the tables of schema version 3, which has
+    /// no `message_definitions`).
+    fn db3(sql: &str) -> tempfile::TempPath {
+        let path = tempfile::Builder::new()
+            .suffix(".db3")
+            .tempfile()
+            .unwrap()
+            .into_temp_path();
+        let conn = Connection::open(&path).unwrap();
+        conn.execute_batch(
+            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+               timestamp INTEGER NOT NULL, data BLOB NOT NULL);",
+        )
+        .unwrap();
+        conn.execute_batch(sql).unwrap();
+        path
+    }
+
+    /// What `read_db3` hands on, one line per record, and its result.
+    fn records(path: &Path, stop_after: usize) -> (Vec<String>, Result<bool>) {
+        let mut seen = Vec::new();
+        let result = read_db3(path, &mut |rec, _| {
+            seen.push(match rec {
+                Record::Header(h) => format!("header {}", h.profile),
+                Record::Schema { header, data } => format!(
+                    "schema {} {} {} {:?}",
+                    header.id,
+                    header.name,
+                    header.encoding,
+                    String::from_utf8_lossy(&data)
+                ),
+                Record::Channel(c) => format!(
+                    "channel {} {} {} {} {:?}",
+                    c.id, c.topic, c.schema_id, c.message_encoding, c.metadata
+                ),
+                Record::Message { header, data } => {
+                    format!(
+                        "message {} {} {:?}",
+                        header.channel_id, header.log_time, data
+                    )
+                }
+                Record::DataEnd(_) => "end".into(),
+                other => format!("{other:?}"),
+            });
+            Ok(match seen.len() >= stop_after {
+                true => ControlFlow::Break(()),
+                false => ControlFlow::Continue(()),
+            })
+        });
+        (seen, result)
+    }
+
+    const TWO_TOPICS: &str = "
+        INSERT INTO topics VALUES (7, '/b', 'pkg/msg/B', 'cdr', 'qos b');
+        INSERT INTO topics VALUES (3, '/a', 'pkg/msg/A', 'cdr', 'qos a');
+        INSERT INTO topics VALUES (9, '/a2', 'pkg/msg/A', 'cdr', '');
+        INSERT INTO messages VALUES (1, 7, 20, x'0102');
+        INSERT INTO messages VALUES (2, 3, 10, x'03');
+        INSERT INTO messages VALUES (3, 9, 20, x'04');";
+
+    /// Topics become channels in id order, one schema per type (its stored definition, or no
+    /// text), messages come in timestamp order (ties by row id), then the end of the data.
+    #[test]
+    fn a_file_reads_as_the_records_of_an_mcap_file() {
+        let path = db3(&format!(
+            "{TWO_TOPICS}
+             CREATE TABLE message_definitions(id INTEGER PRIMARY KEY, topic_type TEXT NOT NULL,
+               encoding TEXT NOT NULL, encoded_message_definition TEXT NOT NULL,
+               type_description_hash TEXT NOT NULL);
+             INSERT INTO message_definitions VALUES (1, 'pkg/msg/B', 'ros2msg', 'int8 x', '');"
+        ));
+        let (seen, result) = records(&path, usize::MAX);
+        assert!(!result.unwrap());
+        assert_eq!(
+            seen,
+            [
+                "header ros2",
+                "schema 1 pkg/msg/A ros2msg \"\"",
+                "channel 1 /a 1 cdr {\"offered_qos_profiles\": \"qos a\"}",
+                "schema 2 pkg/msg/B ros2msg \"int8 x\"",
+                "channel 2 /b 2 cdr {\"offered_qos_profiles\": \"qos b\"}",
+                "channel 3 /a2 1 cdr {\"offered_qos_profiles\": \"\"}",
+                "message 1 10 [3]",
+                "message 2 20 [1, 2]",
+                "message 3 20 [4]",
+                "end",
+            ]
+        );
+        let (seen, result) = records(&path, 7);
+        assert!(result.unwrap(), "stopped");
+        assert_eq!(seen.len(), 7);
+    }
+
+    /// A Humble bag's vision_msgs and tf2_msgs topics get the definitions probmot reads them
+    /// with; a stored definition wins.
+    #[test]
+    fn known_types_without_a_stored_definition_get_probmot_s() {
+        let path = db3(
+            "INSERT INTO topics VALUES (1, '/d', 'vision_msgs/msg/Detection3DArray', 'cdr', '');
+             INSERT INTO topics VALUES (2, '/tf', 'tf2_msgs/msg/TFMessage', 'cdr', '');",
+        );
+        let (seen, _) = records(&path, usize::MAX);
+        assert_eq!(
+            seen[1],
+            format!(
+                "schema 1 vision_msgs/msg/Detection3DArray ros2msg {:?}",
+                ros2_tracks::SCHEMA_TEXT
+            )
+        );
+        assert_eq!(
+            seen[3],
+            format!(
+                "schema 2 tf2_msgs/msg/TFMessage ros2msg {:?}",
+                ros2_tf::TF_MESSAGE_TEXT
+            )
+        );
+        let sections = crate::msgs::ros2_schema::parse_msg(ros2_tf::TF_MESSAGE_TEXT, "TFMessage");
+        assert_eq!(sections.len(), 7, "TFMessage and its six dependencies");
+    }
+
+    /// Files and rows that are not what rosbag2 writes are refused, naming the file and the
+    /// message; none panics.
+    #[test]
+    fn bad_files_and_rows_are_named() {
+        let error = |path: &Path| format!("{:#}", records(path, usize::MAX).1.unwrap_err());
+        let garbage = tempfile::NamedTempFile::new().unwrap();
+        std::fs::write(
+            garbage.path(),
+            b"not a database, not at all; just some bytes",
+        )
+        .unwrap();
+        let e = error(garbage.path());
+        assert!(
+            e.contains(&garbage.path().display().to_string()) && e.contains("SQLite"),
+            "{e}"
+        );
+        let cases = [
+            ("DROP TABLE topics;", "no `topics` table"),
+            (
+                "DROP TABLE messages; CREATE VIEW messages AS SELECT 1 AS id;",
+                "no `messages` table",
+            ),
+            (
+                "UPDATE messages SET topic_id = 5 WHERE id = 2;",
+                "message 2 of the messages table: topic_id 5",
+            ),
+            (
+                "UPDATE messages SET timestamp = -1 WHERE id = 3;",
+                "message 3 of the messages table: negative timestamp",
+            ),
+            (
+                "UPDATE messages SET data = 4.5 WHERE id = 1;",
+                "message 1 of the messages table: its data is Real",
+            ),
+        ];
+        for (sql, expected) in cases {
+            let path = db3(&format!("{TWO_TOPICS}\n{sql}"));
+            let e = error(&path);
+            assert!(e.contains(expected), "{sql}: {e}");
+            assert!(e.contains(&path.display().to_string()), "{e}");
+        }
+    }
+}
