@@ -29,12 +29,17 @@
 # alternately: median wall time and peak RSS of each, and their ratios; and the peak RSS of a
 # tenth of the drive split in a tenth of the files (flat memory: the same).
 # BENCH_BAG="FRAMES OBJECTS FILES" changes the drive (default "36000 40 60").
+#
+# `scripts/bench.sh sqlite [WORKDIR]` measures the same hour-long drive as a one-file bag with
+# sqlite3 storage (`.db3`, read through SQLite) against the one-file MCAP bag, both written by
+# rosbags, each tracked BENCH_BAG_REPS times alternately: median wall time, peak RSS, ratios.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 mode=all
 if [ "${1:-}" = long ]; then mode=long; shift; fi
 if [ "${1:-}" = copy ]; then mode=copy; shift; fi
 if [ "${1:-}" = bags ]; then mode=bags; shift; fi
+if [ "${1:-}" = sqlite ]; then mode=sqlite; shift; fi
 work="${1:-$(mktemp -d)}"
 mkdir -p "$work"
 cargo build --release --quiet
@@ -131,6 +136,33 @@ split_bags() {
 }
 if [ "$mode" = bags ]; then
   split_bags
+  exit 0
+fi
+
+# --- a sqlite3 bag against the same drive as an MCAP bag: wall time and peak RSS, alternating
+sqlite_bag() {
+  local frames objects reps=${BENCH_BAG_REPS:-5}
+  read -r frames objects _ <<< "${BENCH_BAG:-36000 40 60}"
+  "$bin" simulate --scenario city --frames "$frames" --objects "$objects" --rate 10 -o "$work/drive.mcap" --quiet
+  python3 scripts/make_ros2_fixture.py "$work/drive.mcap" -o "$work/drive_ros2.mcap" >/dev/null
+  rm -rf "$work/mcap_bag" "$work/db3_bag"
+  python3 scripts/split_bag.py "$work/drive_ros2.mcap" "$work/mcap_bag" --parts 1 >/dev/null
+  python3 scripts/split_bag.py "$work/drive_ros2.mcap" "$work/db3_bag" --parts 1 --storage sqlite3 >/dev/null
+  : > "$work/mcap_bag.tm"; : > "$work/db3_bag.tm"
+  for _ in $(seq "$reps"); do
+    for b in mcap_bag db3_bag; do
+      rm -rf "$work/$b.out"
+      timed "$b" "$bin" track "$work/$b" -o "$work/$b.out" --quiet
+    done
+  done
+  echo "drive of $frames frames at 10 Hz x $objects objects, ROS 2 vision_msgs, one file (MCAP $(du -sh "$work/mcap_bag" | cut -f1), sqlite3 $(du -sh "$work/db3_bag" | cut -f1)), medians of $reps alternating runs:"
+  echo "  MCAP bag:    $(med mcap_bag 1) s, peak RSS $(med mcap_bag 2) kB"
+  echo "  sqlite3 bag: $(med db3_bag 1) s, peak RSS $(med db3_bag 2) kB"
+  echo "  sqlite3 / MCAP: time $(div "$(med db3_bag 1)" "$(med mcap_bag 1)")x, peak RSS $(div "$(med db3_bag 2)" "$(med mcap_bag 2)")x"
+  [ "${BENCH_KEEP:-0}" = 1 ] || rm -rf "$work"/{drive,drive_ros2}.mcap "$work"/{mcap_bag,db3_bag}{,.out}
+}
+if [ "$mode" = sqlite ]; then
+  sqlite_bag
   exit 0
 fi
 

@@ -1,5 +1,6 @@
 //! Shared harness code of the fuzz targets (see `fuzz/README.md`).
 
+pub mod db3_rows;
 pub mod frame_reader;
 pub mod read_path;
 
