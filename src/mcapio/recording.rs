@@ -14,7 +14,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
-use super::reader::{read_records, ReadStats};
+use super::reader::{read_records, read_summary_records, ReadStats};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_frame::{stamp_or_log_time, SkipReason};
 use crate::msgs::detection_source::DetectionSource;
@@ -306,6 +306,23 @@ pub fn for_each_frame_with(
     Ok(topics)
 }
 
+/// Every topic of `path`: from its summary section's channel records when it has them (two
+/// small reads), else from a pass over the file.
+pub fn file_topics(path: &Path) -> Result<BTreeSet<String>> {
+    let from_summary = read_summary_records(path).map(|(_, records)| {
+        (records.into_iter())
+            .filter_map(|r| match r {
+                Record::Channel(c) => Some(c.topic),
+                _ => None,
+            })
+            .collect::<BTreeSet<String>>()
+    });
+    match from_summary {
+        Some(topics) if !topics.is_empty() => Ok(topics),
+        _ => for_each_frame(path, &[], |_, _| Ok(())),
+    }
+}
+
 /// `topics: a, b` (sorted), or that the file has none: what an error about a missing topic
 /// names beside it.
 pub fn topic_list<'a>(topics: impl IntoIterator<Item = &'a String>) -> String {
@@ -483,6 +500,41 @@ mod tests {
         // A detections channel is not a tracks topic.
         let err = format!("{:#}", tracks_topic(&path, "/detections").unwrap_err());
         assert!(err.contains("/detections"), "{err}");
+    }
+
+    #[test]
+    fn file_topics_reads_the_summary_or_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let want = ["/detections", "/tracks"].map(String::from);
+        assert!(read_summary_records(&path).is_some());
+        assert_eq!(file_topics(&path).unwrap(), BTreeSet::from(want.clone()));
+        // A file whose summary lists no channels is read through.
+        let bare = dir.path().join("bare.mcap");
+        let opts = mcap::WriteOptions::new().emit_summary_records(false);
+        let mut w = opts
+            .create(std::io::BufWriter::new(
+                std::fs::File::create(&bare).unwrap(),
+            ))
+            .unwrap();
+        let schema = w.add_schema("x", "", &[]).unwrap();
+        let ch = w
+            .add_channel(schema, "/only", "", &BTreeMap::new())
+            .unwrap();
+        let header = mcap::records::MessageHeader {
+            channel_id: ch,
+            sequence: 0,
+            log_time: 1,
+            publish_time: 1,
+        };
+        w.write_to_known_channel(&header, b"m").unwrap();
+        w.finish().unwrap();
+        drop(w);
+        let summary = read_summary_records(&bare).map(|s| s.1).unwrap_or_default();
+        assert!(!summary.iter().any(|r| matches!(r, Record::Channel(_))));
+        let only = BTreeSet::from(["/only".to_string()]);
+        assert_eq!(file_topics(&bare).unwrap(), only);
     }
 
     #[test]

@@ -10,7 +10,7 @@ use anyhow::{bail, Result};
 use super::plot::{bev_drawable, render_png_with_layout, EventMark, Extent, Panel, PlotOptions};
 use super::truth_colors::{marks, match_by_distance, match_from_events};
 use super::window::{read_events, read_window};
-use super::{FileLayers, Layer, Selection};
+use super::{check_named_topics, FileLayers, Layer, Selection};
 use crate::mcapio::reader::read_summary_records;
 use crate::mcapio::writer::{check_output_path, is_device_or_fifo, write_file_atomic};
 use crate::msgs::eval_events::EVENTS_TOPIC;
@@ -326,22 +326,8 @@ impl Plot<'_> {
             }
             return Ok(wanted);
         }
-        // A topic other than the default was named on purpose: its layer must be there (a
-        // misspelt topic would otherwise only drop its panel).
-        let defaults = LayerTopics::default();
-        let named = |l: &Layer| self.o.topics.of(*l) != defaults.of(*l);
-        if let Some(l) = wanted.iter().find(|l| named(l) && read.get(**l).is_none()) {
-            let flag = match l {
-                Layer::Detections => "--detections-topic",
-                Layer::Tracks => "--tracks-topic",
-                Layer::GroundTruth => "--truth-topic",
-            };
-            bail!(
-                "{file} has no topic {} for the {l} layer (topics: {}); check {flag}",
-                self.o.topics.of(*l),
-                topics()
-            );
-        }
+        let named = wanted.iter().map(|l| (*l, self.o.topics.of(*l)));
+        check_named_topics(&file, named, &read.topics)?;
         wanted.retain(|l| read.get(*l).is_some());
         if wanted.is_empty() {
             let t = &self.o.topics;

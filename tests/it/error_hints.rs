@@ -1,9 +1,9 @@
 //! First-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its file
 //! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
-//! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
-//! options spelt differently from one command to the next (`export --topic`, `plot --class`
-//! beside `eval --classes`), a count of 0 refused with the largest u64 in the message, and
-//! `plot -o /dev/null` refused for its name; and the exit statuses only the README gave.
+//! named no alternative, `plot` and `viz` dropped the layer), a file that is not MCAP at all,
+//! and the options spelt differently from one command to the next (`export --topic`, `plot
+//! --class` beside `eval --classes`), a count of 0 refused with the largest u64 in the message,
+//! and `plot -o /dev/null` refused for its name; and the exit statuses only the README gave.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -101,6 +101,32 @@ fn plot_refuses_a_named_topic_the_file_lacks() {
     assert!(!png.exists());
     // The default topics stay optional: the untracked log has no /tracks and plots.
     probmot_ok(&["plot", s(&city), "-o", s(&png), "-q"]);
+}
+
+/// viz refuses a named topic the file lacks as plot does, before any recording is made (so
+/// also without the `rerun` feature), naming the file's topics as every command does.
+#[test]
+fn viz_refuses_a_named_topic_the_file_lacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("v.rrd");
+    let city = repo("sample_logs/city.mcap");
+    let err = stderr_of_failure(&["viz", s(&city), "-o", s(&rrd), "--tracks-topic", "/trk"]);
+    let want = format!(
+        "{} has no topic /trk for the tracks layer (topics: /detections, /ground_truth); \
+         check --tracks-topic",
+        city.display()
+    );
+    assert!(err.contains(&want), "{err}");
+    assert!(!err.contains("rerun` cargo feature"), "{err}");
+    assert!(!rrd.exists());
+    // The default topics stay optional: the untracked log has no /tracks and is recorded
+    // (without the feature, only the feature is missing).
+    let run = probmot(&["viz", s(&city), "-o", s(&rrd), "-q"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    match cfg!(feature = "rerun") {
+        true => assert!(run.status.success() && rrd.is_file(), "{err}"),
+        false => assert!(err.contains("rerun` cargo feature"), "{err}"),
+    }
 }
 
 #[test]
