@@ -12,6 +12,7 @@ use super::truth_colors::{marks, match_by_distance, match_from_events};
 use super::window::{read_events, read_window};
 use super::{check_named_topics, FileLayers, Layer, Selection};
 use crate::mcapio::reader::read_summary_records;
+use crate::mcapio::recording::topic_list;
 use crate::mcapio::writer::{check_output_path, is_device_or_fifo, write_file_atomic};
 use crate::msgs::eval_events::EVENTS_TOPIC;
 use crate::pipeline::progress::{Progress, ProgressFn};
@@ -311,15 +312,12 @@ impl Plot<'_> {
         explicit: bool,
     ) -> Result<Vec<Layer>> {
         let file = self.file.display();
-        let topics = || match read.topics.is_empty() {
-            true => "none".to_string(),
-            false => read.topics.iter().cloned().collect::<Vec<_>>().join(", "),
-        };
+        let topics = || topic_list(&read.topics);
         if explicit {
             if let Some(l) = wanted.iter().find(|l| read.get(**l).is_none()) {
                 bail!(
-                    "{file} has no topic {} for the {l} layer (topics: {}); run `probmot track` \
-                     first for tracks, or choose other --layers",
+                    "{file} has no topic {} for the {l} layer ({}); run `probmot track` first \
+                     for tracks, or choose other --layers",
                     self.o.topics.of(*l),
                     topics()
                 );
@@ -332,7 +330,7 @@ impl Plot<'_> {
         if wanted.is_empty() {
             let t = &self.o.topics;
             bail!(
-                "{file} has none of the topics {}, {}, {} (topics: {})",
+                "{file} has none of the topics {}, {}, {} ({})",
                 t.detections,
                 t.tracks,
                 t.truth,

@@ -129,6 +129,34 @@ fn viz_refuses_a_named_topic_the_file_lacks() {
     }
 }
 
+/// Every command that misses a topic names the file's topics the same way
+/// (`recording::topic_list`): here a file with no channels, which plot once called `topics:
+/// none`.
+#[test]
+fn every_command_names_a_file_without_channels_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&empty).unwrap());
+    mcap::Writer::new(file).unwrap().finish().unwrap();
+    let (e, out) = (s(&empty), dir.path().join("out"));
+    let png = s(&out).to_string() + ".png";
+    let rrd = s(&out).to_string() + ".rrd";
+    let runs: [&[&str]; 7] = [
+        &["plot", e, "-o", &png],
+        &["plot", e, "-o", &png, "--layers", "tracks"],
+        &["viz", e, "-o", &rrd, "--truth-topic", "/gt"],
+        &["track", e, "-o", s(&out), "--detections-topic", "/d"],
+        &["eval", "--truth", e],
+        &["export", "kitti", e, "-o", s(&out)],
+        &["fit", e, "-o", s(&out)],
+    ];
+    for args in runs {
+        let err = stderr_of_failure(args);
+        assert!(err.contains("the file has no channels)"), "{err}");
+        assert!(!err.contains("none)"), "{err}");
+    }
+}
+
 #[test]
 fn a_file_that_is_not_mcap_says_so() {
     let dir = tempfile::tempdir().unwrap();
