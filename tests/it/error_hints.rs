@@ -2,8 +2,9 @@
 //! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
 //! named no alternative, `plot` and `viz` dropped the layer), a file that is not MCAP at all,
 //! and the options spelt differently from one command to the next (`export --topic`, `plot
-//! --class` beside `eval --classes`), a count of 0 refused with the largest u64 in the message,
-//! and `plot -o /dev/null` refused for its name; and the exit statuses only the README gave.
+//! --class` beside `eval --classes`), a count of 0 refused with the largest u64 in the message
+//! or (`--jobs 0`) run on all cores unsaid, and `plot -o /dev/null` refused for its name; and
+//! the exit statuses only the README gave.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -252,6 +253,32 @@ fn counts_out_of_range_are_refused_in_words() {
     // In range, the value is taken.
     let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "1"]);
     assert!(err.contains("/tracks"), "{err}");
+}
+
+/// `--jobs` follows one rule in `track` and `tune`: at least 1, all cores when left out, both
+/// said in the help; `--jobs 0` is refused in words, not run on all cores unsaid.
+#[test]
+fn jobs_zero_is_refused_alike_and_the_default_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let out = dir.path().join("out");
+    for cmd in ["track", "tune"] {
+        let err = stderr_of_failure(&[cmd, s(&city), "-o", s(&out), "--jobs", "0"]);
+        assert!(err.contains("for '--jobs <N>'"), "{cmd}: {err}");
+        assert!(
+            err.contains("0 is too small: give at least 1"),
+            "{cmd}: {err}"
+        );
+        assert!(!out.exists(), "{cmd}");
+        let help = String::from_utf8(probmot_ok(&[cmd, "--help"]).stdout).unwrap();
+        let jobs = help.split("--jobs <N>").nth(1).unwrap();
+        let text = jobs.split("\n\n").next().unwrap();
+        assert!(
+            text.contains("at least 1 (default: all cores)"),
+            "{cmd}: {text}"
+        );
+    }
+    probmot_ok(&["track", s(&city), "-o", s(&out), "--jobs", "1", "-q"]);
 }
 
 #[test]
