@@ -394,8 +394,8 @@ mod with_feature {
             assert!(s["entities"]["/world/detections"]["rows"].as_u64().unwrap() > 0);
         }
 
-        // A log without our topics (they are looked for under other names): a clear error,
-        // no output and no temporary file left.
+        // Topics named that the log lacks: refused before any recording, no output and no
+        // temporary file left.
         let bad = dir.path().join("bad.rrd");
         let out = probmot(&[
             "viz",
@@ -412,12 +412,24 @@ mod with_feature {
         assert_eq!(out.status.code(), Some(2));
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(
-            err.contains("has no messages on /lidar, /nothing or /none")
-                && err.contains("topics: "),
+            err.contains("has no topic /lidar for the detections layer (topics: ")
+                && err.contains("check --detections-topic"),
             "{err}"
         );
         assert!(!bad.exists());
         no_leftovers(dir.path());
+
+        // A log without our topics (the default ones): a clear error naming its topics.
+        let empty = dir.path().join("empty.mcap");
+        let file = std::io::BufWriter::new(std::fs::File::create(&empty).unwrap());
+        mcap::Writer::new(file).unwrap().finish().unwrap();
+        let out = probmot(&["viz", empty.to_str().unwrap(), "-o", bad.to_str().unwrap()]);
+        assert_eq!(out.status.code(), Some(2));
+        let err = String::from_utf8_lossy(&out.stderr);
+        let want = "has no messages on /detections, /tracks or /ground_truth (the file has no \
+                    channels)";
+        assert!(err.contains(want), "{err}");
+        assert!(!bad.exists());
     }
 
     /// `--rerun` reads the tracked output back: an output that is a FIFO (or a device, or

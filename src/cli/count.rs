@@ -20,3 +20,9 @@ pub fn count_in(
         }
     }
 }
+
+/// A count as a `usize`, the largest one when it does not fit (a count of threads or items
+/// that large is as good as "all").
+pub fn to_usize(n: u64) -> usize {
+    usize::try_from(n).unwrap_or(usize::MAX)
+}

@@ -75,11 +75,11 @@ pub struct TrackArgs {
     /// input's file name).
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
-    /// Threads to use (default: number of cores). With --out-dir, files run in parallel on N
-    /// threads; a file whose share is two or more threads (one file on a multi-core machine)
-    /// writes and compresses its output on a second thread, overlapping with tracking.
-    #[arg(long, value_name = "N")]
-    jobs: Option<usize>,
+    /// Threads to use, at least 1 (default: all cores). With --out-dir, files run in parallel
+    /// on N threads; a file whose share is two or more threads (one file on a multi-core
+    /// machine) writes and compresses its output on a second thread, overlapping with tracking.
+    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, u64::MAX))]
+    jobs: Option<u64>,
     /// Detection topic(s); default: every channel of a supported detection schema
     /// (probmot.Detections3D, vision_msgs/msg/Detection3DArray, foxglove.SceneUpdate,
     /// autoware_perception_msgs/msg/DetectedObjects).
@@ -183,7 +183,7 @@ pub fn run(a: TrackArgs) -> Result<ExitCode> {
         bail!("--tf-tolerance must be a number of seconds >= 0");
     }
     let config = a.tracker.resolve()?;
-    let jobs = a.jobs.unwrap_or_else(|| {
+    let jobs = a.jobs.map(super::count::to_usize).unwrap_or_else(|| {
         std::thread::available_parallelism()
             .map(|n| n.get())
             .unwrap_or(1)

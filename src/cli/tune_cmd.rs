@@ -141,9 +141,9 @@ pub struct TuneArgs {
     /// this rule. Example: probmot tune logs/*.mcap -o tuned.json --keep-base-on-loss
     #[arg(long)]
     keep_base_on_loss: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long, value_name = "N")]
-    jobs: Option<usize>,
+    /// Worker threads, at least 1 (default: all cores).
+    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, u64::MAX))]
+    jobs: Option<u64>,
     /// Period in seconds of the config's velocities (default: the data's frame period).
     #[arg(long, value_name = "S")]
     dt_nominal: Option<f64>,
@@ -196,7 +196,7 @@ impl TuneArgs {
             search: self.search.clone(),
             keep_base_on_loss: self.keep_base_on_loss,
             fold_configs: self.fold_configs.clone(),
-            jobs: self.jobs,
+            jobs: self.jobs.map(super::count::to_usize),
             truth_topic: self.truth_topic.clone(),
             detections_topic: self.detections_topic.clone(),
         }

@@ -88,7 +88,10 @@ pub fn fit_files(
     let mut acc = FitAccumulator::new();
     for p in &inputs {
         let topics = (o.truth_topic.as_str(), o.detections_topic.as_str());
-        stream_log(&mut acc, p, topics, &|n| progress(Progress::Advance(n)))?;
+        let has_entry = |label: &str| base.classes.contains_key(label);
+        stream_log(&mut acc, p, topics, &has_entry, &|n| {
+            progress(Progress::Advance(n))
+        })?;
     }
     progress(Progress::Done);
     let options = FitOptions {

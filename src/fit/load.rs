@@ -23,10 +23,12 @@ type Skipped = BTreeMap<SkipReason, u64>;
 /// fit boxes as soon as it is decoded: `(stamp, boxes)` per message and request, the stamp being
 /// the message's own else its MCAP `log_time` (as `probmot track` does). A missing topic,
 /// another schema or an undecodable message is an error naming them. `progress` gets the bytes
-/// read at each step. Detection boxes `track` would skip are left out and counted.
+/// read at each step. Detection boxes `track` would skip are left out and counted (an Autoware
+/// class that is none of probmot's without a config entry of its name: `has_entry`).
 fn read_topics(
     path: &Path,
     wanted: &[TopicRequest],
+    has_entry: &dyn Fn(&str) -> bool,
     progress: &dyn Fn(u64),
 ) -> Result<(Vec<TopicBoxes>, Skipped)> {
     let mut out: Vec<Option<TopicBoxes>> = vec![None; wanted.len()];
@@ -39,7 +41,8 @@ fn read_topics(
             FrameEvent::Channel(i) => {
                 out[i].get_or_insert_with(Vec::new);
             }
-            FrameEvent::Frame(i, f) => {
+            FrameEvent::Frame(i, mut f) => {
+                f.skip_classes_without_entry(has_entry);
                 count_skips(&mut skipped, &f.skipped);
                 // Extended into a new vector: `collect` would keep the decoded messages'
                 // larger allocation in place for as long as the log is held.
@@ -94,29 +97,32 @@ fn detection_box(d: Detection3D, skipped: &mut Skipped) -> Option<LabelledBox> {
 }
 
 /// Reads one log: truth from `truth_topic`, detections from `detections_topic`. The truth must
-/// carry instance ids: a box with id 0 (except `dontcare` regions, which are skipped), or two boxes with the same label and id at one stamp,
-/// is an error.
+/// carry instance ids: a box with id 0 (except `dontcare` regions, which are skipped), or two
+/// boxes with the same label and id at one stamp, is an error. Autoware classes that are none
+/// of probmot's are skipped as `track` skips them with a config without entries of their names
+/// (every preset); [`load_log_progress`] takes the config's entries.
 pub fn load_log(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<FitLog> {
-    load_log_progress(path, truth_topic, detections_topic, &|_| {})
+    load_log_progress(path, (truth_topic, detections_topic), &|_| false, &|_| {})
 }
 
 /// Feeds one log to `acc` frame by frame while the file streams (one pass), holding only the
 /// frames whose stamp either channel may still reach: a frame is complete once both channels
 /// have moved past its stamp. That needs each channel's stamps in order; a log whose stamps go
 /// back is read whole instead ([`load_log_progress`]), with the same result. Errors as
-/// [`load_log`].
+/// [`load_log`]; `has_entry` as in [`load_log_progress`].
 pub fn stream_log(
     acc: &mut FitAccumulator,
     path: &Path,
-    (truth_topic, detections_topic): (&str, &str),
+    topics: (&str, &str),
+    has_entry: &dyn Fn(&str) -> bool,
     progress: &dyn Fn(u64),
 ) -> Result<()> {
     let before = acc.clone();
-    match stream_ordered(acc, path, (truth_topic, detections_topic), progress)? {
+    match stream_ordered(acc, path, topics, has_entry, progress)? {
         true => Ok(()),
         false => {
             *acc = before;
-            let log = load_log(path, truth_topic, detections_topic)?;
+            let log = load_log_progress(path, topics, has_entry, &|_| {})?;
             acc.add_log(&log);
             Ok(())
         }
@@ -141,6 +147,7 @@ fn stream_ordered(
     acc: &mut FitAccumulator,
     path: &Path,
     (truth_topic, detections_topic): (&str, &str),
+    has_entry: &dyn Fn(&str) -> bool,
     progress: &dyn Fn(u64),
 ) -> Result<bool> {
     let file = path.display().to_string();
@@ -189,6 +196,8 @@ fn stream_ordered(
             FrameEvent::Frame(_, _) if !ordered => return Ok(()),
             FrameEvent::Frame(i, f) => (i, f),
         };
+        let mut f = f;
+        f.skip_classes_without_entry(has_entry);
         if newest[i].is_some_and(|n| f.stamp < n) {
             ordered = false;
             return Ok(());
@@ -265,11 +274,13 @@ fn check_truth_box(
     Ok(true)
 }
 
-/// [`load_log`] in one pass over the file, telling `progress` the bytes read at each step.
+/// [`load_log`] in one pass over the file, telling `progress` the bytes read at each step; an
+/// Autoware class that is none of probmot's is read only when `has_entry` (the config has an
+/// entry of its name), as `track` tracks it only then.
 pub fn load_log_progress(
     path: &Path,
-    truth_topic: &str,
-    detections_topic: &str,
+    (truth_topic, detections_topic): (&str, &str),
+    has_entry: &dyn Fn(&str) -> bool,
     progress: &dyn Fn(u64),
 ) -> Result<FitLog> {
     let file = path.display().to_string();
@@ -277,7 +288,7 @@ pub fn load_log_progress(
         request(truth_topic, TopicKind::Tracks, "ground truth"),
         request(detections_topic, TopicKind::Detections, "detections"),
     ];
-    let (mut read, skipped) = read_topics(path, &wanted, progress)?;
+    let (mut read, skipped) = read_topics(path, &wanted, has_entry, progress)?;
     let detections = read.pop().expect("two requests");
     let truth = read.pop().expect("two requests");
     if truth.is_empty() {

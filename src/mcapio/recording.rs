@@ -14,9 +14,10 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use mcap::records::Record;
 
-use super::reader::{read_records, ReadStats};
+use super::reader::{read_records, read_summary_records, ReadStats};
+use crate::msgs::autoware;
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
-use crate::msgs::detection_frame::{stamp_or_log_time, SkipReason};
+use crate::msgs::detection_frame::{check_box, stamp_or_log_time, SkipReason};
 use crate::msgs::detection_source::DetectionSource;
 use crate::msgs::ros2_tracks;
 use crate::msgs::ros2_vision::{self, VisionLayout};
@@ -63,9 +64,36 @@ pub struct Frame {
     pub log_time: u64,
     /// Its boxes.
     pub boxes: Boxes,
-    /// Detection boxes left out of `boxes` because a string of theirs is not UTF-8, one
-    /// reason per box ([`DetectionSource::decode_kept`]).
+    /// Detection boxes left out of `boxes`, one reason per box: a string of theirs is not
+    /// UTF-8 ([`DetectionSource::decode_kept`]), or [`Frame::skip_classes_without_entry`].
     pub skipped: Vec<SkipReason>,
+    /// The boxes are Autoware `DetectedObjects`, whose classes that are none of probmot's
+    /// (UNKNOWN, ANIMAL, ...) are tracked only under a config entry of their own name.
+    pub autoware_classes: bool,
+}
+
+impl Frame {
+    /// The rule of `probmot track` for Autoware classes that are none of probmot's
+    /// ([`autoware::is_class_without_probmot_class`]): a box of such a class whose label has no
+    /// config entry (`has_entry`) is left out and counted in `skipped` as
+    /// [`SkipReason::ClassWithoutEntry`]. As in `track`, a box the box check refuses
+    /// ([`check_box`]) stays, to be counted for that. Other frames are unchanged.
+    pub fn skip_classes_without_entry(&mut self, has_entry: &dyn Fn(&str) -> bool) {
+        let Boxes::Detections(d) = &mut self.boxes else {
+            return;
+        };
+        if !self.autoware_classes {
+            return;
+        }
+        let before = d.len();
+        d.retain(|b| {
+            check_box(b).is_err()
+                || !autoware::is_class_without_probmot_class(&b.label)
+                || has_entry(&b.label)
+        });
+        let n = before - d.len();
+        (self.skipped).extend(std::iter::repeat_n(SkipReason::ClassWithoutEntry, n));
+    }
 }
 
 /// The frames of the requested topics of one recording.
@@ -184,12 +212,14 @@ impl Decoder {
 
     /// [`Decoder::decode`], with the message's `frame_id` (the coordinate frame of its boxes).
     pub fn decode_with_frame_id(&self, data: &[u8], log_time: u64) -> Result<(Frame, String)> {
+        let autoware_classes = matches!(self, Decoder::Detections(DetectionSource::Autoware(_)));
         let frame = |stamp, boxes, frame_id, skipped| {
             let f = Frame {
                 stamp,
                 log_time,
                 boxes,
                 skipped,
+                autoware_classes,
             };
             (f, frame_id)
         };
@@ -304,6 +334,23 @@ pub fn for_each_frame_with(
         Ok(())
     })?;
     Ok(topics)
+}
+
+/// Every topic of `path`: from its summary section's channel records when it has them (two
+/// small reads), else from a pass over the file.
+pub fn file_topics(path: &Path) -> Result<BTreeSet<String>> {
+    let from_summary = read_summary_records(path).map(|(_, records)| {
+        (records.into_iter())
+            .filter_map(|r| match r {
+                Record::Channel(c) => Some(c.topic),
+                _ => None,
+            })
+            .collect::<BTreeSet<String>>()
+    });
+    match from_summary {
+        Some(topics) if !topics.is_empty() => Ok(topics),
+        _ => for_each_frame(path, &[], |_, _| Ok(())),
+    }
 }
 
 /// `topics: a, b` (sorted), or that the file has none: what an error about a missing topic
@@ -483,6 +530,41 @@ mod tests {
         // A detections channel is not a tracks topic.
         let err = format!("{:#}", tracks_topic(&path, "/detections").unwrap_err());
         assert!(err.contains("/detections"), "{err}");
+    }
+
+    #[test]
+    fn file_topics_reads_the_summary_or_the_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.mcap");
+        write_log(&path);
+        let want = ["/detections", "/tracks"].map(String::from);
+        assert!(read_summary_records(&path).is_some());
+        assert_eq!(file_topics(&path).unwrap(), BTreeSet::from(want.clone()));
+        // A file whose summary lists no channels is read through.
+        let bare = dir.path().join("bare.mcap");
+        let opts = mcap::WriteOptions::new().emit_summary_records(false);
+        let mut w = opts
+            .create(std::io::BufWriter::new(
+                std::fs::File::create(&bare).unwrap(),
+            ))
+            .unwrap();
+        let schema = w.add_schema("x", "", &[]).unwrap();
+        let ch = w
+            .add_channel(schema, "/only", "", &BTreeMap::new())
+            .unwrap();
+        let header = mcap::records::MessageHeader {
+            channel_id: ch,
+            sequence: 0,
+            log_time: 1,
+            publish_time: 1,
+        };
+        w.write_to_known_channel(&header, b"m").unwrap();
+        w.finish().unwrap();
+        drop(w);
+        let summary = read_summary_records(&bare).map(|s| s.1).unwrap_or_default();
+        assert!(!summary.iter().any(|r| matches!(r, Record::Channel(_))));
+        let only = BTreeSet::from(["/only".to_string()]);
+        assert_eq!(file_topics(&bare).unwrap(), only);
     }
 
     #[test]

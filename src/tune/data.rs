@@ -88,8 +88,20 @@ pub fn frame_periods<'a>(
 impl TuneLog {
     /// Reads a log: truth from `truth_topic` (`probmot.Tracks3D` with the true instance ids),
     /// detections from `detections_topic` (any detection input `track` reads). Errors name the
-    /// file.
+    /// file. Autoware classes that are none of probmot's are skipped as `track` skips them with
+    /// a config without entries of their names (every preset); [`TuneLog::load_for`] takes the
+    /// config's entries.
     pub fn load(path: &Path, truth_topic: &str, detections_topic: &str) -> Result<TuneLog> {
+        Self::load_for(path, (truth_topic, detections_topic), &|_| false)
+    }
+
+    /// [`TuneLog::load`], reading an Autoware class that is none of probmot's only when
+    /// `has_entry` (the config has an entry of its name), as `track` tracks it only then.
+    pub fn load_for(
+        path: &Path,
+        (truth_topic, detections_topic): (&str, &str),
+        has_entry: &dyn Fn(&str) -> bool,
+    ) -> Result<TuneLog> {
         let file = path.display().to_string();
         let mut shared = KittiBoxes::default();
         let truth = read_kitti_topic(path, truth_topic, &mut shared)?;
@@ -111,18 +123,18 @@ impl TuneLog {
         };
         let mut found = false;
         let topics = for_each_frame(path, std::slice::from_ref(&request), |event, _| {
-            let (stamp, detections) = match event {
+            let mut m = match event {
                 FrameEvent::Channel(_) => {
                     found = true;
                     return Ok(());
                 }
-                FrameEvent::Frame(_, m) => match m.boxes {
-                    Boxes::Detections(d) => {
-                        count_skips(&mut skipped, &m.skipped);
-                        (m.stamp, d)
-                    }
-                    Boxes::Tracks(_) => unreachable!("a detections request gives detections"),
-                },
+                FrameEvent::Frame(_, m) => m,
+            };
+            m.skip_classes_without_entry(has_entry);
+            count_skips(&mut skipped, &m.skipped);
+            let (stamp, detections) = match m.boxes {
+                Boxes::Detections(d) => (m.stamp, d),
+                Boxes::Tracks(_) => unreachable!("a detections request gives detections"),
             };
             let f = frames.entry(stamp).or_default();
             f.stamp = stamp;
@@ -210,9 +222,12 @@ impl TuneLog {
 
 #[cfg(test)]
 mod tests {
+    use std::collections::BTreeSet;
+
     use super::*;
     use crate::fit::data::assemble_frames;
     use crate::fit::{fit, fit_gathered, FitOptions, YawMode};
+    use crate::msgs::detection_frame::describe_skips;
 
     fn truth(id: u64, label: &str, x: f64) -> KittiBox {
         KittiBox::from(&LabelledBox {
@@ -308,5 +323,177 @@ mod tests {
         assert_eq!(got, want);
         assert_eq!((got.frames, got.unmatched_detection_messages), (11, 1));
         assert_eq!((got.truth_boxes, got.detections), (22, 30));
+    }
+
+    /// A log of Autoware `DetectedObjects` (4 frames of a car, an UNKNOWN object and an ANIMAL
+    /// of length 0) with probmot ground truth for the car and the UNKNOWN object.
+    fn write_autoware_log(path: &Path) {
+        use crate::mcapio::writer::{AtomicOutput, OutputOptions};
+        use crate::msgs::autoware::tests::{car, detected_objects, MSG_TEXT};
+        use crate::msgs::autoware::{DETECTED_SCHEMA_NAMES, DETECTION_TOPIC};
+        use crate::msgs::{size3, v3, Track3D, Tracks3D, DESCRIPTOR_SET, TRACKS_SCHEMA};
+        let mut out = AtomicOutput::create(path, &OutputOptions::default()).unwrap();
+        let w = &mut out.writer;
+        let aw = (w.add_schema(DETECTED_SCHEMA_NAMES[0], "ros2msg", MSG_TEXT.as_bytes())).unwrap();
+        let tr = w
+            .add_schema(TRACKS_SCHEMA, "protobuf", DESCRIPTOR_SET)
+            .unwrap();
+        let none = &BTreeMap::new();
+        let dets = w.add_channel(aw, DETECTION_TOPIC, "cdr", none).unwrap();
+        let truth = w
+            .add_channel(tr, "/ground_truth", "protobuf", none)
+            .unwrap();
+        for i in 0..4u64 {
+            let stamp = 1_000_000_000 + 100_000_000 * i;
+            let x = i as f64;
+            let mut unknown = car(20.0 + x, 5.0, 0.0);
+            unknown.classes = vec![(0, 1.0)];
+            let mut animal = car(30.0, -5.0, 0.0);
+            animal.classes = vec![(8, 1.0)];
+            animal.dimensions[0] = 0.0;
+            let objects = [car(10.0 + x, 0.0, 0.0), unknown, animal];
+            let header = |channel_id| mcap::records::MessageHeader {
+                channel_id,
+                sequence: 0,
+                log_time: stamp,
+                publish_time: stamp,
+            };
+            let data = detected_objects(stamp, "base_link", &objects);
+            w.write_to_known_channel(&header(dets), &data).unwrap();
+            let track = |id, label: &str, x: f64| Track3D {
+                id,
+                label: label.into(),
+                center: Some(v3([x, 0.0, 0.8])),
+                size: Some(size3([4.5, 1.9, 1.6])),
+                ..Default::default()
+            };
+            let m = Tracks3D {
+                stamp,
+                tracks: vec![track(1, "car", 10.0 + x), track(2, "unknown", 20.0 + x)],
+                ..Default::default()
+            };
+            let mut data = Vec::new();
+            crate::msgs::encode_into(&m, &mut data);
+            w.write_to_known_channel(&header(truth), &data).unwrap();
+        }
+        out.commit().unwrap();
+    }
+
+    /// The skip counts of the Autoware log without and with a config entry `unknown`.
+    fn autoware_skips() -> [BTreeMap<SkipReason, u64>; 2] {
+        let (size, class) = (SkipReason::NonPositiveSize, SkipReason::ClassWithoutEntry);
+        [
+            BTreeMap::from([(size, 4), (class, 4)]),
+            BTreeMap::from([(size, 4)]),
+        ]
+    }
+
+    /// Autoware classes that are none of probmot's are read by fit (whole or streamed) and
+    /// tune as `track` reads them: without a config entry of their name, left out and counted
+    /// (`class_without_entry`); with one, kept. A box the check refuses is counted for that,
+    /// whatever its class.
+    #[test]
+    fn autoware_classes_without_entry_are_skipped_as_track_skips_them() {
+        use crate::fit::load::{load_log, load_log_progress, stream_log};
+        use crate::msgs::autoware::DETECTION_TOPIC;
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("autoware.mcap");
+        write_autoware_log(&path);
+        let topics = ("/ground_truth", DETECTION_TOPIC);
+        let [without, with] = autoware_skips();
+        let unknown: &dyn Fn(&str) -> bool = &|label| label == "unknown";
+        let no_entry: &dyn Fn(&str) -> bool = &|_| false;
+        let fit_labels = |log: &crate::fit::data::FitLog| {
+            let boxes = log.frames.iter().flat_map(|f| &f.detections);
+            boxes.map(|b| b.label.clone()).collect::<BTreeSet<_>>()
+        };
+        let tune_labels = |log: &TuneLog| {
+            let boxes = log.frames.iter().flat_map(|f| &f.detections);
+            boxes.map(|d| d.label.to_string()).collect::<BTreeSet<_>>()
+        };
+        let car = BTreeSet::from(["car".to_string()]);
+        let both = BTreeSet::from(["car".to_string(), "unknown".to_string()]);
+
+        let log = load_log(&path, topics.0, topics.1).unwrap();
+        let read = (&log.skipped_detections, fit_labels(&log));
+        assert_eq!(read, (&without, car.clone()));
+        let log = load_log_progress(&path, topics, unknown, &|_| {}).unwrap();
+        let read = (&log.skipped_detections, fit_labels(&log));
+        assert_eq!(read, (&with, both.clone()));
+        let options = FitOptions {
+            dt_nominal: 0.1,
+            yaw: YawMode::Wrapped,
+            min_samples: 1,
+        };
+        for (has_entry, skipped, detections) in [(no_entry, &without, 4), (unknown, &with, 8)] {
+            let mut acc = FitAccumulator::new();
+            stream_log(&mut acc, &path, topics, has_entry, &|_| {}).unwrap();
+            let report = fit_gathered(acc, &options);
+            assert_eq!(report.detections, detections);
+            let warning = describe_skips(skipped);
+            let warned = report.warnings.iter().any(|w| w.contains(&warning));
+            assert!(warned, "{report:?}");
+        }
+
+        let log = TuneLog::load(&path, topics.0, topics.1).unwrap();
+        let read = (&log.skipped_detections, tune_labels(&log));
+        assert_eq!(read, (&without, car));
+        let log = TuneLog::load_for(&path, topics, unknown).unwrap();
+        let read = (&log.skipped_detections, tune_labels(&log));
+        assert_eq!(read, (&with, both));
+    }
+
+    /// `probmot fit` and `probmot tune` read the Autoware classes with the base config's
+    /// entries.
+    #[test]
+    fn fit_and_tune_files_take_the_base_configs_entries() {
+        use crate::fit::files::{fit_files, FitFilesOptions};
+        use crate::msgs::autoware::DETECTION_TOPIC;
+        use crate::tune::files::{tune_files, BaseChoice, TuneFilesOptions};
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("autoware.mcap");
+        write_autoware_log(&path);
+        let inputs = [path.clone()];
+        for (unknown_entry, skipped) in [false, true].into_iter().zip(autoware_skips()) {
+            let mut base = crate::tracker::Preset::NuscenesChiu2019.config().unwrap();
+            if unknown_entry {
+                let entry = base.classes["car"].clone();
+                base.classes.insert("unknown".into(), entry);
+            }
+            let base_path = dir.path().join("base.json");
+            std::fs::write(&base_path, base.to_json()).unwrap();
+            let warning = describe_skips(&skipped);
+
+            let o = FitFilesOptions {
+                base_config: Some(base_path.clone()),
+                detections_topic: DETECTION_TOPIC.into(),
+                ..Default::default()
+            };
+            let fit = fit_files(&inputs, &dir.path().join("fit.json"), &o, &|_| {});
+            let warnings = fit.unwrap().report.warnings;
+            assert!(
+                warnings.iter().any(|w| w.contains(&warning)),
+                "{warnings:?}"
+            );
+
+            let mut o = TuneFilesOptions {
+                base: BaseChoice {
+                    file: Some(base_path),
+                    ..Default::default()
+                },
+                protocol: Some(crate::tune::Protocol::Nuscenes),
+                folds: 1,
+                detections_topic: DETECTION_TOPIC.into(),
+                ..Default::default()
+            };
+            (o.limits.budget, o.limits.rounds) = (1, 1);
+            let out = dir.path().join("tune.json");
+            let tune = tune_files(&inputs, &out, &o, &|_| {}, &|_| {});
+            let warnings = tune.unwrap().warnings;
+            assert!(
+                warnings.iter().any(|w| w.contains(&warning)),
+                "{warnings:?}"
+            );
+        }
     }
 }

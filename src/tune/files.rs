@@ -278,7 +278,13 @@ impl Run<'_> {
         progress: ProgressFn<'_>,
     ) -> Result<TuneFilesReport> {
         let logs = (self.inputs.par_iter())
-            .map(|p| TuneLog::load(p, &self.o.truth_topic, &self.o.detections_topic))
+            .map(|p| {
+                let topics = (
+                    self.o.truth_topic.as_str(),
+                    self.o.detections_topic.as_str(),
+                );
+                TuneLog::load_for(p, topics, &|label| base.classes.contains_key(label))
+            })
             .collect::<Result<Vec<_>>>()?;
         let mut warnings = self.skip_warnings(&logs);
         warnings.extend(period_warning(&logs));

@@ -105,6 +105,15 @@ impl Layer {
         }
     }
 
+    /// The option that names the layer's topic.
+    pub fn topic_flag(self) -> &'static str {
+        match self {
+            Layer::Detections => "--detections-topic",
+            Layer::Tracks => "--tracks-topic",
+            Layer::GroundTruth => "--truth-topic",
+        }
+    }
+
     /// Schema the layer's channel must have.
     pub fn schema(self) -> &'static str {
         match self {
@@ -138,6 +147,27 @@ impl Layer {
             Layer::Tracks => "tracks",
             Layer::GroundTruth => "ground truth",
         }
+    }
+}
+
+/// Refuses a layer topic named on purpose (not the layer's default) that `file` lacks, as plot
+/// and viz do: a misspelt topic would otherwise only drop its layer. `named` gives each drawn
+/// layer's topic, `topics` every topic of the file; the error names them
+/// ([`recording::topic_list`]) and the option to check.
+pub fn check_named_topics<'a>(
+    file: impl fmt::Display,
+    named: impl IntoIterator<Item = (Layer, &'a str)>,
+    topics: &BTreeSet<String>,
+) -> Result<()> {
+    let mut named = named.into_iter();
+    let missing = named.find(|(l, t)| *t != l.default_topic() && !topics.contains(*t));
+    match missing {
+        Some((l, t)) => anyhow::bail!(
+            "{file} has no topic {t} for the {l} layer ({}); check {}",
+            recording::topic_list(topics),
+            l.topic_flag()
+        ),
+        None => Ok(()),
     }
 }
 

@@ -10,8 +10,9 @@ use anyhow::{bail, Result};
 use super::plot::{bev_drawable, render_png_with_layout, EventMark, Extent, Panel, PlotOptions};
 use super::truth_colors::{marks, match_by_distance, match_from_events};
 use super::window::{read_events, read_window};
-use super::{FileLayers, Layer, Selection};
+use super::{check_named_topics, FileLayers, Layer, Selection};
 use crate::mcapio::reader::read_summary_records;
+use crate::mcapio::recording::topic_list;
 use crate::mcapio::writer::{check_output_path, is_device_or_fifo, write_file_atomic};
 use crate::msgs::eval_events::EVENTS_TOPIC;
 use crate::pipeline::progress::{Progress, ProgressFn};
@@ -311,42 +312,25 @@ impl Plot<'_> {
         explicit: bool,
     ) -> Result<Vec<Layer>> {
         let file = self.file.display();
-        let topics = || match read.topics.is_empty() {
-            true => "none".to_string(),
-            false => read.topics.iter().cloned().collect::<Vec<_>>().join(", "),
-        };
+        let topics = || topic_list(&read.topics);
         if explicit {
             if let Some(l) = wanted.iter().find(|l| read.get(**l).is_none()) {
                 bail!(
-                    "{file} has no topic {} for the {l} layer (topics: {}); run `probmot track` \
-                     first for tracks, or choose other --layers",
+                    "{file} has no topic {} for the {l} layer ({}); run `probmot track` first \
+                     for tracks, or choose other --layers",
                     self.o.topics.of(*l),
                     topics()
                 );
             }
             return Ok(wanted);
         }
-        // A topic other than the default was named on purpose: its layer must be there (a
-        // misspelt topic would otherwise only drop its panel).
-        let defaults = LayerTopics::default();
-        let named = |l: &Layer| self.o.topics.of(*l) != defaults.of(*l);
-        if let Some(l) = wanted.iter().find(|l| named(l) && read.get(**l).is_none()) {
-            let flag = match l {
-                Layer::Detections => "--detections-topic",
-                Layer::Tracks => "--tracks-topic",
-                Layer::GroundTruth => "--truth-topic",
-            };
-            bail!(
-                "{file} has no topic {} for the {l} layer (topics: {}); check {flag}",
-                self.o.topics.of(*l),
-                topics()
-            );
-        }
+        let named = wanted.iter().map(|l| (*l, self.o.topics.of(*l)));
+        check_named_topics(&file, named, &read.topics)?;
         wanted.retain(|l| read.get(*l).is_some());
         if wanted.is_empty() {
             let t = &self.o.topics;
             bail!(
-                "{file} has none of the topics {}, {}, {} (topics: {})",
+                "{file} has none of the topics {}, {}, {} ({})",
                 t.detections,
                 t.tracks,
                 t.truth,

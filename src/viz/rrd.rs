@@ -41,6 +41,7 @@ pub use super::rrd_options::{RrdSummary, VizOptions};
 use super::scene::{drawable, Scene};
 use super::window::{read_timed_events, read_window};
 use super::{read_layers, FileLayers, Layer, Selection};
+use crate::mcapio::recording::topic_list;
 use crate::mcapio::writer::write_file_atomic;
 use crate::mcapio::LabelledBox;
 use crate::msgs::eval_event::Kind;
@@ -383,16 +384,12 @@ pub fn mcap_to_rrd(input: &Path, out: &Path, o: &VizOptions) -> Result<RrdSummar
         );
     }
     if scene.frames.is_empty() {
-        let topics = if read.topics.is_empty() {
-            "none".to_string()
-        } else {
-            read.topics.iter().cloned().collect::<Vec<_>>().join(", ")
-        };
         bail!(
-            "{file} has no messages on {}, {} or {} (topics: {topics})",
+            "{file} has no messages on {}, {} or {} ({})",
             o.detections_topic,
             o.tracks_topic,
-            o.truth_topic
+            o.truth_topic,
+            topic_list(&read.topics)
         );
     }
     let name = input

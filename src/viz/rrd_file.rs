@@ -7,7 +7,9 @@ use std::path::Path;
 use anyhow::{bail, Result};
 
 pub use super::rrd_options::{RrdSummary, VizOptions};
+use super::{check_named_topics, Layer};
 use crate::mcapio::destination::{destination, Destination};
+use crate::mcapio::recording::file_topics;
 use crate::mcapio::writer::{check_output_path, is_device_or_fifo};
 use crate::pipeline::progress::{Progress, ProgressFn};
 use crate::pipeline::rosbag_dir::{open_bag, resolve_input};
@@ -89,6 +91,7 @@ pub fn rrd_file(
             bail!("--from {f} is after --to {t}; the window is empty");
         }
     }
+    check_viz_topics(&file, o)?;
     progress(Progress::Message(&format!("writing {}", output.display())));
     let s = write(&file, output, o);
     progress(Progress::Done);
@@ -100,6 +103,20 @@ pub fn rrd_file(
         ));
     }
     Ok(s)
+}
+
+/// Refuses a layer topic named on purpose that the file lacks, before any recording is made
+/// ([`check_named_topics`]); the file's topics are read only when one is named.
+fn check_viz_topics(file: &Path, o: &VizOptions) -> Result<()> {
+    let named = [
+        (Layer::Detections, o.detections_topic.as_str()),
+        (Layer::Tracks, o.tracks_topic.as_str()),
+        (Layer::GroundTruth, o.truth_topic.as_str()),
+    ];
+    if named.iter().all(|(l, t)| *t == l.default_topic()) {
+        return Ok(());
+    }
+    check_named_topics(file.display(), named, &file_topics(file)?)
 }
 
 #[cfg(feature = "rerun")]

@@ -1,9 +1,10 @@
 //! First-use errors that pointed the wrong way: `tune` on a misspelt log, `eval` with its file
 //! as a positional argument, `info`'s count of boxes without a class, a misspelt topic (`track`
-//! named no alternative, `plot` dropped the panel), a file that is not MCAP at all, and the
-//! options spelt differently from one command to the next (`export --topic`, `plot --class`
-//! beside `eval --classes`), a count of 0 refused with the largest u64 in the message, and
-//! `plot -o /dev/null` refused for its name; and the exit statuses only the README gave.
+//! named no alternative, `plot` and `viz` dropped the layer), a file that is not MCAP at all,
+//! and the options spelt differently from one command to the next (`export --topic`, `plot
+//! --class` beside `eval --classes`), a count of 0 refused with the largest u64 in the message
+//! or (`--jobs 0`) run on all cores unsaid, and `plot -o /dev/null` refused for its name; and
+//! the exit statuses only the README gave.
 
 use crate::common::{probmot, probmot_ok, repo};
 
@@ -103,6 +104,60 @@ fn plot_refuses_a_named_topic_the_file_lacks() {
     probmot_ok(&["plot", s(&city), "-o", s(&png), "-q"]);
 }
 
+/// viz refuses a named topic the file lacks as plot does, before any recording is made (so
+/// also without the `rerun` feature), naming the file's topics as every command does.
+#[test]
+fn viz_refuses_a_named_topic_the_file_lacks() {
+    let dir = tempfile::tempdir().unwrap();
+    let rrd = dir.path().join("v.rrd");
+    let city = repo("sample_logs/city.mcap");
+    let err = stderr_of_failure(&["viz", s(&city), "-o", s(&rrd), "--tracks-topic", "/trk"]);
+    let want = format!(
+        "{} has no topic /trk for the tracks layer (topics: /detections, /ground_truth); \
+         check --tracks-topic",
+        city.display()
+    );
+    assert!(err.contains(&want), "{err}");
+    assert!(!err.contains("rerun` cargo feature"), "{err}");
+    assert!(!rrd.exists());
+    // The default topics stay optional: the untracked log has no /tracks and is recorded
+    // (without the feature, only the feature is missing).
+    let run = probmot(&["viz", s(&city), "-o", s(&rrd), "-q"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    match cfg!(feature = "rerun") {
+        true => assert!(run.status.success() && rrd.is_file(), "{err}"),
+        false => assert!(err.contains("rerun` cargo feature"), "{err}"),
+    }
+}
+
+/// Every command that misses a topic names the file's topics the same way
+/// (`recording::topic_list`): here a file with no channels, which plot once called `topics:
+/// none`.
+#[test]
+fn every_command_names_a_file_without_channels_alike() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty.mcap");
+    let file = std::io::BufWriter::new(std::fs::File::create(&empty).unwrap());
+    mcap::Writer::new(file).unwrap().finish().unwrap();
+    let (e, out) = (s(&empty), dir.path().join("out"));
+    let png = s(&out).to_string() + ".png";
+    let rrd = s(&out).to_string() + ".rrd";
+    let runs: [&[&str]; 7] = [
+        &["plot", e, "-o", &png],
+        &["plot", e, "-o", &png, "--layers", "tracks"],
+        &["viz", e, "-o", &rrd, "--truth-topic", "/gt"],
+        &["track", e, "-o", s(&out), "--detections-topic", "/d"],
+        &["eval", "--truth", e],
+        &["export", "kitti", e, "-o", s(&out)],
+        &["fit", e, "-o", s(&out)],
+    ];
+    for args in runs {
+        let err = stderr_of_failure(args);
+        assert!(err.contains("the file has no channels)"), "{err}");
+        assert!(!err.contains("none)"), "{err}");
+    }
+}
+
 #[test]
 fn a_file_that_is_not_mcap_says_so() {
     let dir = tempfile::tempdir().unwrap();
@@ -198,6 +253,32 @@ fn counts_out_of_range_are_refused_in_words() {
     // In range, the value is taken.
     let err = stderr_of_failure(&["eval", "--truth", s(&city), "--bootstrap", "1"]);
     assert!(err.contains("/tracks"), "{err}");
+}
+
+/// `--jobs` follows one rule in `track` and `tune`: at least 1, all cores when left out, both
+/// said in the help; `--jobs 0` is refused in words, not run on all cores unsaid.
+#[test]
+fn jobs_zero_is_refused_alike_and_the_default_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let city = repo("sample_logs/city.mcap");
+    let out = dir.path().join("out");
+    for cmd in ["track", "tune"] {
+        let err = stderr_of_failure(&[cmd, s(&city), "-o", s(&out), "--jobs", "0"]);
+        assert!(err.contains("for '--jobs <N>'"), "{cmd}: {err}");
+        assert!(
+            err.contains("0 is too small: give at least 1"),
+            "{cmd}: {err}"
+        );
+        assert!(!out.exists(), "{cmd}");
+        let help = String::from_utf8(probmot_ok(&[cmd, "--help"]).stdout).unwrap();
+        let jobs = help.split("--jobs <N>").nth(1).unwrap();
+        let text = jobs.split("\n\n").next().unwrap();
+        assert!(
+            text.contains("at least 1 (default: all cores)"),
+            "{cmd}: {text}"
+        );
+    }
+    probmot_ok(&["track", s(&city), "-o", s(&out), "--jobs", "1", "-q"]);
 }
 
 #[test]
