@@ -12,6 +12,7 @@ use std::path::PathBuf;
 
 use probmot::mcapio::partial_dir::abandon_partial_dirs;
 use probmot::mcapio::writer::{abandon_in_place, abandon_partials};
+use probmot::pipeline::scratch_file::remove_scratch_files;
 
 use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
 
@@ -45,6 +46,7 @@ pub fn install() {
                 if let Some(sig) = signals.forever().next() {
                     let unwritten = unwritten(abandon_partials(), abandon_partial_dirs());
                     let partly = abandon_in_place();
+                    remove_scratch_files();
                     // A progress bar may be drawn on the terminal's last line: clear it, so
                     // the message starts a line of its own.
                     use std::io::IsTerminal;

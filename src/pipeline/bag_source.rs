@@ -15,7 +15,8 @@
 //! one buffer reused for every message, no larger than the record size limit.
 //!
 //! A sqlite3 file (`.db3`) is read as MCAP records by [`super::db3_file`]; it has no summary
-//! either.
+//! either. Compressed whole (`.db3.zstd`), it is decompressed into a scratch file first
+//! ([`super::scratch_file`]; SQLite needs random access), one file at a time, each pass again.
 
 use std::cell::Cell;
 use std::collections::{BTreeMap, HashMap, HashSet};
@@ -29,8 +30,9 @@ use anyhow::{bail, Context, Result};
 use mcap::records::{Channel, Record, SchemaHeader, Statistics};
 
 use super::bag_metadata::BagCompression;
-use super::db3_file::read_db3;
+use super::db3_file::read_db3_as;
 use super::rosbag_dir::{Bag, Storage};
+use super::scratch_file::ScratchFile;
 use crate::mcapio::chunk_stream::{limit_hint, size_limit};
 use crate::mcapio::reader::{read_records_while, read_summary_records, McapInput, ReadStats};
 use crate::mcapio::source::{OnRecord, RecordSource};
@@ -282,7 +284,16 @@ impl BagSource {
             )
         };
         if self.storage == Storage::Sqlite3 {
-            return read_db3(&self.files[i], &mut hand_on);
+            let file = &self.files[i];
+            // SQLite reads a file, not a stream: a compressed one is read from a scratch copy.
+            let scratch = match self.compression {
+                BagCompression::FileZstd => {
+                    Some(ScratchFile::unzstd(file).with_context(|| file.display().to_string())?)
+                }
+                _ => None,
+            };
+            let path = scratch.as_ref().map_or(file.as_path(), |s| s.path());
+            return read_db3_as(path, file, &mut hand_on);
         }
         let (bytes, count) = self.open(i)?;
         let mut input = McapInput {

@@ -214,19 +214,27 @@ fn declare(
 /// [`ControlFlow::Break`]; returns whether it did. Messages come in timestamp order (ties in
 /// the order they were written), each with its log and publish time set to the timestamp.
 pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
-    let name = path.display();
-    let conn = open(path).with_context(|| format!("{name}"))?;
-    let topics = topics(&conn).with_context(|| format!("{name}"))?;
-    let defs = definitions(&conn).with_context(|| format!("{name}"))?;
+    read_db3_as(path, path, f)
+}
+
+/// [`read_db3`] of a copy of the file `name` at `path` (a decompressed scratch copy): errors
+/// and progress are of `name`.
+pub fn read_db3_as(path: &Path, name: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
+    let shown = name.display();
+    let conn = open(path).with_context(|| format!("{shown}"))?;
+    let topics = topics(&conn).with_context(|| format!("{shown}"))?;
+    let defs = definitions(&conn).with_context(|| format!("{shown}"))?;
     let Some(channels) = declare(&topics, &defs, f)? else {
         return Ok(true);
     };
-    let stopped = read_messages(&conn, &channels, path, f).with_context(|| format!("{name}"))?;
+    let file_len = std::fs::metadata(name).map_or(0, |m| m.len());
+    let stopped =
+        read_messages(&conn, &channels, file_len, f).with_context(|| format!("{shown}"))?;
     if !stopped {
         let end = Record::DataEnd(DataEnd {
             data_section_crc: 0,
         });
-        return Ok(f(end, std::fs::metadata(path).map_or(0, |m| m.len()))?.is_break());
+        return Ok(f(end, file_len)?.is_break());
     }
     Ok(stopped)
 }
@@ -235,10 +243,9 @@ pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
 fn read_messages(
     conn: &Connection,
     channels: &HashMap<i64, u16>,
-    path: &Path,
+    file_len: u64,
     f: &mut OnDb3Record<'_>,
 ) -> Result<bool> {
-    let file_len = std::fs::metadata(path).map_or(0, |m| m.len());
     let count: i64 = conn.query_row("SELECT count(*) FROM messages", [], |r| r.get(0))?;
     let mut stmt = conn.prepare(
         "SELECT id, topic_id, timestamp, length(data), data FROM messages \

@@ -17,6 +17,7 @@ pub mod overrides;
 pub mod per_class;
 pub mod progress;
 pub mod rosbag_dir;
+pub mod scratch_file;
 pub mod stamp_check;
 pub mod track;
 mod track_frames;

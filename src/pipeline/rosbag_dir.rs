@@ -101,14 +101,6 @@ pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
             bail!("{dir}: storage_identifier {other:?}; probmot reads mcap and sqlite3 storage")
         }
     };
-    if storage == Storage::Sqlite3 && md.compression == BagCompression::FileZstd {
-        bail!(
-            "{dir}: a sqlite3 bag compressed file by file (.db3.zstd), which SQLite cannot read \
-             as it is; probmot reads sqlite3 bags plain or compressed message by message: \
-             convert it with `ros2 bag convert` (storage_id mcap, and compression_mode file if \
-             you want it small), which probmot reads as a stream"
-        );
-    }
     let (found, kind) = match storage {
         Storage::Mcap => (mcaps, ".mcap"),
         Storage::Sqlite3 => (db3s, ".db3"),
@@ -402,8 +394,8 @@ mod tests {
     }
 
     /// A sqlite3 bag is found by its `storage_identifier` (or, without one, by holding only
-    /// `.db3` files); its output files are MCAP files; the commands that read one MCAP file
-    /// send it to `track`; compressed whole, it is refused with what to do.
+    /// `.db3` files), compressed whole or not; its output files are MCAP files; the commands
+    /// that read one MCAP file send it to `track`.
     #[test]
     fn a_sqlite3_bag_is_opened_and_its_output_is_mcap() {
         let d = tempfile::tempdir().unwrap();
@@ -426,11 +418,11 @@ mod tests {
         let zstd = listed.replace(".db3\n", ".db3.zstd\n")
             + "  compression_mode: file\n  compression_format: zstd\n";
         std::fs::write(d.path().join("metadata.yaml"), zstd).unwrap();
-        let e = open_bag(d.path()).unwrap_err().to_string();
-        assert!(
-            e.contains(".db3.zstd") && e.contains("ros2 bag convert"),
-            "{e}"
-        );
+        std::fs::write(d.path().join("b_0.db3.zstd"), b"").unwrap();
+        std::fs::write(d.path().join("b_1.db3.zstd"), b"").unwrap();
+        let bag = open_bag(d.path()).unwrap().unwrap();
+        assert_eq!(bag.compression, BagCompression::FileZstd);
+        assert_eq!(bag.output_name(0).unwrap(), "b_0.mcap");
     }
 
     #[test]

@@ -41,6 +41,11 @@ fn long_log() -> &'static Path {
 /// disposition, whatever this test process inherited: a test run started in the background of a
 /// script ignores SIGINT) and waits until a partial file shows up in `out_dir`.
 fn start_track(args: &[&str], out_dir: &Path) -> Child {
+    start_track_with(terminal_bin(), args, out_dir)
+}
+
+/// The binary under test with SIGINT, SIGTERM and SIGHUP at their default disposition.
+fn terminal_bin() -> std::process::Command {
     use std::os::unix::process::CommandExt;
     let mut cmd = bin();
     // SAFETY: signal(2) is async-signal-safe, the only call made between fork and exec.
@@ -52,7 +57,7 @@ fn start_track(args: &[&str], out_dir: &Path) -> Child {
             Ok(())
         });
     }
-    start_track_with(cmd, args, out_dir)
+    cmd
 }
 
 /// As [`start_track`], the binary started by `cmd` (e.g. through `nohup`).
@@ -283,4 +288,81 @@ fn sigint_while_writing_into_a_fifo_says_partly_written() {
         "{stderr}"
     );
     assert_eq!(entries(dir.path()), ["out.mcap"]);
+}
+
+/// The long log as a one-file rosbag2 bag with sqlite3 storage compressed whole
+/// (`bag/bag_0.db3.zstd`), its rows made here from the log's messages.
+fn compressed_sqlite_bag(dir: &Path) -> PathBuf {
+    let bag = dir.join("bag");
+    std::fs::create_dir(&bag).unwrap();
+    let db3 = dir.join("bag_0.db3");
+    let conn = rusqlite::Connection::open(&db3).unwrap();
+    conn.execute_batch(
+        "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+           serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+         CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+           timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+         BEGIN;",
+    )
+    .unwrap();
+    let mut topics: Vec<String> = Vec::new();
+    for m in common::messages(long_log()) {
+        let id = match topics.iter().position(|t| *t == m.topic) {
+            Some(i) => i + 1,
+            None => {
+                topics.push(m.topic.clone());
+                let row = (topics.len(), &m.topic, &m.schema, &m.message_encoding);
+                conn.execute("INSERT INTO topics VALUES (?1, ?2, ?3, ?4, '')", row)
+                    .unwrap();
+                topics.len()
+            }
+        };
+        let row = (id, m.log_time as i64, &m.data);
+        conn.execute(
+            "INSERT INTO messages (topic_id, timestamp, data) VALUES (?1, ?2, ?3)",
+            row,
+        )
+        .unwrap();
+    }
+    conn.execute_batch("COMMIT;").unwrap();
+    drop(conn);
+    let bytes = zstd::encode_all(&std::fs::read(&db3).unwrap()[..], 3).unwrap();
+    std::fs::write(bag.join("bag_0.db3.zstd"), bytes).unwrap();
+    let yaml = "rosbag2_bagfile_information:\n  storage_identifier: sqlite3\n  \
+                relative_file_paths:\n  - bag_0.db3.zstd\n  compression_mode: file\n  \
+                compression_format: zstd\n";
+    std::fs::write(bag.join("metadata.yaml"), yaml).unwrap();
+    bag
+}
+
+/// A sqlite3 bag compressed whole is read from a decompressed scratch copy in TMPDIR: an
+/// interrupt while it is read removes the scratch copy with the partial output.
+#[test]
+fn sigint_while_reading_a_compressed_sqlite_bag_leaves_no_scratch_copy() {
+    let inputs = tempfile::tempdir().unwrap();
+    let bag = compressed_sqlite_bag(inputs.path());
+    let scratch = tempfile::tempdir().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tracked");
+    let mut cmd = terminal_bin();
+    cmd.env("TMPDIR", scratch.path());
+    let args = [bag.to_str().unwrap(), "-o", out.to_str().unwrap()];
+    let mut child = start_track_with(cmd, &args, dir.path());
+    let start = Instant::now();
+    while entries(scratch.path()).is_empty() {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("track ended ({status}) before its scratch copy");
+        }
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "no scratch copy"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    check_interrupted(child, dir.path(), libc::SIGINT, "SIGINT", &["tracked"]);
+    assert_eq!(
+        entries(scratch.path()),
+        Vec::<String>::new(),
+        "scratch left"
+    );
 }

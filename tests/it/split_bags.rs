@@ -221,8 +221,9 @@ fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
 }
 
 /// Bags of the other kinds rosbag2 records, each split in two like the MCAP bag: sqlite3
-/// storage (`.db3`, ROS 2 Humble's default); the same without stored message definitions (as
-/// Humble writes it) and with each message compressed on its own; and MCAP with compressed
+/// storage (`.db3`, ROS 2 Humble's default), plain and compressed file by file (`.db3.zstd`,
+/// read from a scratch copy that is gone after); the same without stored message definitions
+/// (as Humble writes it) and with each message compressed on its own; and MCAP with compressed
 /// messages. Each tracks exactly as the plain MCAP split: every message of every output file,
 /// tracks included, the same, byte for byte; the output is a plain MCAP bag rosbags reads
 /// whole (when the input stored its message definitions); the input is left as it was.
@@ -236,12 +237,15 @@ fn sqlite3_and_message_compressed_bags_track_as_the_mcap_bag() {
     let whole = drive(d, &["--ego"]);
     let split = d.join("split");
     python("scripts/split_bag.py", &[&whole, &split], &["--parts", "2"]);
+    let scratch = d.join("tmp");
+    std::fs::create_dir(&scratch).unwrap();
     let out_split = d.join("tracked_split");
     track(&split, &out_split);
     let expected = all_messages(&out_split);
     assert_eq!(expected.iter().map(Vec::len).sum::<usize>(), 180);
-    let kinds: [(&str, &[&str]); 3] = [
+    let kinds: [(&str, &[&str]); 4] = [
         ("db3", &["--storage", "sqlite3"]),
+        ("zdb3", &["--storage", "sqlite3", "--compress"]),
         (
             "humble",
             &[
@@ -259,8 +263,23 @@ fn sqlite3_and_message_compressed_bags_track_as_the_mcap_bag() {
         python("scripts/split_bag.py", &[&whole, &bag], &flags);
         let before = snapshot(&bag);
         let out = d.join(format!("tracked_{name}"));
-        let s = track(&bag, &out);
+        let (i, o) = (bag.to_str().unwrap(), out.to_str().unwrap());
+        let run = bin()
+            .env("TMPDIR", &scratch)
+            .args(["track", i, "-o", o, "--json"])
+            .output()
+            .unwrap();
+        assert!(
+            run.status.success(),
+            "{}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+        let s: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
         assert_eq!(s["tracks_born"], 5, "{name}: {s}");
+        assert!(
+            entries(&scratch).is_empty(),
+            "{name}: a scratch file is left"
+        );
         assert!(all_messages(&out) == expected, "{name}: the output differs");
         let mut names = [
             "metadata.yaml".to_string(),

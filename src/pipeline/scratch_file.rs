@@ -1,0 +1,108 @@
+//! Scratch files: the decompressed copy of a file that cannot be read as a stream (a sqlite3
+//! bag's `NAME.db3.zstd`: SQLite needs random access). Written in the temporary directory
+//! (`TMPDIR`, else `/tmp`), removed when dropped, and on an interrupt by
+//! [`remove_scratch_files`] (called by the binary's signal handler), so an interrupted run
+//! leaves none behind. At most one exists per bag being read: the file being read.
+
+use std::fs::File;
+use std::io::BufReader;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, MutexGuard};
+
+use anyhow::{Context, Result};
+
+/// The scratch files that exist now: what an interrupt removes.
+static SCRATCH: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn registry() -> MutexGuard<'static, Vec<PathBuf>> {
+    SCRATCH.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// Removes every scratch file. The registry stays locked, so that no scratch file is made
+/// afterwards: call it only on the way out of the process (the signal handler).
+pub fn remove_scratch_files() {
+    let guard = registry();
+    for p in guard.iter() {
+        let _ = std::fs::remove_file(p);
+    }
+    std::mem::forget(guard);
+}
+
+/// A file in the temporary directory, removed on drop.
+pub struct ScratchFile {
+    path: PathBuf,
+}
+
+impl ScratchFile {
+    /// The zstd file `compressed` decompressed into a new scratch file (named after it).
+    pub fn unzstd(compressed: &Path) -> Result<ScratchFile> {
+        let name = compressed.display();
+        let input = File::open(compressed).with_context(|| format!("cannot open {name}"))?;
+        let stem = (compressed.file_name().map(|n| n.to_string_lossy()))
+            .map(|n| n.trim_end_matches(".zstd").to_string())
+            .unwrap_or_default();
+        static NEXT: AtomicU64 = AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        let path =
+            (std::env::temp_dir()).join(format!(".probmot-{}-{n}-{stem}", std::process::id()));
+        let mut registry = registry();
+        let mut out = (std::fs::OpenOptions::new().write(true).create_new(true))
+            .open(&path)
+            .with_context(|| {
+                format!(
+                    "cannot make the scratch file {} (TMPDIR chooses where)",
+                    path.display()
+                )
+            })?;
+        registry.push(path.clone());
+        drop(registry);
+        let scratch = ScratchFile { path };
+        let mut decoder = zstd::stream::read::Decoder::with_buffer(BufReader::new(input))
+            .with_context(|| format!("{name}: cannot start zstd"))?;
+        std::io::copy(&mut decoder, &mut out).with_context(|| {
+            format!(
+                "{name}: decompressing it into {} (a scratch copy SQLite can read; TMPDIR \
+                 chooses where)",
+                scratch.path.display()
+            )
+        })?;
+        Ok(scratch)
+    }
+
+    /// Where the scratch file is.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+impl Drop for ScratchFile {
+    fn drop(&mut self) {
+        let mut registry = registry();
+        let _ = std::fs::remove_file(&self.path);
+        registry.retain(|p| p != &self.path);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The scratch file holds the decompressed bytes while it lives, and is gone after.
+    #[test]
+    fn a_scratch_file_is_the_decompressed_file_and_goes_on_drop() {
+        let d = tempfile::tempdir().unwrap();
+        let z = d.path().join("b_0.db3.zstd");
+        std::fs::write(&z, zstd::encode_all(&b"some bytes"[..], 3).unwrap()).unwrap();
+        let s = ScratchFile::unzstd(&z).unwrap();
+        assert_eq!(std::fs::read(s.path()).unwrap(), b"some bytes");
+        assert!(s.path().to_string_lossy().ends_with("-b_0.db3"));
+        assert!(registry().contains(&s.path().to_path_buf()));
+        let path = s.path().to_path_buf();
+        drop(s);
+        assert!(!path.exists() && !registry().contains(&path));
+        std::fs::write(&z, b"not zstd").unwrap();
+        let e = format!("{:#}", ScratchFile::unzstd(&z).err().unwrap());
+        assert!(e.contains("b_0.db3.zstd"), "{e}");
+    }
+}
