@@ -7,18 +7,13 @@
 
 use std::path::{Path, PathBuf};
 
-use probmot::mcapio::reader::{read_records_from, McapInput};
 use probmot::mcapio::source::RecordSource;
 use probmot::pipeline::bag_source::BagSource;
 use probmot::pipeline::db3_file::read_db3;
 use probmot::pipeline::info::path_info;
-use probmot::pipeline::progress::no_progress;
-use probmot::pipeline::track::{track_input, TrackOptions};
-use probmot::tracker::TrackerConfig;
 use rusqlite::Connection;
 
-use crate::read_path::McapInMemory;
-use crate::DEFAULT_PRESET;
+use crate::read_path::track_and_read_back;
 
 /// Topic types the rows choose from: the detection and transform types probmot decodes, and
 /// one it does not.
@@ -57,7 +52,11 @@ impl Bytes<'_> {
 /// The scratch file of this process (libFuzzer runs one input at a time).
 fn scratch() -> PathBuf {
     let dir = Path::new("/dev/shm");
-    let dir = if dir.is_dir() { dir.to_path_buf() } else { std::env::temp_dir() };
+    let dir = if dir.is_dir() {
+        dir.to_path_buf()
+    } else {
+        std::env::temp_dir()
+    };
     dir.join(format!("probmot-fuzz-{}.db3", std::process::id()))
 }
 
@@ -128,23 +127,9 @@ pub fn db3_rows(data: &[u8]) {
     });
     std::hint::black_box(records);
 
-    let opts = TrackOptions::new(TrackerConfig::preset(DEFAULT_PRESET).expect("default preset"));
     let mut source = BagSource::sqlite_file(&path);
     std::hint::black_box(source.byte_len());
-    let open = |profile: String| McapInMemory::new(&profile);
-    match track_input(&mut source, &opts, &no_progress, open) {
-        Ok((out, summary)) => {
-            std::hint::black_box(serde_json::to_string(&summary).expect("summary serializes"));
-            let bytes = out.finish().expect("track's output finishes");
-            let mut output = McapInput::from_bytes("output.mcap", &bytes);
-            if let Err(e) = read_records_from(&mut output, |_, _| Ok(())) {
-                panic!("track wrote an output read_records cannot read: {e:#}");
-            }
-        }
-        Err(e) => {
-            std::hint::black_box(format!("{e:#}"));
-        }
-    }
+    track_and_read_back(&mut source);
     if let Ok(info) = path_info(&path, &|_| {}) {
         std::hint::black_box(serde_json::to_string(&info).expect("info serializes"));
     }

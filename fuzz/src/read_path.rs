@@ -8,6 +8,7 @@ use anyhow::Result;
 use mcap::records::{MessageHeader, Metadata};
 use probmot::mcapio::reader::{read_records_from, McapInput};
 use probmot::mcapio::sink::RecordSink;
+use probmot::mcapio::source::RecordSource;
 use probmot::pipeline::info::file_info_from;
 use probmot::pipeline::progress::no_progress;
 use probmot::pipeline::track::{track_input, TrackOptions};
@@ -72,22 +73,12 @@ impl RecordSink for McapInMemory {
     }
 }
 
-/// `data` through the whole read path. Errors are fine; panics are not, and when `track`
-/// succeeds its output must be readable again.
-pub fn read_path(data: &[u8]) {
-    let mut records = 0u64;
-    let mut input = McapInput::from_bytes("input.mcap", data);
-    let _ = read_records_from(&mut input, |rec, stats| {
-        records += 1;
-        std::hint::black_box((&rec, stats.bytes_read));
-        Ok(())
-    });
-    std::hint::black_box(records);
-
+/// `input` through `track_input` (default options and preset) into an MCAP in memory. Errors
+/// are fine; when it succeeds, its output must be readable again.
+pub fn track_and_read_back(input: &mut impl RecordSource) {
     let opts = TrackOptions::new(TrackerConfig::preset(DEFAULT_PRESET).expect("default preset"));
-    let mut input = McapInput::from_bytes("input.mcap", data);
     let open = |profile: String| McapInMemory::new(&profile);
-    match track_input(&mut input, &opts, &no_progress, open) {
+    match track_input(input, &opts, &no_progress, open) {
         Ok((out, summary)) => {
             std::hint::black_box(serde_json::to_string(&summary).expect("summary serializes"));
             let bytes = out.finish().expect("track's output finishes");
@@ -100,6 +91,21 @@ pub fn read_path(data: &[u8]) {
             std::hint::black_box(format!("{e:#}"));
         }
     }
+}
+
+/// `data` through the whole read path. Errors are fine; panics are not, and when `track`
+/// succeeds its output must be readable again.
+pub fn read_path(data: &[u8]) {
+    let mut records = 0u64;
+    let mut input = McapInput::from_bytes("input.mcap", data);
+    let _ = read_records_from(&mut input, |rec, stats| {
+        records += 1;
+        std::hint::black_box((&rec, stats.bytes_read));
+        Ok(())
+    });
+    std::hint::black_box(records);
+
+    track_and_read_back(&mut McapInput::from_bytes("input.mcap", data));
 
     let mut input = McapInput::from_bytes("input.mcap", data);
     if let Ok(info) = file_info_from(&mut input, &|_| {}) {

@@ -91,6 +91,25 @@ fn columns(conn: &Connection, table: &str) -> Result<Vec<String>> {
     Ok(names.collect::<rusqlite::Result<_>>()?)
 }
 
+/// The most bytes the text fields of a `topics` row may hold (names, type, QoS profiles are a
+/// few kilobytes at most): a hostile file cannot make the reader hold gigabytes of names.
+const MAX_TOPIC_ROW: i64 = 1 << 20;
+
+/// Refuses `table` when the value of the aggregate `longest` (a `max(length(...))`) passes
+/// `limit` bytes, before any of its rows is read.
+fn refuse_long_rows(conn: &Connection, table: &str, longest: &str, limit: i64) -> Result<()> {
+    let sql = format!("SELECT coalesce({longest}, 0) FROM {table}");
+    let n: i64 = conn
+        .query_row(&sql, [], |r| r.get(0))
+        .with_context(|| format!("reading the {table} table"))?;
+    if n > limit {
+        bail!(
+            "the {table} table has a row of {n} bytes of text, more than the {limit} probmot reads"
+        );
+    }
+    Ok(())
+}
+
 /// The rows of `topics`, by id.
 fn topics(conn: &Connection) -> Result<Vec<Topic>> {
     let has_qos = columns(conn, "topics")?
@@ -101,6 +120,20 @@ fn topics(conn: &Connection) -> Result<Vec<Topic>> {
     } else {
         "''"
     };
+    let longest = "max(length(name) + length(type) + length(serialization_format))";
+    refuse_long_rows(conn, "topics", longest, MAX_TOPIC_ROW)?;
+    if has_qos {
+        refuse_long_rows(
+            conn,
+            "topics",
+            "max(length(offered_qos_profiles))",
+            MAX_TOPIC_ROW,
+        )?;
+    }
+    let n: i64 = conn.query_row("SELECT count(*) FROM topics", [], |r| r.get(0))?;
+    if n > i64::from(u16::MAX) {
+        bail!("{n} topics; an MCAP file holds at most 65535 channels");
+    }
     let sql = format!("SELECT id, name, type, serialization_format, {qos} FROM topics ORDER BY id");
     let mut stmt = conn.prepare(&sql).context("reading the topics table")?;
     let rows = stmt.query_map([], |r| {
@@ -123,6 +156,9 @@ fn definitions(conn: &Connection) -> Result<HashMap<String, (String, String)>> {
     if !has_table(conn, "message_definitions")? {
         return Ok(out);
     }
+    let longest = "max(length(topic_type) + length(encoding) + length(encoded_message_definition))";
+    let limit = i64::try_from(size_limit()).unwrap_or(i64::MAX);
+    refuse_long_rows(conn, "message_definitions", longest, limit)?;
     let mut stmt = conn
         .prepare(
             "SELECT topic_type, encoding, encoded_message_definition FROM message_definitions \
@@ -449,6 +485,15 @@ mod tests {
             (
                 "UPDATE messages SET data = 4.5 WHERE id = 1;",
                 "message 1 of the messages table: its data is Real",
+            ),
+            (
+                "UPDATE topics SET name = printf('%.*c', 2000000, 'x') WHERE id = 3;",
+                "the topics table has a row of 2000012 bytes",
+            ),
+            (
+                "WITH RECURSIVE k(v) AS (SELECT 1 UNION ALL SELECT v + 1 FROM k WHERE v < 65535) \
+                 INSERT INTO topics SELECT v + 100, 'n', 't', 'cdr', '' FROM k;",
+                "65538 topics",
             ),
         ];
         for (sql, expected) in cases {
