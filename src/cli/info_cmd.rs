@@ -22,7 +22,8 @@ use super::show_progress;
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct InfoArgs {
-    /// MCAP file.
+    /// MCAP file, rosbag2 bag directory (MCAP or sqlite3 storage, split or compressed: one
+    /// drive) or sqlite3 .db3 file.
     file: PathBuf,
     /// Print as JSON.
     #[arg(long)]

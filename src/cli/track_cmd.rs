@@ -53,7 +53,7 @@ use super::viz_cmd::NEEDS_FEATURE;
 ///   probmot track sample_logs/city.mcap -o city.tracked.mcap
 ///   probmot track ros2_bag.mcap -o tracked.mcap   (ROS 2 tracks: see --tracks-format)
 ///   probmot track my_bag/ -o my_bag_tracked/     (rosbag2 directory in and out; a split
-///                                                 bag is one drive)
+///                                                 bag is one drive; .mcap or .db3 files)
 ///   probmot track autoware_bag/ -o tracked_bag/  (Autoware: TrackedObjects on
 ///                                                 /perception/object_recognition/tracking/objects)
 ///   probmot track drive.mcap -o out.mcap --preset ab3dmot-kitti
@@ -63,9 +63,10 @@ use super::viz_cmd::NEEDS_FEATURE;
 #[derive(Debug, Args)]
 #[command(verbatim_doc_comment)]
 pub struct TrackArgs {
-    /// Input MCAP file(s), or one rosbag2 bag directory (metadata.yaml + its .mcap files, split
-    /// or compressed as .mcap.zstd: tracked as one drive; the output -o is then a new bag
-    /// directory split the same way, with its own metadata.yaml).
+    /// Input MCAP file(s), or one rosbag2 bag directory (metadata.yaml + its .mcap or sqlite3
+    /// .db3 files, split or compressed: tracked as one drive; the output -o is then a new MCAP
+    /// bag directory split the same way, with its own metadata.yaml). A lone .db3 file is read
+    /// too (its output is MCAP).
     #[arg(required = true)]
     inputs: Vec<PathBuf>,
     /// Output file (one input); a new bag directory when the input is a bag directory.
