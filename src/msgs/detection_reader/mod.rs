@@ -39,6 +39,8 @@ type Step<T> = Result<T, Declined>;
 pub struct FrameReader {
     spare_frames: Vec<DetectionFrame>,
     spare_boxes: Vec<DetectionBox>,
+    /// A message has been read by this reader's own path, which takes the spares.
+    reads_probmot: bool,
     /// Attribute entries of the box being read: byte ranges of key and value in the message.
     entries: Vec<(Range<usize>, Range<usize>)>,
 }
@@ -62,7 +64,13 @@ impl FrameReader {
     }
 
     /// Gives a frame back once its boxes are used: its strings and maps serve later messages.
+    /// Until a message is read by this reader's own path (`probmot.Detections3D` protobuf), no
+    /// message will take them, so the frame is dropped: the spares of a ROS 2, Foxglove or
+    /// Autoware input would be megabytes held for nothing.
     pub fn recycle(&mut self, mut frame: DetectionFrame) {
+        if !self.reads_probmot {
+            return;
+        }
         let room = MAX_SPARE_BOXES.saturating_sub(self.spare_boxes.len());
         self.spare_boxes.extend(frame.boxes.drain(..).take(room));
         frame.rejected.clear();
@@ -73,6 +81,7 @@ impl FrameReader {
 
     /// The fast path alone: a `probmot.Detections3D` protobuf message, or [`Declined`].
     pub(crate) fn read_probmot(&mut self, bytes: &[u8], log_time: u64) -> Step<DetectionFrame> {
+        self.reads_probmot = true;
         let mut frame = self.spare_frames.pop().unwrap_or_default();
         frame.clear();
         frame.frame_id.clear();

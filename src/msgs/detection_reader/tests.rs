@@ -433,3 +433,30 @@ fn recycled_boxes_reuse_their_strings() {
         value_at
     );
 }
+
+/// Frames of other inputs (here ROS 2 vision_msgs, decoded by the prost-free CDR path) are not
+/// kept as spares until a probmot message is read, which would take them; then they are.
+#[test]
+fn frames_are_kept_only_for_the_reader_s_own_path() {
+    let mut reader = FrameReader::default();
+    let frame = |n: usize| DetectionFrame {
+        boxes: vec![DetectionBox::default(); n],
+        ..Default::default()
+    };
+    reader.recycle(frame(50));
+    assert_eq!(
+        (reader.spare_boxes.len(), reader.spare_frames.len()),
+        (0, 0)
+    );
+    let bytes = Detections3D {
+        detections: vec![car(1.0)],
+        ..Default::default()
+    }
+    .encode_to_vec();
+    let source = DetectionSource::Probmot(Encoding::Protobuf);
+    let read = reader.read(&source, &bytes, 1).unwrap();
+    reader.recycle(read);
+    reader.recycle(frame(50));
+    assert_eq!(reader.spare_frames.len(), 2);
+    assert!(reader.spare_boxes.len() >= 50);
+}
