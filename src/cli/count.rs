@@ -21,6 +21,10 @@ pub fn count_in(
     }
 }
 
+/// The most threads `--jobs` takes: more than any machine's cores, few enough that a typo
+/// (`--jobs 100000`) is refused instead of starting that many threads.
+pub const MAX_JOBS: u64 = 1024;
+
 /// A count as a `usize`, the largest one when it does not fit (a count of threads or items
 /// that large is as good as "all").
 pub fn to_usize(n: u64) -> usize {

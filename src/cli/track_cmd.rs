@@ -76,10 +76,10 @@ pub struct TrackArgs {
     /// input's file name).
     #[arg(long, value_name = "DIR")]
     out_dir: Option<PathBuf>,
-    /// Threads to use, at least 1 (default: all cores). With --out-dir, files run in parallel
+    /// Threads to use, 1 to 1024 (default: all cores). With --out-dir, files run in parallel
     /// on N threads; a file whose share is two or more threads (one file on a multi-core
     /// machine) writes and compresses its output on a second thread, overlapping with tracking.
-    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, u64::MAX))]
+    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, super::count::MAX_JOBS))]
     jobs: Option<u64>,
     /// Detection topic(s); default: every channel of a supported detection schema
     /// (probmot.Detections3D, vision_msgs/msg/Detection3DArray, foxglove.SceneUpdate,

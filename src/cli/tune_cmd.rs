@@ -141,8 +141,8 @@ pub struct TuneArgs {
     /// this rule. Example: probmot tune logs/*.mcap -o tuned.json --keep-base-on-loss
     #[arg(long)]
     keep_base_on_loss: bool,
-    /// Worker threads, at least 1 (default: all cores).
-    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, u64::MAX))]
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, value_name = "N", value_parser = super::count::count_in(1, super::count::MAX_JOBS))]
     jobs: Option<u64>,
     /// Period in seconds of the config's velocities (default: the data's frame period).
     #[arg(long, value_name = "S")]

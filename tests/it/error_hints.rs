@@ -258,7 +258,7 @@ fn counts_out_of_range_are_refused_in_words() {
 /// `--jobs` follows one rule in `track` and `tune`: at least 1, all cores when left out, both
 /// said in the help; `--jobs 0` is refused in words, not run on all cores unsaid.
 #[test]
-fn jobs_zero_is_refused_alike_and_the_default_is_said() {
+fn jobs_out_of_range_is_refused_alike_and_the_default_is_said() {
     let dir = tempfile::tempdir().unwrap();
     let city = repo("sample_logs/city.mcap");
     let out = dir.path().join("out");
@@ -266,7 +266,12 @@ fn jobs_zero_is_refused_alike_and_the_default_is_said() {
         let err = stderr_of_failure(&[cmd, s(&city), "-o", s(&out), "--jobs", "0"]);
         assert!(err.contains("for '--jobs <N>'"), "{cmd}: {err}");
         assert!(
-            err.contains("0 is too small: give at least 1"),
+            err.contains("0 is out of range: give 1 to 1024"),
+            "{cmd}: {err}"
+        );
+        let err = stderr_of_failure(&[cmd, s(&city), "-o", s(&out), "--jobs", "100000"]);
+        assert!(
+            err.contains("100000 is out of range: give 1 to 1024"),
             "{cmd}: {err}"
         );
         assert!(!out.exists(), "{cmd}");
@@ -274,7 +279,7 @@ fn jobs_zero_is_refused_alike_and_the_default_is_said() {
         let jobs = help.split("--jobs <N>").nth(1).unwrap();
         let text = jobs.split("\n\n").next().unwrap();
         assert!(
-            text.contains("at least 1 (default: all cores)"),
+            text.contains("1 to 1024 (default: all cores)"),
             "{cmd}: {text}"
         );
     }
