@@ -287,9 +287,7 @@ impl BagSource {
             let file = &self.files[i];
             // SQLite reads a file, not a stream: a compressed one is read from a scratch copy.
             let scratch = match self.compression {
-                BagCompression::FileZstd => {
-                    Some(ScratchFile::unzstd(file).with_context(|| file.display().to_string())?)
-                }
+                BagCompression::FileZstd => Some(ScratchFile::unzstd(file)?),
                 _ => None,
             };
             let path = scratch.as_ref().map_or(file.as_path(), |s| s.path());

@@ -264,15 +264,13 @@ pub fn read_db3_as(path: &Path, name: &Path, f: &mut OnDb3Record<'_>) -> Result<
         return Ok(true);
     };
     let file_len = std::fs::metadata(name).map_or(0, |m| m.len());
-    let stopped =
-        read_messages(&conn, &channels, file_len, f).with_context(|| format!("{shown}"))?;
-    if !stopped {
-        let end = Record::DataEnd(DataEnd {
-            data_section_crc: 0,
-        });
-        return Ok(f(end, file_len)?.is_break());
+    if read_messages(&conn, &channels, file_len, f).with_context(|| format!("{shown}"))? {
+        return Ok(true);
     }
-    Ok(stopped)
+    let end = Record::DataEnd(DataEnd {
+        data_section_crc: 0,
+    });
+    Ok(f(end, file_len)?.is_break())
 }
 
 /// Hands on every row of `messages`; returns whether `f` stopped the read.

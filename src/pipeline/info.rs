@@ -95,16 +95,14 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
 /// compressed) are read as one drive, its schema and channel ids as one numbering
 /// ([`super::bag_source`]).
 pub fn path_info(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
-    if is_sqlite_file(path) {
-        let mut source = BagSource::sqlite_file(path);
-        let name = source.name.clone();
-        return info_of(name, |f| source.read_while(f), progress);
-    }
-    let Some(bag) = open_bag(path)? else {
-        return file_info_progress(path, progress);
+    let mut source = if is_sqlite_file(path) {
+        BagSource::sqlite_file(path)
+    } else {
+        match open_bag(path)? {
+            Some(bag) => BagSource::of(&bag),
+            None => return file_info_progress(path, progress),
+        }
     };
-    let mut source = BagSource::of(&bag);
-    source.name = path.display().to_string();
     let name = source.name.clone();
     info_of(name, |f| source.read_while(f), progress)
 }

@@ -6,6 +6,8 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Context, Result};
 
+use super::rosbag_dir::bag_mcap;
+
 /// Expands files, directories (their `*.mcap`, sorted) and glob patterns (matches sorted; a
 /// path that exists is taken as given even when it holds pattern characters).
 pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
@@ -19,18 +21,9 @@ pub fn expand(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
                 .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
                 .collect();
             if files.is_empty() {
-                let db3 = std::fs::read_dir(a)
-                    .into_iter()
-                    .flatten()
-                    .flatten()
-                    .any(|e| (e.file_name().to_string_lossy()).ends_with(".db3"));
-                if db3 {
-                    bail!(
-                        "{}: a rosbag2 bag with sqlite3 storage (.db3); this command reads MCAP \
-                         files: `probmot track {} -o OUT_BAG` writes an MCAP bag",
-                        a.display(),
-                        a.display()
-                    );
+                // A bag directory says what it is (a sqlite3 bag: track it first).
+                if a.join("metadata.yaml").is_file() {
+                    bag_mcap(a)?;
                 }
                 bail!("{}: no .mcap file in this directory", a.display());
             }

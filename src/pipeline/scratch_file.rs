@@ -51,7 +51,7 @@ impl ScratchFile {
             .open(&path)
             .with_context(|| {
                 format!(
-                    "cannot make the scratch file {} (TMPDIR chooses where)",
+                    "{name}: cannot make its scratch file {} (TMPDIR chooses where)",
                     path.display()
                 )
             })?;
