@@ -106,7 +106,8 @@ pub struct TrackArgs {
     /// Copy the log without tracking (measures the cost of plain I/O).
     #[arg(long)]
     no_track: bool,
-    /// Fail on any detection box that would otherwise be skipped with a warning.
+    /// Fail on any detection box that would otherwise be skipped with a warning, and on a file
+    /// cut short (whose unfinished last chunk would be left out with a warning).
     #[arg(long)]
     strict: bool,
     /// Largest number of boxes accepted in one detection message (more is an error).

@@ -4,6 +4,7 @@
 
 pub mod background;
 pub mod chunk_stream;
+pub mod cut_short;
 pub mod destination;
 pub mod labelled_box;
 pub mod partial_dir;

@@ -29,6 +29,7 @@ use mcap::records::{op, ChunkHeader, Record};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
 use super::chunk_stream::{for_each_record, limit_hint, size_limit, CrcMismatch};
+pub use super::cut_short::CutShort;
 use super::validate::Validator;
 
 /// Largest buffer given to the reader for one `read`. The reader asks for a whole record at once;
@@ -117,11 +118,25 @@ pub fn read_records_from<R: Read>(
 }
 
 /// [`read_records_from`], stopping early (without an error) when `f` says
-/// [`ControlFlow::Break`].
+/// [`ControlFlow::Break`]. A file cut short is an error ([`CutShort::error`]).
 pub fn read_records_while<R: Read>(
     input: &mut McapInput<R>,
-    mut f: impl FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>>,
+    f: impl FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>>,
 ) -> Result<()> {
+    match read_records_to_cut(input, f)? {
+        None => Ok(()),
+        Some(cut) => bail!(cut.error()),
+    }
+}
+
+/// [`read_records_while`], except that a file cut short (it ends in the middle of a record,
+/// after at least its header record) is read up to its last whole record, and where it was cut
+/// is returned instead of an error. For the commands that read recordings as recorders leave
+/// them (see [`super::cut_short`]).
+pub fn read_records_to_cut<R: Read>(
+    input: &mut McapInput<R>,
+    mut f: impl FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>>,
+) -> Result<Option<CutShort>> {
     // Errors show the input's name like a path.
     let path = Path::new(input.name.as_str());
     let file = &mut input.source;
@@ -134,44 +149,29 @@ pub fn read_records_while<R: Read>(
     let mut validator = Validator::default();
     // Where the next record starts: after the magic.
     let mut offset = mcap::MAGIC.len() as u64;
+    let mut in_summary = false;
     while let Some(event) = reader.next_event() {
-        let event = event.map_err(|e| {
-            // A file cut short (a recorder that crashed or was killed) is common enough to say
-            // how to get back what it holds.
-            let cut_short = match e {
-                mcap::McapError::UnexpectedEof if stats.bytes_read == 0 => "; the file is empty",
-                // Not even the 8-byte magic: nothing a recorder wrote.
-                mcap::McapError::UnexpectedEof if stats.bytes_read < 8 => {
-                    "; the file is too short to be an MCAP file"
-                }
-                mcap::McapError::UnexpectedEof => {
-                    "; the file is cut short (a recording that did not finish?): `mcap recover \
-                     IN.mcap -o OUT.mcap` (the mcap CLI, https://mcap.dev) rebuilds the \
-                     messages it holds"
-                }
-                mcap::McapError::RecordTooLarge { len, .. } => &format!("; {}", limit_hint(len)),
-                // Some other file named .mcap: a ROS 1 bag or a sqlite3 rosbag2 file is the
-                // likely one.
-                mcap::McapError::BadMagic => {
-                    "; it does not start with MCAP's magic bytes, so it is not an MCAP file (a ROS \
-                     2 .db3 file: `probmot track` reads it, or its bag directory, and writes \
-                     MCAP; a ROS 1 .bag converts with `mcap convert IN OUT.mcap`, the mcap CLI, \
-                     https://mcap.dev)"
-                }
-                _ => "",
-            };
-            anyhow::Error::new(e).context(format!(
-                "{}: not a readable MCAP file (failed near byte {}){cut_short}",
-                path.display(),
-                stats.bytes_read
-            ))
-        })?;
+        if let Err(mcap::McapError::UnexpectedEof) = event {
+            // After a whole header record, the records before the cut are a recording.
+            if offset > mcap::MAGIC.len() as u64 {
+                return Ok(Some(CutShort {
+                    file: input.name.clone(),
+                    complete_bytes: offset,
+                    file_bytes: stats.bytes_read,
+                    in_summary,
+                }));
+            }
+        }
+        let event = event.map_err(|e| unreadable(path, e, stats.bytes_read))?;
         match event {
             LinearReadEvent::ReadRequest(need) => {
                 let n = loop {
                     match file.read(reader.insert(need.min(READ_BLOCK))) {
                         Ok(n) => break n,
                         Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                        // A decompressing source (a `.mcap.zstd` file of a bag) whose
+                        // compressed file is cut short: its end, so the MCAP file is cut short.
+                        Err(e) if e.kind() == std::io::ErrorKind::UnexpectedEof => break 0,
                         Err(e) => {
                             return Err(e).with_context(|| format!("reading {}", path.display()))
                         }
@@ -192,23 +192,52 @@ pub fn read_records_while<R: Read>(
                 offset += 9 + data.len() as u64;
                 let record = parse_record(opcode, data).with_context(malformed)?;
                 let Record::Chunk { header, data } = record else {
+                    in_summary |= matches!(record, Record::DataEnd(_));
                     let here = || format!("byte {at}");
                     validator
                         .check(&record, here)
                         .map_err(|e| invalid(path, e))?;
                     if f(record, stats)?.is_break() {
-                        return Ok(());
+                        return Ok(None);
                     }
                     continue;
                 };
                 let (buf, v) = (&mut chunk_buf, &mut validator);
                 if read_chunk(path, at, &header, &data, buf, v, stats, &mut f)?.is_break() {
-                    return Ok(());
+                    return Ok(None);
                 }
             }
         }
     }
-    Ok(())
+    Ok(None)
+}
+
+/// The error of a file the reader cannot go on with, `bytes_read` into it, with a hint where
+/// the likely cause is known.
+fn unreadable(path: &Path, e: mcap::McapError, bytes_read: u64) -> anyhow::Error {
+    let hint = match e {
+        mcap::McapError::UnexpectedEof if bytes_read == 0 => "; the file is empty",
+        // Not even the 8-byte magic: nothing a recorder wrote.
+        mcap::McapError::UnexpectedEof if bytes_read < 8 => {
+            "; the file is too short to be an MCAP file"
+        }
+        // (A file cut short after its header record is read up to the cut.)
+        mcap::McapError::UnexpectedEof => {
+            "; the file is cut short inside its header record, so it holds nothing"
+        }
+        mcap::McapError::RecordTooLarge { len, .. } => &format!("; {}", limit_hint(len)),
+        // Some other file named .mcap: a ROS 1 bag or a sqlite3 rosbag2 file is the likely one.
+        mcap::McapError::BadMagic => {
+            "; it does not start with MCAP's magic bytes, so it is not an MCAP file (a ROS 2 .db3 \
+             file: `probmot track` reads it, or its bag directory, and writes MCAP; a ROS 1 .bag \
+             converts with `mcap convert IN OUT.mcap`, the mcap CLI, https://mcap.dev)"
+        }
+        _ => "",
+    };
+    anyhow::Error::new(e).context(format!(
+        "{}: not a readable MCAP file (failed near byte {bytes_read}){hint}",
+        path.display(),
+    ))
 }
 
 /// Hands each record of the chunk at byte `at` of `path` to `f`, checked by `validator` first.

@@ -8,7 +8,9 @@ use std::ops::ControlFlow;
 use anyhow::Result;
 use mcap::records::Record;
 
-use super::reader::{read_records_while, read_summary_records_from, McapInput, ReadStats};
+use super::reader::{
+    read_records_to_cut, read_summary_records_from, CutShort, McapInput, ReadStats,
+};
 
 /// The callback of [`RecordSource::read_while`]: each record in order, and how far the read is.
 pub type OnRecord<'f> = dyn FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>> + 'f;
@@ -23,8 +25,10 @@ pub trait RecordSource {
     /// readable one (see [`read_summary_records_from`]); `None` otherwise.
     fn summary(&mut self) -> Option<(Record<'static>, Vec<Record<'static>>)>;
     /// Reads every record from the start, in order, until `f` says [`ControlFlow::Break`].
-    /// A source of several files gives each file's header record before its records.
-    fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<()>;
+    /// A source of several files gives each file's header record before its records. A file
+    /// cut short (a recording that did not finish) is read up to its last whole record, and
+    /// returned among the cuts met, for the caller to warn of.
+    fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<Vec<CutShort>>;
 }
 
 impl<R: Read + Seek> RecordSource for McapInput<R> {
@@ -40,8 +44,8 @@ impl<R: Read + Seek> RecordSource for McapInput<R> {
         read_summary_records_from(&mut self.source)
     }
 
-    fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<()> {
+    fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<Vec<CutShort>> {
         self.rewind()?;
-        read_records_while(self, f)
+        Ok(read_records_to_cut(self, f)?.into_iter().collect())
     }
 }

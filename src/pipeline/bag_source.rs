@@ -34,7 +34,9 @@ use super::db3_file::read_db3_as;
 use super::rosbag_dir::{Bag, Storage};
 use super::scratch_file::ScratchFile;
 use crate::mcapio::chunk_stream::{limit_hint, size_limit};
-use crate::mcapio::reader::{read_records_while, read_summary_records, McapInput, ReadStats};
+use crate::mcapio::reader::{
+    read_records_to_cut, read_summary_records, CutShort, McapInput, ReadStats,
+};
 use crate::mcapio::source::{OnRecord, RecordSource};
 
 /// The files of a bag, read one after the other as one input.
@@ -258,13 +260,14 @@ impl BagSource {
     }
 
     /// Reads file `i` with `ids`, handing its header and data-section records to `f`; returns
-    /// whether `f` stopped the read.
+    /// whether `f` stopped the read. A file cut short is read up to the cut, added to `cuts`.
     fn read_file(
         &self,
         i: usize,
         ids: &mut IdMap,
         base: u64,
         f: &mut OnRecord<'_>,
+        cuts: &mut Vec<CutShort>,
     ) -> Result<bool> {
         let name = self.files[i].display().to_string();
         let mut inflater = MessageInflater::default();
@@ -299,7 +302,7 @@ impl BagSource {
             source: bytes,
         };
         let (mut in_data, mut stopped) = (true, false);
-        read_records_while(&mut input, |rec, _| {
+        let cut = read_records_to_cut(&mut input, |rec, _| {
             if !in_data {
                 return Ok(ControlFlow::Continue(()));
             }
@@ -310,6 +313,14 @@ impl BagSource {
             stopped = flow.is_break();
             Ok(flow)
         })?;
+        // The bytes of a cut in a file compressed whole count in the decompressed MCAP file.
+        cuts.extend(cut.map(|c| match self.compression {
+            BagCompression::FileZstd => CutShort {
+                file: format!("{} (decompressed)", c.file),
+                ..c
+            },
+            _ => c,
+        }));
         Ok(stopped)
     }
 }
@@ -359,19 +370,18 @@ impl RecordSource for BagSource {
         Some((header?, out))
     }
 
-    fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<()> {
-        let mut ids = IdMap::default();
-        let mut base = 0;
+    fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<Vec<CutShort>> {
+        let (mut ids, mut base, mut cuts) = (IdMap::default(), 0, Vec::new());
         for i in 0..self.files.len() {
-            if self.read_file(i, &mut ids, base, f)? {
-                return Ok(());
+            if self.read_file(i, &mut ids, base, f, &mut cuts)? {
+                return Ok(cuts);
             }
             base += std::fs::metadata(&self.files[i]).map_or(0, |m| m.len());
         }
         if self.files.is_empty() {
             bail!("{}: a bag without files", self.name);
         }
-        Ok(())
+        Ok(cuts)
     }
 }
 

@@ -13,7 +13,7 @@ use super::bag_source::BagSource;
 use super::db3_file::is_sqlite_file;
 use super::progress::{Progress, ProgressFn};
 use super::rosbag_dir::open_bag;
-use crate::mcapio::reader::{read_records_while, McapInput};
+use crate::mcapio::reader::{read_records_to_cut, CutShort, McapInput};
 use crate::mcapio::source::{OnRecord, RecordSource};
 use crate::msgs::autoware_tracks::{self, KinematicsOrder};
 use crate::msgs::detection_source::{
@@ -78,6 +78,10 @@ pub struct FileSummary {
     pub log_time_range: Option<(u64, u64)>,
     /// The transform tree read from the transform channels (see [`crate::transforms`]).
     pub transform_tree: Vec<EdgeSummary>,
+    /// Files cut short (recordings that did not finish): what is summarised here is what they
+    /// hold up to the cut. (Left out of the JSON when empty.)
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub cut_short: Vec<CutShort>,
 }
 
 /// Reads the whole file and summarises it.
@@ -126,13 +130,17 @@ pub fn file_info_from<R: Read>(
     progress: &dyn Fn(u64),
 ) -> Result<FileSummary> {
     let name = input.name.clone();
-    info_of(name, |f| read_records_while(input, f), progress)
+    info_of(
+        name,
+        |f| Ok(read_records_to_cut(input, f)?.into_iter().collect()),
+        progress,
+    )
 }
 
 /// The summary of the records `read` hands to its callback, from an input named `name`.
 fn info_of(
     name: String,
-    read: impl FnOnce(&mut OnRecord<'_>) -> Result<()>,
+    read: impl FnOnce(&mut OnRecord<'_>) -> Result<Vec<CutShort>>,
     progress: &dyn Fn(u64),
 ) -> Result<FileSummary> {
     let mut st = InfoState {
@@ -148,7 +156,7 @@ fn info_of(
         transforms: TransformCollector::new(),
     };
     let mut reported = 0u64;
-    read(&mut |rec, stats| {
+    let cuts = read(&mut |rec, stats| {
         progress(stats.bytes_read.saturating_sub(reported));
         reported = reported.max(stats.bytes_read);
         match rec {
@@ -168,6 +176,7 @@ fn info_of(
         }
         Ok(ControlFlow::Continue(()))
     })?;
+    st.out.cut_short = cuts;
     Ok(st.finish())
 }
 

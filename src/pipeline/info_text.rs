@@ -39,11 +39,7 @@ impl FileSummary {
         if !self.profile.is_empty() {
             let _ = writeln!(s, "profile:     {}", self.profile);
         }
-        let _ = writeln!(
-            s,
-            "messages:    {}   attachments: {}   metadata: {}",
-            self.messages, self.attachments, self.metadata
-        );
+        self.counts(&mut s);
         let start = self.log_time_range.map_or(0, |(a, _)| a);
         if let Some((a, b)) = self.log_time_range {
             let _ = writeln!(s, "duration:    {}", duration(b - a));
@@ -129,6 +125,20 @@ impl FileSummary {
         }
         transform_tree(&mut s, &self.transform_tree, start);
         s
+    }
+}
+
+impl FileSummary {
+    /// The message, attachment and metadata counts, and where a file was cut short.
+    fn counts(&self, s: &mut String) {
+        let _ = writeln!(
+            s,
+            "messages:    {}   attachments: {}   metadata: {}",
+            self.messages, self.attachments, self.metadata
+        );
+        for cut in &self.cut_short {
+            let _ = writeln!(s, "cut short:   {}: {}", cut.file, cut.what_was_read());
+        }
     }
 }
 

@@ -31,7 +31,7 @@ use super::track_records::RecordSession;
 use super::track_session::{SessionOptions, TrackSession};
 use super::tracks_format::TracksFormat;
 use crate::mcapio::background::BackgroundOutput;
-use crate::mcapio::reader::McapInput;
+use crate::mcapio::reader::{CutShort, McapInput};
 use crate::mcapio::sink::RecordSink;
 use crate::mcapio::source::RecordSource;
 use crate::mcapio::writer::{check_output_path, OutputOptions};
@@ -362,7 +362,7 @@ fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     };
     session.add_tracks_channels()?;
     let mut replan = None;
-    input.read_while(&mut |rec, stats| {
+    let cuts = input.read_while(&mut |rec, stats| {
         let flow = session.on_record(rec, stats.bytes_read)?;
         replan = flow.break_value();
         Ok(flow.map_break(|_| ()))
@@ -370,7 +370,11 @@ fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     if let Some(replan) = replan {
         return Ok((session.out, ControlFlow::Break(replan)));
     }
+    if let (Some(cut), true) = (cuts.first(), opts.strict) {
+        bail!("{}; --strict refuses it", cut.warning());
+    }
     session.end_of_input()?;
-    let (out, summary) = session.finish();
+    let (out, mut summary) = session.finish();
+    summary.warnings.extend(cuts.iter().map(CutShort::warning));
     Ok((out, ControlFlow::Continue(summary)))
 }

@@ -24,7 +24,7 @@ pub struct TrackOptions {
     pub config: TrackerConfig,
     /// Copy only, no tracking (for measuring the cost of I/O).
     pub no_track: bool,
-    /// Turn every skipped box into an error.
+    /// Turn every skipped box into an error, and a file cut short too.
     pub strict: bool,
     /// Largest number of boxes accepted in one detection message; more is an error (a frame
     /// that large is a corrupted or misrouted message, and would stall the tracker).

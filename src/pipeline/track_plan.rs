@@ -178,7 +178,8 @@ pub(super) fn scan<I: RecordSource>(
     let file = input.name().to_string();
     let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    input.read_while(&mut |rec, stats| {
+    // A cut (a file cut short) is met again, and warned of, by the tracking pass.
+    let _cuts = input.read_while(&mut |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
             Record::Schema { header, data } => s.on_schema(header, &data),

@@ -7,6 +7,7 @@ mod ab3dmot_kitti;
 mod autoware;
 mod cli_papercuts;
 mod conformance;
+mod cut_short;
 mod doc_examples;
 mod ego_motion;
 mod error_hints;

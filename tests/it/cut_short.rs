@@ -1,0 +1,249 @@
+//! Recordings that did not finish (a recorder killed, crashed or without power leaves its file
+//! cut off mid-record): `track` and `info` read them up to the last whole record and say what
+//! was lost; the commands that read `track`'s outputs refuse them, pointing at `track`.
+
+use std::path::{Path, PathBuf};
+
+use crate::common::split::split_mcap;
+use crate::common::*;
+
+/// The messages of `topic` in `path`, as bytes, in file order.
+fn topic_data(path: &Path, topic: &str) -> Vec<Vec<u8>> {
+    (messages(path).into_iter())
+        .filter(|m| m.topic == topic)
+        .map(|m| m.data)
+        .collect()
+}
+
+/// `bytes[..len]` written to `dir/name`.
+fn cut_copy(dir: &Path, name: &str, bytes: &[u8], len: usize) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, &bytes[..len]).unwrap();
+    path
+}
+
+/// A simulated drive of several chunks (`sample_logs/city.mcap` is one chunk).
+fn long_drive(dir: &Path) -> PathBuf {
+    let path = dir.join("drive.mcap");
+    let p = path.to_str().unwrap();
+    probmot_ok(&[
+        "simulate",
+        "--scenario",
+        "city",
+        "--frames",
+        "400",
+        "-o",
+        p,
+        "--quiet",
+    ]);
+    path
+}
+
+fn track(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "track",
+        input.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    probmot(&args)
+}
+
+#[test]
+fn a_file_cut_short_is_tracked_up_to_the_cut_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = long_drive(dir.path());
+    let good = std::fs::read(&sample).unwrap();
+    let full = dir.path().join("full.mcap");
+    probmot_ok(&[
+        "track",
+        sample.to_str().unwrap(),
+        "-o",
+        full.to_str().unwrap(),
+    ]);
+    let full_tracks = topic_data(&full, "/tracks");
+    let full_scene = topic_data(&full, "/tracks/scene");
+
+    // Cut in the middle of the data: the tracks are those of the full run, up to the cut.
+    let half = cut_copy(dir.path(), "half.mcap", &good, good.len() / 2);
+    let out = dir.path().join("half.out.mcap");
+    let r = track(&half, &out, &[]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains(&format!(
+            "warning: {}: the file is cut short",
+            half.display()
+        )) && err.contains("were read up to byte")
+            && err.contains("were not"),
+        "{err}"
+    );
+    let tracks = topic_data(&out, "/tracks");
+    assert!(
+        !tracks.is_empty() && tracks.len() < full_tracks.len(),
+        "{} of {} tracks messages",
+        tracks.len(),
+        full_tracks.len()
+    );
+    assert_eq!(tracks[..], full_tracks[..tracks.len()]);
+    let scene = topic_data(&out, "/tracks/scene");
+    assert_eq!(scene[..], full_scene[..scene.len()]);
+    // Every input message before the cut is in the output, in order.
+    let kept: Vec<Msg> = (messages(&out).into_iter())
+        .filter(|m| !m.topic.starts_with("/tracks"))
+        .collect();
+    let input: Vec<Msg> = (messages(&full).into_iter())
+        .filter(|m| !m.topic.starts_with("/tracks"))
+        .collect();
+    assert!(!kept.is_empty() && kept.len() < input.len());
+    for (a, b) in kept.iter().zip(&input) {
+        assert_eq!(
+            (&a.topic, a.log_time, &a.data),
+            (&b.topic, b.log_time, &b.data)
+        );
+    }
+    assert_eq!(
+        std::fs::read(&half).unwrap(),
+        good[..good.len() / 2],
+        "input changed"
+    );
+
+    // Cut in the footer: every message is read, the tracks are the full run's.
+    let tail = cut_copy(dir.path(), "tail.mcap", &good, good.len() - 9);
+    let out = dir.path().join("tail.out.mcap");
+    let r = track(&tail, &out, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(err.contains("every message was read"), "{err}");
+    assert_eq!(topic_data(&out, "/tracks"), full_tracks);
+
+    // --strict refuses the file, and writes nothing.
+    let out = dir.path().join("strict.out.mcap");
+    let r = track(&half, &out, &["--strict"]);
+    assert_eq!(r.status.code(), Some(2), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("cut short") && err.contains("--strict"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn info_reads_a_file_cut_short_and_the_readers_of_outputs_refuse_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read(long_drive(dir.path())).unwrap();
+    let half = cut_copy(dir.path(), "half.mcap", &good, good.len() / 2);
+    let h = half.to_str().unwrap();
+    let r = probmot_ok(&["info", h]);
+    let text = String::from_utf8_lossy(&r.stdout);
+    let line = text.lines().find(|l| l.starts_with("cut short:"));
+    assert!(
+        line.is_some_and(|l| l.contains("half.mcap") && l.contains("up to byte")),
+        "{text}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&probmot_ok(&["info", h, "--json"]).stdout).unwrap();
+    let cut = &json["cut_short"][0];
+    assert_eq!(cut["file_bytes"].as_u64(), Some(good.len() as u64 / 2));
+    assert!(cut["complete_bytes"].as_u64().unwrap() < good.len() as u64 / 2);
+    // A whole file has no such line.
+    let whole = probmot_ok(&["info", repo("sample_logs/city.mcap").to_str().unwrap()]);
+    assert!(!String::from_utf8_lossy(&whole.stdout).contains("cut short"));
+
+    let (png, json) = (dir.path().join("x.png"), dir.path().join("x.json"));
+    for args in [
+        vec!["eval", "--truth", h],
+        vec!["plot", h, "-o", png.to_str().unwrap()],
+        vec!["fit", h, "-o", json.to_str().unwrap()],
+    ] {
+        let r = probmot(&args);
+        assert_eq!(r.status.code(), Some(2), "{args:?}: {r:?}");
+        let err = String::from_utf8_lossy(&r.stderr);
+        assert!(
+            err.contains("half.mcap")
+                && err.contains("cut short at byte")
+                && err.contains("`probmot track`"),
+            "{args:?}: {err}"
+        );
+    }
+}
+
+#[test]
+fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = long_drive(dir.path());
+    let n = messages(&sample).len();
+    let bag = dir.path().join("drive");
+    let files = split_mcap(&sample, &bag, &[n / 3, 2 * n / 3]);
+    let whole = dir.path().join("whole");
+    let r = track(&bag, &whole, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    // The recorder died while writing the last file: cut it in its middle.
+    let last = std::fs::read(&files[2]).unwrap();
+    std::fs::write(&files[2], &last[..last.len() / 2]).unwrap();
+    let out = dir.path().join("out");
+    let r = track(&bag, &out, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains(&format!("{}: the file is cut short", files[2].display())),
+        "{err}"
+    );
+    // The tracks, file after file, are the whole bag's up to the cut. (Which output file a
+    // tracks message lands in may differ: the cut bag has no summary to plan one pass with.)
+    let tracks = |d: &Path| -> Vec<Vec<u8>> {
+        (0..3)
+            .flat_map(|i| topic_data(&d.join(format!("drive_{i}.mcap")), "/tracks"))
+            .collect()
+    };
+    let (cut, all) = (tracks(&out), tracks(&whole));
+    assert!(
+        2 * all.len() / 3 < cut.len() && cut.len() < all.len(),
+        "{} of {}",
+        cut.len(),
+        all.len()
+    );
+    assert_eq!(cut[..], all[..cut.len()]);
+    // The output bag is whole: info reads it without a word of a cut.
+    let info = probmot_ok(&["info", out.to_str().unwrap()]);
+    assert!(!String::from_utf8_lossy(&info.stdout).contains("cut short"));
+
+    // The same bag with its files compressed whole (`--compression-mode file`), the last one
+    // cut short in its compressed bytes.
+    let zbag = dir.path().join("zdrive");
+    let zfiles = split_mcap(&sample, &zbag, &[n / 3, 2 * n / 3]);
+    let mut yaml = std::fs::read_to_string(zbag.join("metadata.yaml")).unwrap();
+    yaml = yaml.replace("compression_format: ''", "compression_format: zstd");
+    yaml = yaml.replace("compression_mode: ''", "compression_mode: FILE");
+    for (i, f) in zfiles.iter().enumerate() {
+        let z = zstd::encode_all(std::fs::read(f).unwrap().as_slice(), 3).unwrap();
+        let z = if i == 2 { &z[..z.len() / 2] } else { &z[..] };
+        std::fs::write(f.with_extension("mcap.zstd"), z).unwrap();
+        std::fs::remove_file(f).unwrap();
+        yaml = yaml.replace(
+            &format!("zdrive_{i}.mcap"),
+            &format!("zdrive_{i}.mcap.zstd"),
+        );
+    }
+    std::fs::write(zbag.join("metadata.yaml"), yaml).unwrap();
+    let zout = dir.path().join("zout");
+    let r = track(&zbag, &zout, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("zdrive_2.mcap.zstd (decompressed): the file is cut short"),
+        "{err}"
+    );
+    let ztracks: Vec<Vec<u8>> = (0..3)
+        .flat_map(|i| topic_data(&zout.join(format!("zdrive_{i}.mcap")), "/tracks"))
+        .collect();
+    assert!(
+        2 * all.len() / 3 < ztracks.len() && ztracks.len() < all.len(),
+        "{} of {}",
+        ztracks.len(),
+        all.len()
+    );
+    assert_eq!(ztracks[..], all[..ztracks.len()]);
+}
