@@ -28,6 +28,8 @@ use mcap::records::{Channel, DataEnd, Header, MessageHeader, Record, SchemaHeade
 use rusqlite::types::ValueRef;
 use rusqlite::{Connection, OpenFlags};
 
+use super::scratch_file::ScratchFile;
+
 use crate::mcapio::chunk_stream::{limit_hint, size_limit};
 use crate::msgs::{ros2_tf, ros2_tracks};
 
@@ -256,6 +258,16 @@ pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
 /// [`read_db3`] of a copy of the file `name` at `path` (a decompressed scratch copy): errors
 /// and progress are of `name`.
 pub fn read_db3_as(path: &Path, name: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
+    // A write-ahead log beside the file (rosbag2's `resilient` storage preset, a recorder that
+    // crashed or is still recording) holds its newest messages: read a copy of both.
+    let mut wal = path.as_os_str().to_owned();
+    wal.push("-wal");
+    let wal = std::path::PathBuf::from(wal);
+    let scratch = match std::fs::metadata(&wal) {
+        Ok(m) if m.is_file() && m.len() > 0 => Some(ScratchFile::sqlite_with_wal(path, &wal)?),
+        _ => None,
+    };
+    let path = scratch.as_ref().map_or(path, |s| s.path());
     let shown = name.display();
     let conn = open(path).with_context(|| format!("{shown}"))?;
     let topics = topics(&conn).with_context(|| format!("{shown}"))?;
@@ -389,6 +401,59 @@ mod tests {
         INSERT INTO messages VALUES (1, 7, 20, x'0102');
         INSERT INTO messages VALUES (2, 3, 10, x'03');
         INSERT INTO messages VALUES (3, 9, 20, x'04');";
+
+    /// A file left in WAL mode with its write-ahead log (a recorder that died): the log's
+    /// messages are read, from a scratch copy, and nothing is written beside the input.
+    #[test]
+    fn a_write_ahead_log_is_read_from_a_copy_and_the_input_left_alone() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("b_0.db3");
+        // Written by another process that dies without closing the file (closing would fold
+        // the log into it): Python's sqlite3 module and `os._exit`.
+        let sql = format!(
+            "PRAGMA journal_mode = WAL;
+             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+               timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             {TWO_TOPICS}
+             PRAGMA wal_checkpoint(TRUNCATE);
+             INSERT INTO messages VALUES (4, 3, 30, x'05');"
+        );
+        let script = "import os, sqlite3, sys\n\
+                      c = sqlite3.connect(sys.argv[1], isolation_level=None)\n\
+                      c.executescript(sys.argv[2])\n\
+                      os._exit(0)\n";
+        let run = std::process::Command::new("python3")
+            .args(["-c", script, path.to_str().unwrap(), &sql])
+            .output()
+            .expect("python3 runs");
+        assert!(run.status.success(), "{run:?}");
+        let shm = dir.path().join("b_0.db3-shm");
+        let _ = std::fs::remove_file(&shm);
+        let snapshot = || -> Vec<(std::path::PathBuf, Vec<u8>)> {
+            let mut files: Vec<_> = (std::fs::read_dir(dir.path()).unwrap())
+                .map(|e| e.unwrap().path())
+                .map(|p| (p.clone(), std::fs::read(p).unwrap()))
+                .collect();
+            files.sort();
+            files
+        };
+        let before = snapshot();
+        assert_eq!(before.len(), 2, "the file and its log");
+        let (seen, result) = records(&path, usize::MAX);
+        assert!(!result.unwrap());
+        assert!(seen.contains(&"message 1 30 [5]".to_string()), "{seen:?}");
+        assert_eq!(seen.iter().filter(|l| l.starts_with("message")).count(), 4);
+        assert!(snapshot() == before, "the input's directory changed");
+        let tmp = std::fs::read_dir(std::env::temp_dir()).unwrap();
+        let pid = format!(".probmot-{}-", std::process::id());
+        let left = tmp.filter(|e| {
+            let name = e.as_ref().unwrap().file_name();
+            name.to_string_lossy().starts_with(&pid) && name.to_string_lossy().contains("b_0.db3")
+        });
+        assert_eq!(left.count(), 0, "a scratch file was left behind");
+    }
 
     /// Topics become channels in id order, one schema per type (its stored definition, or no
     /// text), messages come in timestamp order (ties by row id), then the end of the data.

@@ -1,5 +1,6 @@
 //! Scratch files: the decompressed copy of a file that cannot be read as a stream (a sqlite3
-//! bag's `NAME.db3.zstd`: SQLite needs random access). Written in the temporary directory
+//! bag's `NAME.db3.zstd`: SQLite needs random access), or the copy of a sqlite3 file with its
+//! write-ahead log (which SQLite reads only by writing beside it). Written in the temporary directory
 //! (`TMPDIR`, else `/tmp`), removed when dropped, and on an interrupt by
 //! [`remove_scratch_files`] (called by the binary's signal handler), so an interrupted run
 //! leaves none behind. At most one exists per bag being read: the file being read.
@@ -24,9 +25,19 @@ fn registry() -> MutexGuard<'static, Vec<PathBuf>> {
 pub fn remove_scratch_files() {
     let guard = registry();
     for p in guard.iter() {
-        let _ = std::fs::remove_file(p);
+        remove_with_logs(p);
     }
     std::mem::forget(guard);
+}
+
+/// Removes the file `path` and the files SQLite keeps beside a database it reads in WAL mode.
+fn remove_with_logs(path: &Path) {
+    let _ = std::fs::remove_file(path);
+    for suffix in ["-wal", "-shm"] {
+        let mut log = path.as_os_str().to_owned();
+        log.push(suffix);
+        let _ = std::fs::remove_file(log);
+    }
 }
 
 /// A file in the temporary directory, removed on drop.
@@ -35,6 +46,27 @@ pub struct ScratchFile {
 }
 
 impl ScratchFile {
+    /// A new empty scratch file for a copy of `source`, named after it (`stem`), open for
+    /// writing.
+    fn create(source: &Path, stem: &str) -> Result<(ScratchFile, File)> {
+        static NEXT: AtomicU64 = AtomicU64::new(0);
+        let n = NEXT.fetch_add(1, Ordering::Relaxed);
+        let path =
+            (std::env::temp_dir()).join(format!(".probmot-{}-{n}-{stem}", std::process::id()));
+        let mut registry = registry();
+        let out = (std::fs::OpenOptions::new().write(true).create_new(true))
+            .open(&path)
+            .with_context(|| {
+                format!(
+                    "{}: cannot make its scratch file {} (TMPDIR chooses where)",
+                    source.display(),
+                    path.display()
+                )
+            })?;
+        registry.push(path.clone());
+        Ok((ScratchFile { path }, out))
+    }
+
     /// The zstd file `compressed` decompressed into a new scratch file (named after it).
     pub fn unzstd(compressed: &Path) -> Result<ScratchFile> {
         let name = compressed.display();
@@ -42,22 +74,7 @@ impl ScratchFile {
         let stem = (compressed.file_name().map(|n| n.to_string_lossy()))
             .map(|n| n.trim_end_matches(".zstd").to_string())
             .unwrap_or_default();
-        static NEXT: AtomicU64 = AtomicU64::new(0);
-        let n = NEXT.fetch_add(1, Ordering::Relaxed);
-        let path =
-            (std::env::temp_dir()).join(format!(".probmot-{}-{n}-{stem}", std::process::id()));
-        let mut registry = registry();
-        let mut out = (std::fs::OpenOptions::new().write(true).create_new(true))
-            .open(&path)
-            .with_context(|| {
-                format!(
-                    "{name}: cannot make its scratch file {} (TMPDIR chooses where)",
-                    path.display()
-                )
-            })?;
-        registry.push(path.clone());
-        drop(registry);
-        let scratch = ScratchFile { path };
+        let (scratch, mut out) = Self::create(compressed, &stem)?;
         let mut decoder = zstd::stream::read::Decoder::with_buffer(BufReader::new(input))
             .with_context(|| format!("{name}: cannot start zstd"))?;
         std::io::copy(&mut decoder, &mut out).with_context(|| {
@@ -70,6 +87,34 @@ impl ScratchFile {
         Ok(scratch)
     }
 
+    /// A copy of the SQLite file `db` with its write-ahead log `wal` beside it (as `PATH-wal`),
+    /// so that SQLite reads the log's transactions from the copy: reading them in place would
+    /// write an index (`-shm`) beside the input, and fail in a directory it cannot write.
+    pub fn sqlite_with_wal(db: &Path, wal: &Path) -> Result<ScratchFile> {
+        let stem = (db.file_name().map(|n| n.to_string_lossy().into_owned())).unwrap_or_default();
+        let (scratch, mut out) = Self::create(db, &stem)?;
+        let copy = |from: &Path, to: &mut File| {
+            let mut input =
+                File::open(from).with_context(|| format!("cannot open {}", from.display()))?;
+            std::io::copy(&mut input, to).with_context(|| {
+                format!(
+                    "{}: copying it into the scratch file {} (a copy SQLite can read with its \
+                     write-ahead log; TMPDIR chooses where)",
+                    from.display(),
+                    scratch.path.display()
+                )
+            })
+        };
+        copy(db, &mut out)?;
+        let mut log = scratch.path.as_os_str().to_owned();
+        log.push("-wal");
+        let mut log = (std::fs::OpenOptions::new().write(true).create_new(true))
+            .open(PathBuf::from(log))
+            .with_context(|| format!("{}: cannot make its scratch copy", wal.display()))?;
+        copy(wal, &mut log)?;
+        Ok(scratch)
+    }
+
     /// Where the scratch file is.
     pub fn path(&self) -> &Path {
         &self.path
@@ -79,7 +124,7 @@ impl ScratchFile {
 impl Drop for ScratchFile {
     fn drop(&mut self) {
         let mut registry = registry();
-        let _ = std::fs::remove_file(&self.path);
+        remove_with_logs(&self.path);
         registry.retain(|p| p != &self.path);
     }
 }
