@@ -41,6 +41,9 @@ pub fn run(a: InfoArgs) -> Result<ExitCode> {
     let info = recording_info(&a.file, &|e| super::show_on_bar(&bar, e));
     bar.finish_and_clear();
     let info = info?;
+    for w in &info.warnings {
+        eprintln!("warning: {w}");
+    }
     match a.json {
         true => println!("{}", serde_json::to_string_pretty(&info)?),
         false => print!("{}", info.text()),

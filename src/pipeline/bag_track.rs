@@ -50,6 +50,7 @@ pub fn track_bag(
     check_output_dir(out)?;
     let partial = PartialDir::create(out)?;
     let mut summary = write_bag(bag, partial.path(), opts, progress)?;
+    summary.warnings.splice(0..0, bag.warning());
     partial.persist()?;
     summary.output = out.display().to_string();
     summary.wall_time_s = started.elapsed().as_secs_f64();

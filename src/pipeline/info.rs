@@ -82,6 +82,10 @@ pub struct FileSummary {
     /// hold up to the cut. (Left out of the JSON when empty.)
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub cut_short: Vec<CutShort>,
+    /// What the reader of the recording warns of (e.g. a bag read without its
+    /// `metadata.yaml`). (Left out of the JSON when empty.)
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub warnings: Vec<String>,
 }
 
 /// Reads the whole file and summarises it.
@@ -99,16 +103,18 @@ pub fn file_info_progress(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSum
 /// compressed) are read as one drive, its schema and channel ids as one numbering
 /// ([`super::bag_source`]).
 pub fn path_info(path: &Path, progress: &dyn Fn(u64)) -> Result<FileSummary> {
-    let mut source = if is_sqlite_file(path) {
-        BagSource::sqlite_file(path)
+    let (mut source, warning) = if is_sqlite_file(path) {
+        (BagSource::sqlite_file(path), None)
     } else {
         match open_bag(path)? {
-            Some(bag) => BagSource::of(&bag),
+            Some(bag) => (BagSource::of(&bag), bag.warning()),
             None => return file_info_progress(path, progress),
         }
     };
     let name = source.name.clone();
-    info_of(name, |f| source.read_while(f), progress)
+    let mut info = info_of(name, |f| source.read_while(f), progress)?;
+    info.warnings.extend(warning);
+    Ok(info)
 }
 
 /// [`path_info`] as `probmot info` reads it: a file, or a rosbag2 bag directory as one drive.

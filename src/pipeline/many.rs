@@ -224,7 +224,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("but no metadata.yaml, so not a rosbag2 bag"),
+            e.contains("but no metadata.yaml, not named as rosbag2 names a bag's files"),
             "{e}"
         );
         std::fs::write(folder.join("metadata.yaml"), b"").unwrap();

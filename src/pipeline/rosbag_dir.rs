@@ -1,7 +1,8 @@
 //! rosbag2 bag directories (as `ros2 bag record` writes them: a folder with `metadata.yaml` and
 //! the bag's storage files, `.mcap` or sqlite3 `.db3`, one or several when the recording was
 //! split, MCAP files maybe compressed whole as `.mcap.zstd`, messages maybe compressed one by
-//! one; a folder without `metadata.yaml` is refused):
+//! one; a folder without `metadata.yaml` is a bag only when its files carry rosbag2's names,
+//! as a recorder that died leaves them):
 //! [`open_bag`] finds the files, [`write_metadata`] writes the `metadata.yaml` of an output
 //! bag. `track BAG_DIR -o OUT_DIR` ([`super::bag_track`]) tracks the files as one drive.
 //!
@@ -16,7 +17,7 @@ use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use mcap::records::Record;
 
 use super::bag_metadata::{read_metadata, BagCompression};
@@ -43,9 +44,39 @@ pub struct Bag {
     pub storage: Storage,
     /// Whether the files, or each message, are compressed.
     pub compression: BagCompression,
+    /// Whether the directory has no `metadata.yaml`, its files found by rosbag2's names
+    /// ([`open_bag`]): a recording that did not finish.
+    pub without_metadata: bool,
 }
 
 impl Bag {
+    /// The warning of a bag read without its `metadata.yaml`.
+    pub fn warning(&self) -> Option<String> {
+        let name = |f: &PathBuf| {
+            f.file_name()
+                .map_or(String::new(), |n| n.to_string_lossy().into())
+        };
+        let files = match &self.files[..] {
+            [one] => format!("its file {}", name(one)),
+            [first, .., last] => {
+                let n = self.files.len();
+                format!(
+                    "its {n} files, {} to {}, in that order",
+                    name(first),
+                    name(last)
+                )
+            }
+            [] => "no file".into(),
+        };
+        self.without_metadata.then(|| {
+            format!(
+                "{}: no metadata.yaml (a recording that did not finish?); read as a rosbag2 bag \
+                 by the names rosbag2 gives a bag's files: {files}",
+                self.dir.display(),
+            )
+        })
+    }
+
     /// The name of file `i` once decompressed (`drive_0.mcap.zstd` → `drive_0.mcap`): the name
     /// of its output file.
     pub fn output_name(&self, i: usize) -> Result<String> {
@@ -63,10 +94,12 @@ impl Bag {
     }
 }
 
-/// The bag at `path`, or `None` when `path` is not a directory. A directory is a bag only with
-/// rosbag2's `metadata.yaml`: a folder of logs is not one log, and taking it for a bag would make
-/// `-o` a directory without a word. Its files are those `metadata.yaml` lists
-/// (`relative_file_paths`), or with a `metadata.yaml` that lists none, its one storage file.
+/// The bag at `path`, or `None` when `path` is not a directory. A directory is a bag with
+/// rosbag2's `metadata.yaml`, or without one when its storage files are named as rosbag2 names
+/// them (`DIR_0.mcap`, `DIR_1.mcap`, ...: a recorder that died before writing it); a folder of logs
+/// is not one log, and taking it for a bag would make `-o` a directory without a word. Its
+/// files are those `metadata.yaml` lists (`relative_file_paths`), or with a `metadata.yaml` that
+/// lists none, its one storage file.
 pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
     if !path.is_dir() {
         return Ok(None);
@@ -88,7 +121,18 @@ pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
     mcaps.sort();
     db3s.sort();
     if !metadata {
-        no_metadata(path, &mcaps, &db3s)?;
+        let Some((files, storage)) = files_by_rosbag2_names(path, &mcaps, &db3s) else {
+            return Err(no_metadata(path, &mcaps, &db3s));
+        };
+        let (dir, compression) = (path.to_path_buf(), BagCompression::None);
+        let without_metadata = true;
+        return Ok(Some(Bag {
+            dir,
+            files,
+            storage,
+            compression,
+            without_metadata,
+        }));
     }
     let md = read_metadata(path)?;
     let dir = path.display();
@@ -132,33 +176,75 @@ pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
         files,
         storage,
         compression: md.compression,
+        without_metadata: false,
     };
     Ok(Some(bag))
 }
 
+/// The storage files of the directory `path` (without `metadata.yaml`) in recording order, when
+/// they are named as `ros2 bag record` names them: `DIR_0.EXT`, `DIR_1.EXT`, … with DIR the
+/// directory's name, every index from 0 up, all `.mcap` or all `.db3`, none compressed whole
+/// (rosbag2 compresses a file once it is closed: a bag of some compressed files is left to
+/// `ros2 bag reindex`). That is what a recorder leaves that died before writing
+/// `metadata.yaml` (ROS 2 Humble writes it only when recording stops); a folder of logs is not
+/// named so.
+fn files_by_rosbag2_names(
+    path: &Path,
+    mcaps: &[PathBuf],
+    db3s: &[PathBuf],
+) -> Option<(Vec<PathBuf>, Storage)> {
+    let base = path.file_name()?.to_str()?;
+    let (files, storage, ext) = match (mcaps.is_empty(), db3s.is_empty()) {
+        (false, true) => (mcaps, Storage::Mcap, ".mcap"),
+        (true, false) => (db3s, Storage::Sqlite3, ".db3"),
+        _ => return None,
+    };
+    let mut numbered = Vec::new();
+    for f in files {
+        let name = f.file_name()?.to_str()?;
+        let index = name
+            .strip_prefix(base)?
+            .strip_prefix('_')?
+            .strip_suffix(ext)?;
+        if !index.bytes().all(|b| b.is_ascii_digit()) || index.len() > 1 && index.starts_with('0') {
+            return None;
+        }
+        numbered.push((index.parse::<usize>().ok()?, f.clone()));
+    }
+    numbered.sort();
+    (numbered.iter().enumerate())
+        .all(|(i, (n, _))| i == *n)
+        .then(|| (numbered.into_iter().map(|(_, f)| f).collect(), storage))
+}
+
 /// The error for a directory without `metadata.yaml`, by the storage files it holds.
-fn no_metadata(path: &Path, mcaps: &[PathBuf], db3s: &[PathBuf]) -> Result<()> {
+fn no_metadata(path: &Path, mcaps: &[PathBuf], db3s: &[PathBuf]) -> anyhow::Error {
     let dir = path.display();
     let (files, kind) = if mcaps.is_empty() {
         (db3s, ".db3")
     } else {
         (mcaps, ".mcap")
     };
+    let base = path
+        .file_name()
+        .map_or("DIR".into(), |n| n.to_string_lossy());
+    let unnamed =
+        format!("not named as rosbag2 names a bag's files ({base}_0{kind}, {base}_1{kind}, ...)");
     match files.len() {
-        0 => bail!("{dir}: a directory without an .mcap file"),
-        1 => bail!(
-            "{dir}: a directory with one {kind} file but no metadata.yaml, so not a rosbag2 \
-             bag: name the file instead ({}); a bag whose recording was cut gets its \
+        0 => anyhow!("{dir}: a directory without an .mcap file"),
+        1 => anyhow!(
+            "{dir}: a directory with one {kind} file but no metadata.yaml, {unnamed}, so not a \
+             rosbag2 bag: name the file instead ({}); a bag whose recording was cut gets its \
              metadata.yaml back with `ros2 bag reindex`",
             files[0].display()
         ),
-        _ if kind == ".db3" => bail!(
-            "{dir}: a directory of .db3 files without metadata.yaml, not a rosbag2 bag; \
-             `ros2 bag reindex {dir}` writes it back"
+        _ if kind == ".db3" => anyhow!(
+            "{dir}: a directory of .db3 files without metadata.yaml, {unnamed}, so not a \
+             rosbag2 bag; `ros2 bag reindex {dir}` writes it back"
         ),
-        n => bail!(
-            "{dir}: a directory of {n} .mcap files without metadata.yaml, not a rosbag2 \
-             bag: name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` \
+        n => anyhow!(
+            "{dir}: a directory of {n} .mcap files without metadata.yaml, {unnamed}, so not a \
+             rosbag2 bag: name the files instead (`probmot track {dir}/*.mcap --out-dir OUT` \
              tracks them all, `fit` and `tune` take them all as `{dir}/*.mcap`; `info`, \
              `plot` and `viz` read one file, `eval --truth {dir}` the folder)"
         ),
@@ -357,6 +443,65 @@ pub fn write_metadata(dir: &Path, mcaps: &[PathBuf]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_bag_without_metadata_is_read_only_by_rosbag2_names() {
+        let d = tempfile::tempdir().unwrap();
+        let bag = d.path().join("rec");
+        std::fs::create_dir(&bag).unwrap();
+        let touch = |name: &str| std::fs::write(bag.join(name), b"").unwrap();
+        let rm = |name: &str| std::fs::remove_file(bag.join(name)).unwrap();
+        let files = |names: &[&str]| names.iter().map(|n| bag.join(n)).collect::<Vec<_>>();
+        for n in ["rec_0.mcap", "rec_1.mcap", "rec_10.mcap"] {
+            touch(n);
+        }
+        // A gap in the indices (rec_2 .. rec_9 missing): not a whole recording.
+        let e = open_bag(&bag).unwrap_err().to_string();
+        assert!(
+            e.contains("not named as rosbag2 names a bag's files (rec_0.mcap"),
+            "{e}"
+        );
+        rm("rec_10.mcap");
+        touch("rec_2.mcap");
+        let b = open_bag(&bag).unwrap().unwrap();
+        assert_eq!(b.files, files(&["rec_0.mcap", "rec_1.mcap", "rec_2.mcap"]));
+        assert_eq!(
+            (b.storage, b.compression),
+            (Storage::Mcap, BagCompression::None)
+        );
+        let w = b.warning().unwrap();
+        assert!(
+            w.contains("no metadata.yaml")
+                && w.contains("3 files")
+                && w.contains("rec_0.mcap to rec_2.mcap"),
+            "{w}"
+        );
+        // Another name, a leading zero, a compressed file or two storage kinds: refused.
+        for odd in [
+            "other_3.mcap",
+            "rec_03.mcap",
+            "rec_3.mcap.zstd",
+            "rec_3.db3",
+        ] {
+            touch(odd);
+            let e = open_bag(&bag).unwrap_err().to_string();
+            assert!(e.contains("without metadata.yaml"), "{odd}: {e}");
+            rm(odd);
+        }
+        for n in ["rec_0.mcap", "rec_1.mcap", "rec_2.mcap"] {
+            rm(n);
+        }
+        touch("rec_0.db3");
+        touch("rec_0.db3-wal");
+        let b = open_bag(&bag).unwrap().unwrap();
+        assert_eq!(
+            (b.files, b.storage),
+            (files(&["rec_0.db3"]), Storage::Sqlite3)
+        );
+        // With its metadata.yaml, a bag gives no warning.
+        std::fs::write(bag.join("metadata.yaml"), "rosbag2_bagfile_information:\n").unwrap();
+        assert_eq!(open_bag(&bag).unwrap().unwrap().warning(), None);
+    }
 
     #[test]
     fn open_bag_finds_the_listed_files_and_refuses_others() {

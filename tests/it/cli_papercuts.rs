@@ -396,18 +396,24 @@ fn every_command_reads_a_bag_directory() {
     let dir = tempfile::tempdir().unwrap();
     let bag = dir.path().join("drive_bag");
     std::fs::create_dir(&bag).unwrap();
-    std::fs::copy(repo("sample_logs/city.mcap"), bag.join("drive_bag_0.mcap")).unwrap();
+    std::fs::copy(repo("sample_logs/city.mcap"), bag.join("city.mcap")).unwrap();
     let tracked = dir.path().join("tracked_bag");
-    // Without rosbag2's metadata.yaml a folder is not a bag: refused, naming the file, and no
-    // output directory appears.
+    // Without rosbag2's metadata.yaml, nor its files' names, a folder is not a bag: refused,
+    // naming the file, and no output directory appears.
     let run = probmot(&["track", s(&bag), "-o", s(&tracked), "--quiet"]);
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert_eq!(run.status.code(), Some(2), "{stderr}");
     assert!(
-        stderr.contains("no metadata.yaml") && stderr.contains("drive_bag_0.mcap"),
+        stderr.contains("no metadata.yaml") && stderr.contains("city.mcap"),
         "{stderr}"
     );
     assert!(!tracked.exists());
+    // Named as rosbag2 names it, it is read as a bag that lost its metadata.yaml, with a word.
+    std::fs::rename(bag.join("city.mcap"), bag.join("drive_bag_0.mcap")).unwrap();
+    let run = probmot_ok(&["track", s(&bag), "-o", s(&tracked), "--quiet"]);
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(stderr.contains("its file drive_bag_0.mcap"), "{stderr}");
+    std::fs::remove_dir_all(&tracked).unwrap();
     std::fs::write(bag.join("metadata.yaml"), "rosbag2_bagfile_information:\n").unwrap();
     probmot_ok(&["track", s(&bag), "-o", s(&tracked), "--quiet"]);
     let (png, noise, txt) = (

@@ -247,3 +247,50 @@ fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
     );
     assert_eq!(ztracks[..], all[..ztracks.len()]);
 }
+
+/// What a recorder leaves that lost power (ROS 2 Humble writes `metadata.yaml` only when
+/// recording stops): the bag's files, the last one cut short, and no `metadata.yaml`. `track`
+/// and `info` read it by rosbag2's file names, with a warning; the output is a whole bag.
+#[test]
+fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    let sample = long_drive(dir.path());
+    let n = messages(&sample).len();
+    let bag = dir.path().join("drive");
+    let files = split_mcap(&sample, &bag, &[n / 3, 2 * n / 3]);
+    let whole = dir.path().join("whole");
+    assert_eq!(track(&bag, &whole, &["--quiet"]).status.code(), Some(0));
+    std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+    let last = std::fs::read(&files[2]).unwrap();
+    std::fs::write(&files[2], &last[..last.len() / 2]).unwrap();
+
+    let out = dir.path().join("out");
+    let r = track(&bag, &out, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    let no_metadata = format!(
+        "warning: {}: no metadata.yaml (a recording that did not finish?); read as a rosbag2 \
+         bag by the names rosbag2 gives a bag's files: its 3 files, drive_0.mcap to \
+         drive_2.mcap, in that order",
+        bag.display()
+    );
+    assert!(err.contains(&no_metadata), "{err}");
+    assert!(err.contains("drive_2.mcap: the file is cut short"), "{err}");
+    let tracks = |d: &Path| -> Vec<Vec<u8>> {
+        (0..3)
+            .flat_map(|i| topic_data(&d.join(format!("drive_{i}.mcap")), "/tracks"))
+            .collect()
+    };
+    let (cut, all) = (tracks(&out), tracks(&whole));
+    assert!(2 * all.len() / 3 < cut.len() && cut.len() < all.len());
+    assert_eq!(cut[..], all[..cut.len()]);
+    // The output is a whole bag, with its metadata.yaml.
+    assert!(out.join("metadata.yaml").is_file());
+    let info = probmot_ok(&["info", out.to_str().unwrap()]);
+    assert!(info.stderr.is_empty(), "{info:?}");
+
+    let info = probmot_ok(&["info", bag.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&info.stderr);
+    assert!(err.contains(&no_metadata), "{err}");
+    assert!(String::from_utf8_lossy(&info.stdout).contains("cut short:"));
+}
