@@ -31,7 +31,7 @@ use mcap::records::{Channel, Record, SchemaHeader, Statistics};
 
 use super::bag_metadata::BagCompression;
 use super::db3_file::read_db3_as;
-use super::rosbag_dir::{Bag, Storage};
+use super::rosbag_dir::{compressed_whole, Bag, Storage};
 use super::scratch_file::ScratchFile;
 use crate::mcapio::chunk_stream::{limit_hint, size_limit};
 use crate::mcapio::reader::{
@@ -249,9 +249,9 @@ impl BagSource {
             inner: file,
             count: count.clone(),
         };
-        let bytes: Box<dyn Read> = match self.compression {
-            BagCompression::None | BagCompression::MessageZstd => Box::new(raw),
-            BagCompression::FileZstd => Box::new(
+        let bytes: Box<dyn Read> = match compressed_whole(path) {
+            false => Box::new(raw),
+            true => Box::new(
                 zstd::stream::read::Decoder::with_buffer(BufReader::new(raw))
                     .with_context(|| format!("{}: cannot start zstd", path.display()))?,
             ),
@@ -289,9 +289,9 @@ impl BagSource {
         if self.storage == Storage::Sqlite3 {
             let file = &self.files[i];
             // SQLite reads a file, not a stream: a compressed one is read from a scratch copy.
-            let scratch = match self.compression {
-                BagCompression::FileZstd => Some(ScratchFile::unzstd(file)?),
-                _ => None,
+            let scratch = match compressed_whole(file) {
+                true => Some(ScratchFile::unzstd(file)?),
+                false => None,
             };
             let path = scratch.as_ref().map_or(file.as_path(), |s| s.path());
             return read_db3_as(path, file, &mut hand_on);
@@ -314,12 +314,12 @@ impl BagSource {
             Ok(flow)
         })?;
         // The bytes of a cut in a file compressed whole count in the decompressed MCAP file.
-        cuts.extend(cut.map(|c| match self.compression {
-            BagCompression::FileZstd => CutShort {
+        cuts.extend(cut.map(|c| match compressed_whole(&self.files[i]) {
+            true => CutShort {
                 file: format!("{} (decompressed)", c.file),
                 ..c
             },
-            _ => c,
+            false => c,
         }));
         Ok(stopped)
     }
@@ -339,7 +339,7 @@ impl RecordSource for BagSource {
     /// The files' summaries as one: their schemas and channels in the stream's ids, and the
     /// message counts added up; `None` when a file has no readable summary (or is compressed).
     fn summary(&mut self) -> Option<(Record<'static>, Vec<Record<'static>>)> {
-        if self.compression == BagCompression::FileZstd || self.storage == Storage::Sqlite3 {
+        if self.files.iter().any(|f| compressed_whole(f)) || self.storage == Storage::Sqlite3 {
             return None;
         }
         let mut ids = IdMap::default();

@@ -83,10 +83,7 @@ impl Bag {
         let f = &self.files[i];
         let name = (f.file_name().and_then(|n| n.to_str()))
             .with_context(|| format!("{}: file name is not UTF-8", f.display()))?;
-        let name = match self.compression {
-            BagCompression::FileZstd => name.strip_suffix(".zstd").unwrap_or(name),
-            _ => name,
-        };
+        let name = name.strip_suffix(".zstd").unwrap_or(name);
         Ok(match self.storage {
             Storage::Sqlite3 => format!("{}.mcap", name.strip_suffix(".db3").unwrap_or(name)),
             Storage::Mcap => name.to_string(),
@@ -181,13 +178,20 @@ pub fn open_bag(path: &Path) -> Result<Option<Bag>> {
     Ok(Some(bag))
 }
 
+/// Whether the storage file `file` is compressed whole (`NAME.mcap.zstd`, `NAME.db3.zstd`), as
+/// rosbag2 names the files of a bag recorded with `--compression-mode file`. By its name, file
+/// by file: a recording that did not finish has its last file uncompressed.
+pub fn compressed_whole(file: &Path) -> bool {
+    file.extension().is_some_and(|e| e == "zstd")
+}
+
 /// The storage files of the directory `path` (without `metadata.yaml`) in recording order, when
 /// they are named as `ros2 bag record` names them: `DIR_0.EXT`, `DIR_1.EXT`, … with DIR the
-/// directory's name, every index from 0 up, all `.mcap` or all `.db3`, none compressed whole
-/// (rosbag2 compresses a file once it is closed: a bag of some compressed files is left to
-/// `ros2 bag reindex`). That is what a recorder leaves that died before writing
-/// `metadata.yaml` (ROS 2 Humble writes it only when recording stops); a folder of logs is not
-/// named so.
+/// directory's name, every index from 0 up, all `.mcap` or all `.db3`, each maybe compressed
+/// whole (`.zstd`). That is what a recorder leaves that died before writing `metadata.yaml`
+/// (ROS 2 Humble writes it only when recording stops); a folder of logs is not named so. A
+/// file there both as `NAME` and `NAME.zstd` is read as `NAME`: the recorder died compressing
+/// it, after closing it whole.
 fn files_by_rosbag2_names(
     path: &Path,
     mcaps: &[PathBuf],
@@ -199,9 +203,10 @@ fn files_by_rosbag2_names(
         (true, false) => (db3s, Storage::Sqlite3, ".db3"),
         _ => return None,
     };
-    let mut numbered = Vec::new();
+    let mut numbered: BTreeMap<usize, PathBuf> = BTreeMap::new();
     for f in files {
         let name = f.file_name()?.to_str()?;
+        let name = name.strip_suffix(".zstd").unwrap_or(name);
         let index = name
             .strip_prefix(base)?
             .strip_prefix('_')?
@@ -209,12 +214,16 @@ fn files_by_rosbag2_names(
         if !index.bytes().all(|b| b.is_ascii_digit()) || index.len() > 1 && index.starts_with('0') {
             return None;
         }
-        numbered.push((index.parse::<usize>().ok()?, f.clone()));
+        let slot = numbered
+            .entry(index.parse().ok()?)
+            .or_insert_with(|| f.clone());
+        if compressed_whole(slot) {
+            slot.clone_from(f);
+        }
     }
-    numbered.sort();
-    (numbered.iter().enumerate())
-        .all(|(i, (n, _))| i == *n)
-        .then(|| (numbered.into_iter().map(|(_, f)| f).collect(), storage))
+    (numbered.keys().enumerate())
+        .all(|(i, n)| i == *n)
+        .then(|| (numbered.into_values().collect(), storage))
 }
 
 /// The error for a directory without `metadata.yaml`, by the storage files it holds.
@@ -262,6 +271,9 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
     let what = match (bag.storage, bag.compression) {
         (Storage::Sqlite3, _) => Some("a bag with sqlite3 storage (.db3)"),
         (_, BagCompression::FileZstd) => Some("a bag of compressed files (compression_mode file)"),
+        _ if bag.files.iter().any(|f| compressed_whole(f)) => {
+            Some("a bag of compressed files (compression_mode file)")
+        }
         (_, BagCompression::MessageZstd) => {
             Some("a bag of compressed messages (compression_mode message)")
         }
@@ -476,11 +488,19 @@ mod tests {
                 && w.contains("rec_0.mcap to rec_2.mcap"),
             "{w}"
         );
-        // Another name, a leading zero, a compressed file or two storage kinds: refused.
+        // Compressed whole, file by file; both `NAME` and `NAME.zstd`: `NAME`, the whole one.
+        touch("rec_0.mcap.zstd");
+        touch("rec_3.mcap.zstd");
+        let b = open_bag(&bag).unwrap().unwrap();
+        let names = ["rec_0.mcap", "rec_1.mcap", "rec_2.mcap", "rec_3.mcap.zstd"];
+        assert_eq!(b.files, files(&names));
+        rm("rec_0.mcap.zstd");
+        rm("rec_3.mcap.zstd");
+        // Another name, a leading zero, a gap or two storage kinds: refused.
         for odd in [
             "other_3.mcap",
             "rec_03.mcap",
-            "rec_3.mcap.zstd",
+            "rec_4.mcap.zstd",
             "rec_3.db3",
         ] {
             touch(odd);

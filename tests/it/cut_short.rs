@@ -293,4 +293,33 @@ fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
     let err = String::from_utf8_lossy(&info.stderr);
     assert!(err.contains(&no_metadata), "{err}");
     assert!(String::from_utf8_lossy(&info.stdout).contains("cut short:"));
+
+    // Recorded with `--compression-mode file`: rosbag2 compresses each file once it is closed,
+    // so the power went while file 1 was being compressed (`drive_1.mcap` whole beside a part
+    // of `drive_1.mcap.zstd`) and file 2 was being written.
+    let zbag = dir.path().join("zdrive");
+    let zfiles = split_mcap(&sample, &zbag, &[n / 3, 2 * n / 3]);
+    std::fs::remove_file(zbag.join("metadata.yaml")).unwrap();
+    let compress = |f: &Path| zstd::encode_all(std::fs::read(f).unwrap().as_slice(), 3).unwrap();
+    std::fs::write(zfiles[0].with_extension("mcap.zstd"), compress(&zfiles[0])).unwrap();
+    std::fs::remove_file(&zfiles[0]).unwrap();
+    let z1 = compress(&zfiles[1]);
+    std::fs::write(zfiles[1].with_extension("mcap.zstd"), &z1[..z1.len() / 3]).unwrap();
+    let last = std::fs::read(&zfiles[2]).unwrap();
+    std::fs::write(&zfiles[2], &last[..last.len() / 2]).unwrap();
+    let zout = dir.path().join("zout");
+    let r = track(&zbag, &zout, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    let err = String::from_utf8_lossy(&r.stderr);
+    assert!(
+        err.contains("its 3 files, zdrive_0.mcap.zstd to zdrive_2.mcap, in that order"),
+        "{err}"
+    );
+    let ztracks: Vec<Vec<u8>> = (0..3)
+        .flat_map(|i| topic_data(&zout.join(format!("zdrive_{i}.mcap")), "/tracks"))
+        .collect();
+    assert_eq!(
+        ztracks, cut,
+        "the same drive, read from the same whole records"
+    );
 }
