@@ -130,6 +130,49 @@ fn a_file_cut_short_is_tracked_up_to_the_cut_with_a_warning() {
     assert!(!out.exists());
 }
 
+/// The messages of `input` rewritten in chunks of about `chunk` bytes.
+fn rechunked(input: &Path, out: &Path, chunk: u64) {
+    let bytes = std::fs::read(input).unwrap();
+    let file = std::io::BufWriter::new(std::fs::File::create(out).unwrap());
+    let mut w = mcap::WriteOptions::new()
+        .chunk_size(Some(chunk))
+        .create(file)
+        .unwrap();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        w.write(&m.unwrap()).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// Cut anywhere after its header record, a file tracks: its tracks are the whole file's up to
+/// the cut, more of them the later the cut.
+#[test]
+fn a_file_cut_anywhere_tracks_the_whole_files_tracks_up_to_the_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("small.mcap");
+    rechunked(&repo("sample_logs/city.mcap"), &input, 8 << 10);
+    let good = std::fs::read(&input).unwrap();
+    let full = dir.path().join("full.mcap");
+    assert_eq!(track(&input, &full, &["--quiet"]).status.code(), Some(0));
+    let all = topic_data(&full, "/tracks");
+    let mut before = 0;
+    for k in 1..40 {
+        let len = 64 + k * (good.len() - 64) / 40;
+        let cut = cut_copy(dir.path(), "cut.mcap", &good, len);
+        let out = dir.path().join(format!("cut{k}.mcap"));
+        let r = track(&cut, &out, &["--quiet"]);
+        assert_eq!(r.status.code(), Some(0), "cut at {len}: {r:?}");
+        let tracks = topic_data(&out, "/tracks");
+        assert!(
+            tracks.len() >= before && tracks.len() <= all.len(),
+            "cut at {len}"
+        );
+        assert_eq!(tracks[..], all[..tracks.len()], "cut at {len}");
+        before = tracks.len();
+    }
+    assert!(before > all.len() * 9 / 10, "{before} of {}", all.len());
+}
+
 #[test]
 fn info_reads_a_file_cut_short_and_the_readers_of_outputs_refuse_it() {
     let dir = tempfile::tempdir().unwrap();
