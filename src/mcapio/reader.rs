@@ -50,16 +50,41 @@ pub struct McapInput<R> {
     pub name: String,
     /// The bytes of the MCAP file.
     pub source: R,
+    /// Where a read ([`read_records_to_cut`]) found the file cut short: later reads stop there
+    /// too, so that every read gives the same records, also of a file still being written (a
+    /// recording in progress grows between `track`'s two passes).
+    cut_at: Option<u64>,
+}
+
+impl<R> McapInput<R> {
+    /// The input of the bytes of `source`, named `name` in errors.
+    pub fn new(name: impl Into<String>, source: R) -> Self {
+        let name = name.into();
+        McapInput {
+            name,
+            source,
+            cut_at: None,
+        }
+    }
+
+    /// Where a read of this input found it cut short (the end of its last whole record), and
+    /// every later read stops; `None` while no read found a cut.
+    pub fn cut_at(&self) -> Option<u64> {
+        self.cut_at
+    }
+
+    /// Makes every read stop at byte `at`, as if a read had found the file cut short there
+    /// (for an input made anew for each read, e.g. one file of a bag).
+    pub fn stop_at(&mut self, at: Option<u64>) {
+        self.cut_at = at;
+    }
 }
 
 impl McapInput<File> {
     /// Opens the file at `path`, named by its path.
     pub fn open(path: &Path) -> Result<Self> {
         let source = File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-        Ok(McapInput {
-            name: path.display().to_string(),
-            source,
-        })
+        Ok(McapInput::new(path.display().to_string(), source))
     }
 
     /// [`McapInput::open`] for a reader that seeks and reads its input more than once
@@ -88,10 +113,7 @@ impl McapInput<File> {
 impl<'a> McapInput<Cursor<&'a [u8]>> {
     /// The MCAP file held in `bytes`, named `name` in errors.
     pub fn from_bytes(name: impl Into<String>, bytes: &'a [u8]) -> Self {
-        McapInput {
-            name: name.into(),
-            source: Cursor::new(bytes),
-        }
+        McapInput::new(name, Cursor::new(bytes))
     }
 }
 
@@ -137,6 +159,7 @@ pub fn read_records_to_cut<R: Read>(
     input: &mut McapInput<R>,
     mut f: impl FnMut(Record<'_>, ReadStats) -> Result<ControlFlow<()>>,
 ) -> Result<Option<CutShort>> {
+    let stop_at = input.cut_at;
     // Errors show the input's name like a path.
     let path = Path::new(input.name.as_str());
     let file = &mut input.source;
@@ -151,15 +174,18 @@ pub fn read_records_to_cut<R: Read>(
     let mut offset = mcap::MAGIC.len() as u64;
     let mut in_summary = false;
     while let Some(event) = reader.next_event() {
+        let cut = |complete_bytes, stats: ReadStats| CutShort {
+            file: path.display().to_string(),
+            complete_bytes,
+            file_bytes: stats.bytes_read,
+            in_summary,
+        };
         if let Err(mcap::McapError::UnexpectedEof) = event {
             // After a whole header record, the records before the cut are a recording.
             if offset > mcap::MAGIC.len() as u64 {
-                return Ok(Some(CutShort {
-                    file: input.name.clone(),
-                    complete_bytes: offset,
-                    file_bytes: stats.bytes_read,
-                    in_summary,
-                }));
+                let cut = cut(offset, stats);
+                input.cut_at = Some(offset);
+                return Ok(Some(cut));
             }
         }
         let event = event.map_err(|e| unreadable(path, e, stats.bytes_read))?;
@@ -190,6 +216,11 @@ pub fn read_records_to_cut<R: Read>(
                 };
                 let at = offset;
                 offset += 9 + data.len() as u64;
+                // Where an earlier read found the file cut short: what follows is not read, for
+                // every read to give the same records.
+                if stop_at.is_some_and(|end| offset > end) {
+                    return Ok(Some(cut(at, stats)));
+                }
                 let record = parse_record(opcode, data).with_context(malformed)?;
                 let Record::Chunk { header, data } = record else {
                     in_summary |= matches!(record, Record::DataEnd(_));

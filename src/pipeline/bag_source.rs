@@ -49,6 +49,9 @@ pub struct BagSource {
     pub storage: Storage,
     /// How they, or their messages, are compressed.
     pub compression: BagCompression,
+    /// Per file, where a read found it cut short: later reads stop there too (see
+    /// [`McapInput::cut_at`]).
+    cut_at: Vec<Option<u64>>,
 }
 
 impl BagSource {
@@ -59,6 +62,7 @@ impl BagSource {
             files: bag.files.clone(),
             storage: bag.storage,
             compression: bag.compression,
+            cut_at: vec![None; bag.files.len()],
         }
     }
 
@@ -69,6 +73,7 @@ impl BagSource {
             files: vec![path.to_path_buf()],
             storage: Storage::Sqlite3,
             compression: BagCompression::None,
+            cut_at: vec![None],
         }
     }
 }
@@ -268,6 +273,7 @@ impl BagSource {
         base: u64,
         f: &mut OnRecord<'_>,
         cuts: &mut Vec<CutShort>,
+        cut_at: &mut Option<u64>,
     ) -> Result<bool> {
         let name = self.files[i].display().to_string();
         let mut inflater = MessageInflater::default();
@@ -297,10 +303,8 @@ impl BagSource {
             return read_db3_as(path, file, &mut hand_on);
         }
         let (bytes, count) = self.open(i)?;
-        let mut input = McapInput {
-            name: name.clone(),
-            source: bytes,
-        };
+        let mut input = McapInput::new(name.clone(), bytes);
+        input.stop_at(*cut_at);
         let (mut in_data, mut stopped) = (true, false);
         let cut = read_records_to_cut(&mut input, |rec, _| {
             if !in_data {
@@ -314,6 +318,7 @@ impl BagSource {
             Ok(flow)
         })?;
         // The bytes of a cut in a file compressed whole count in the decompressed MCAP file.
+        *cut_at = input.cut_at();
         cuts.extend(cut.map(|c| match compressed_whole(&self.files[i]) {
             true => CutShort {
                 file: format!("{} (decompressed)", c.file),
@@ -372,11 +377,19 @@ impl RecordSource for BagSource {
 
     fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<Vec<CutShort>> {
         let (mut ids, mut base, mut cuts) = (IdMap::default(), 0, Vec::new());
-        for i in 0..self.files.len() {
-            if self.read_file(i, &mut ids, base, f, &mut cuts)? {
-                return Ok(cuts);
+        let mut cut_at = std::mem::take(&mut self.cut_at);
+        cut_at.resize(self.files.len(), None);
+        let mut stopped = false;
+        for (i, file_cut) in cut_at.iter_mut().enumerate() {
+            stopped = self.read_file(i, &mut ids, base, f, &mut cuts, file_cut)?;
+            if stopped {
+                break;
             }
             base += std::fs::metadata(&self.files[i]).map_or(0, |m| m.len());
+        }
+        self.cut_at = cut_at;
+        if stopped {
+            return Ok(cuts);
         }
         if self.files.is_empty() {
             bail!("{}: a bag without files", self.name);

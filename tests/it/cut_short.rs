@@ -366,3 +366,103 @@ fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
         "the same drive, read from the same whole records"
     );
 }
+
+/// A file still being written: each time it is read from its start again, it has grown by
+/// `step` bytes (until whole).
+struct Growing {
+    bytes: Vec<u8>,
+    visible: usize,
+    step: usize,
+    pos: u64,
+}
+
+impl std::io::Read for Growing {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let end = self.visible.min(self.bytes.len());
+        let pos = (self.pos as usize).min(end);
+        let n = buf.len().min(end - pos);
+        buf[..n].copy_from_slice(&self.bytes[pos..pos + n]);
+        self.pos += n as u64;
+        Ok(n)
+    }
+}
+
+impl std::io::Seek for Growing {
+    fn seek(&mut self, to: std::io::SeekFrom) -> std::io::Result<u64> {
+        use std::io::SeekFrom;
+        let end = self.visible.min(self.bytes.len()) as i64;
+        self.pos = match to {
+            SeekFrom::Start(0) => {
+                self.visible += self.step;
+                0
+            }
+            SeekFrom::Start(n) => n,
+            SeekFrom::End(d) => (end + d).max(0) as u64,
+            SeekFrom::Current(d) => (self.pos as i64 + d).max(0) as u64,
+        };
+        Ok(self.pos)
+    }
+}
+
+/// `track` on a recording in progress (it grows between the two passes): the second pass reads
+/// what the first read, so every detection message copied is tracked, and none is left out.
+#[test]
+fn a_recording_still_being_written_is_read_alike_by_both_passes() {
+    use probmot::mcapio::reader::McapInput;
+    use probmot::mcapio::sink::{MemorySink, SinkRecord};
+    use probmot::pipeline::progress::no_progress;
+    use probmot::pipeline::track::{track_input, TrackOptions};
+
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("small.mcap");
+    rechunked(&repo("sample_logs/city.mcap"), &file, 8 << 10);
+    let bytes = std::fs::read(&file).unwrap();
+    let step = bytes.len() / 10;
+    let growing = Growing {
+        bytes: bytes.clone(),
+        visible: 4 * step,
+        step,
+        pos: 0,
+    };
+    let mut source = McapInput::new("live.mcap", growing);
+    let config = probmot::tracker::TrackerConfig::preset("nuscenes-chiu2019").unwrap();
+    let open = |_profile: String| Ok(MemorySink::default());
+    let (sink, summary) =
+        track_input(&mut source, &TrackOptions::new(config), &no_progress, open).unwrap();
+    assert_eq!(summary.passes, 2);
+    let cut = (summary.warnings.iter()).find(|w| w.starts_with("live.mcap: the file is cut short"));
+    assert!(cut.is_some(), "{:?}", summary.warnings);
+    let topics: std::collections::HashMap<u16, String> = (sink.records.iter())
+        .filter_map(|r| match r {
+            SinkRecord::Channel(id, _, topic) => Some((*id, topic.clone())),
+            _ => None,
+        })
+        .collect();
+    let on = |topic: &str| -> Vec<u64> {
+        (sink.records.iter())
+            .filter_map(|r| match r {
+                SinkRecord::Message(h, _) if topics[&h.channel_id] == topic => Some(h.log_time),
+                _ => None,
+            })
+            .collect()
+    };
+    let (detections, tracks) = (on("/detections"), on("/tracks"));
+    let all = detections_in(&bytes);
+    assert!(
+        !detections.is_empty() && detections.len() < all,
+        "{} of {all}",
+        detections.len()
+    );
+    assert_eq!(
+        tracks.len(),
+        detections.len(),
+        "a tracks message per detection message"
+    );
+}
+
+/// The number of `/detections` messages of the MCAP file `bytes`.
+fn detections_in(bytes: &[u8]) -> usize {
+    (mcap::MessageStream::new(bytes).unwrap())
+        .filter(|m| m.as_ref().unwrap().channel.topic == "/detections")
+        .count()
+}
