@@ -39,6 +39,27 @@ fn long_drive(dir: &Path) -> PathBuf {
     path
 }
 
+/// Tracks `input` into `out`, which must succeed; its stderr.
+fn track_ok(input: &Path, out: &Path) -> String {
+    let r = track(input, out, &["--quiet"]);
+    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    String::from_utf8_lossy(&r.stderr).into_owned()
+}
+
+/// The `/tracks` messages of the output bag `dir`, file after file (fewer than 10 files).
+fn bag_tracks(dir: &Path) -> Vec<Vec<u8>> {
+    let mut files: Vec<PathBuf> = (std::fs::read_dir(dir).unwrap())
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "mcap"))
+        .collect();
+    files.sort();
+    assert!(!files.is_empty() && files.len() < 10, "{files:?}");
+    files
+        .iter()
+        .flat_map(|f| topic_data(f, "/tracks"))
+        .collect()
+}
+
 fn track(input: &Path, out: &Path, extra: &[&str]) -> std::process::Output {
     let mut args = vec![
         "track",
@@ -68,9 +89,7 @@ fn a_file_cut_short_is_tracked_up_to_the_cut_with_a_warning() {
     // Cut in the middle of the data: the tracks are those of the full run, up to the cut.
     let half = cut_copy(dir.path(), "half.mcap", &good, good.len() / 2);
     let out = dir.path().join("half.out.mcap");
-    let r = track(&half, &out, &[]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
-    let err = String::from_utf8_lossy(&r.stderr);
+    let err = track_ok(&half, &out);
     assert!(
         err.contains(&format!(
             "warning: {}: the file is cut short",
@@ -112,9 +131,7 @@ fn a_file_cut_short_is_tracked_up_to_the_cut_with_a_warning() {
     // Cut in the footer: every message is read, the tracks are the full run's.
     let tail = cut_copy(dir.path(), "tail.mcap", &good, good.len() - 9);
     let out = dir.path().join("tail.out.mcap");
-    let r = track(&tail, &out, &["--quiet"]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
-    let err = String::from_utf8_lossy(&r.stderr);
+    let err = track_ok(&tail, &out);
     assert!(err.contains("every message was read"), "{err}");
     assert_eq!(topic_data(&out, "/tracks"), full_tracks);
 
@@ -221,27 +238,19 @@ fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
     let bag = dir.path().join("drive");
     let files = split_mcap(&sample, &bag, &[n / 3, 2 * n / 3]);
     let whole = dir.path().join("whole");
-    let r = track(&bag, &whole, &["--quiet"]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
+    track_ok(&bag, &whole);
     // The recorder died while writing the last file: cut it in its middle.
     let last = std::fs::read(&files[2]).unwrap();
     std::fs::write(&files[2], &last[..last.len() / 2]).unwrap();
     let out = dir.path().join("out");
-    let r = track(&bag, &out, &["--quiet"]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
-    let err = String::from_utf8_lossy(&r.stderr);
+    let err = track_ok(&bag, &out);
     assert!(
         err.contains(&format!("{}: the file is cut short", files[2].display())),
         "{err}"
     );
     // The tracks, file after file, are the whole bag's up to the cut. (Which output file a
     // tracks message lands in may differ: the cut bag has no summary to plan one pass with.)
-    let tracks = |d: &Path| -> Vec<Vec<u8>> {
-        (0..3)
-            .flat_map(|i| topic_data(&d.join(format!("drive_{i}.mcap")), "/tracks"))
-            .collect()
-    };
-    let (cut, all) = (tracks(&out), tracks(&whole));
+    let (cut, all) = (bag_tracks(&out), bag_tracks(&whole));
     assert!(
         2 * all.len() / 3 < cut.len() && cut.len() < all.len(),
         "{} of {}",
@@ -272,16 +281,12 @@ fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
     }
     std::fs::write(zbag.join("metadata.yaml"), yaml).unwrap();
     let zout = dir.path().join("zout");
-    let r = track(&zbag, &zout, &["--quiet"]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
-    let err = String::from_utf8_lossy(&r.stderr);
+    let err = track_ok(&zbag, &zout);
     assert!(
         err.contains("zdrive_2.mcap.zstd (decompressed): the file is cut short"),
         "{err}"
     );
-    let ztracks: Vec<Vec<u8>> = (0..3)
-        .flat_map(|i| topic_data(&zout.join(format!("zdrive_{i}.mcap")), "/tracks"))
-        .collect();
+    let ztracks = bag_tracks(&zout);
     assert!(
         2 * all.len() / 3 < ztracks.len() && ztracks.len() < all.len(),
         "{} of {}",
@@ -302,15 +307,13 @@ fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
     let bag = dir.path().join("drive");
     let files = split_mcap(&sample, &bag, &[n / 3, 2 * n / 3]);
     let whole = dir.path().join("whole");
-    assert_eq!(track(&bag, &whole, &["--quiet"]).status.code(), Some(0));
+    track_ok(&bag, &whole);
     std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
     let last = std::fs::read(&files[2]).unwrap();
     std::fs::write(&files[2], &last[..last.len() / 2]).unwrap();
 
     let out = dir.path().join("out");
-    let r = track(&bag, &out, &["--quiet"]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
-    let err = String::from_utf8_lossy(&r.stderr);
+    let err = track_ok(&bag, &out);
     let no_metadata = format!(
         "warning: {}: no metadata.yaml (a recording that did not finish?); read as a rosbag2 \
          bag by the names rosbag2 gives a bag's files: its 3 files, drive_0.mcap to \
@@ -319,12 +322,7 @@ fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
     );
     assert!(err.contains(&no_metadata), "{err}");
     assert!(err.contains("drive_2.mcap: the file is cut short"), "{err}");
-    let tracks = |d: &Path| -> Vec<Vec<u8>> {
-        (0..3)
-            .flat_map(|i| topic_data(&d.join(format!("drive_{i}.mcap")), "/tracks"))
-            .collect()
-    };
-    let (cut, all) = (tracks(&out), tracks(&whole));
+    let (cut, all) = (bag_tracks(&out), bag_tracks(&whole));
     assert!(2 * all.len() / 3 < cut.len() && cut.len() < all.len());
     assert_eq!(cut[..], all[..cut.len()]);
     // The output is a whole bag, with its metadata.yaml.
@@ -351,16 +349,12 @@ fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
     let last = std::fs::read(&zfiles[2]).unwrap();
     std::fs::write(&zfiles[2], &last[..last.len() / 2]).unwrap();
     let zout = dir.path().join("zout");
-    let r = track(&zbag, &zout, &["--quiet"]);
-    assert_eq!(r.status.code(), Some(0), "{r:?}");
-    let err = String::from_utf8_lossy(&r.stderr);
+    let err = track_ok(&zbag, &zout);
     assert!(
         err.contains("its 3 files, zdrive_0.mcap.zstd to zdrive_2.mcap, in that order"),
         "{err}"
     );
-    let ztracks: Vec<Vec<u8>> = (0..3)
-        .flat_map(|i| topic_data(&zout.join(format!("zdrive_{i}.mcap")), "/tracks"))
-        .collect();
+    let ztracks = bag_tracks(&zout);
     assert_eq!(
         ztracks, cut,
         "the same drive, read from the same whole records"
