@@ -39,6 +39,23 @@ fn long_drive(dir: &Path) -> PathBuf {
     path
 }
 
+/// The drive of [`long_drive`] (made in `dir` once) split in three files, as rosbag2 splits a
+/// recording, in the bag directory `dir/name`.
+fn three_file_bag(dir: &Path, name: &str) -> Vec<PathBuf> {
+    let drive = dir.join("drive.mcap");
+    if !drive.exists() {
+        long_drive(dir);
+    }
+    let n = messages(&drive).len();
+    split_mcap(&drive, &dir.join(name), &[n / 3, 2 * n / 3])
+}
+
+/// Keeps the first half of the file `path`: a recorder died while writing it.
+fn cut_in_half(path: &Path) {
+    let bytes = std::fs::read(path).unwrap();
+    std::fs::write(path, &bytes[..bytes.len() / 2]).unwrap();
+}
+
 /// Tracks `input` into `out`, which must succeed; its stderr.
 fn track_ok(input: &Path, out: &Path) -> String {
     let r = track(input, out, &["--quiet"]);
@@ -233,15 +250,14 @@ fn info_reads_a_file_cut_short_and_the_readers_of_outputs_refuse_it() {
 #[test]
 fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
     let dir = tempfile::tempdir().unwrap();
-    let sample = long_drive(dir.path());
-    let n = messages(&sample).len();
-    let bag = dir.path().join("drive");
-    let files = split_mcap(&sample, &bag, &[n / 3, 2 * n / 3]);
+    let (bag, files) = (
+        dir.path().join("drive"),
+        three_file_bag(dir.path(), "drive"),
+    );
     let whole = dir.path().join("whole");
     track_ok(&bag, &whole);
     // The recorder died while writing the last file: cut it in its middle.
-    let last = std::fs::read(&files[2]).unwrap();
-    std::fs::write(&files[2], &last[..last.len() / 2]).unwrap();
+    cut_in_half(&files[2]);
     let out = dir.path().join("out");
     let err = track_ok(&bag, &out);
     assert!(
@@ -264,8 +280,10 @@ fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
 
     // The same bag with its files compressed whole (`--compression-mode file`), the last one
     // cut short in its compressed bytes.
-    let zbag = dir.path().join("zdrive");
-    let zfiles = split_mcap(&sample, &zbag, &[n / 3, 2 * n / 3]);
+    let (zbag, zfiles) = (
+        dir.path().join("zdrive"),
+        three_file_bag(dir.path(), "zdrive"),
+    );
     let mut yaml = std::fs::read_to_string(zbag.join("metadata.yaml")).unwrap();
     yaml = yaml.replace("compression_format: ''", "compression_format: zstd");
     yaml = yaml.replace("compression_mode: ''", "compression_mode: FILE");
@@ -302,15 +320,14 @@ fn a_split_bag_whose_last_file_is_cut_short_is_tracked_up_to_the_cut() {
 #[test]
 fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
     let dir = tempfile::tempdir().unwrap();
-    let sample = long_drive(dir.path());
-    let n = messages(&sample).len();
-    let bag = dir.path().join("drive");
-    let files = split_mcap(&sample, &bag, &[n / 3, 2 * n / 3]);
+    let (bag, files) = (
+        dir.path().join("drive"),
+        three_file_bag(dir.path(), "drive"),
+    );
     let whole = dir.path().join("whole");
     track_ok(&bag, &whole);
     std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
-    let last = std::fs::read(&files[2]).unwrap();
-    std::fs::write(&files[2], &last[..last.len() / 2]).unwrap();
+    cut_in_half(&files[2]);
 
     let out = dir.path().join("out");
     let err = track_ok(&bag, &out);
@@ -338,16 +355,17 @@ fn a_recording_that_lost_power_is_tracked_without_its_metadata() {
     // Recorded with `--compression-mode file`: rosbag2 compresses each file once it is closed,
     // so the power went while file 1 was being compressed (`drive_1.mcap` whole beside a part
     // of `drive_1.mcap.zstd`) and file 2 was being written.
-    let zbag = dir.path().join("zdrive");
-    let zfiles = split_mcap(&sample, &zbag, &[n / 3, 2 * n / 3]);
+    let (zbag, zfiles) = (
+        dir.path().join("zdrive"),
+        three_file_bag(dir.path(), "zdrive"),
+    );
     std::fs::remove_file(zbag.join("metadata.yaml")).unwrap();
     let compress = |f: &Path| zstd::encode_all(std::fs::read(f).unwrap().as_slice(), 3).unwrap();
     std::fs::write(zfiles[0].with_extension("mcap.zstd"), compress(&zfiles[0])).unwrap();
     std::fs::remove_file(&zfiles[0]).unwrap();
     let z1 = compress(&zfiles[1]);
     std::fs::write(zfiles[1].with_extension("mcap.zstd"), &z1[..z1.len() / 3]).unwrap();
-    let last = std::fs::read(&zfiles[2]).unwrap();
-    std::fs::write(&zfiles[2], &last[..last.len() / 2]).unwrap();
+    cut_in_half(&zfiles[2]);
     let zout = dir.path().join("zout");
     let err = track_ok(&zbag, &zout);
     assert!(
