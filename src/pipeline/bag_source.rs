@@ -49,9 +49,10 @@ pub struct BagSource {
     pub storage: Storage,
     /// How they, or their messages, are compressed.
     pub compression: BagCompression,
-    /// Per file, where a read found it cut short: later reads stop there too (see
-    /// [`McapInput::cut_at`]).
-    cut_at: Vec<Option<u64>>,
+    /// Per file, where the first read ended, for later reads to stop there too, also in a file
+    /// still being written: the byte where an MCAP file was cut short ([`McapInput::cut_at`]),
+    /// the last row of a sqlite3 file's `messages`.
+    read_to: Vec<ReadTo>,
 }
 
 impl BagSource {
@@ -62,7 +63,7 @@ impl BagSource {
             files: bag.files.clone(),
             storage: bag.storage,
             compression: bag.compression,
-            cut_at: vec![None; bag.files.len()],
+            read_to: vec![ReadTo::default(); bag.files.len()],
         }
     }
 
@@ -73,9 +74,18 @@ impl BagSource {
             files: vec![path.to_path_buf()],
             storage: Storage::Sqlite3,
             compression: BagCompression::None,
-            cut_at: vec![None],
+            read_to: vec![ReadTo::default()],
         }
     }
+}
+
+/// Where the first read of a file ended ([`BagSource`]'s `read_to`).
+#[derive(Debug, Clone, Copy, Default)]
+struct ReadTo {
+    /// An MCAP file: the byte where it was found cut short.
+    cut_at: Option<u64>,
+    /// A sqlite3 file: the last row id of `messages` read.
+    last_row: Option<i64>,
 }
 
 /// Decompresses the messages of a bag written with `compression_mode: message`.
@@ -273,7 +283,7 @@ impl BagSource {
         base: u64,
         f: &mut OnRecord<'_>,
         cuts: &mut Vec<CutShort>,
-        cut_at: &mut Option<u64>,
+        read_to: &mut ReadTo,
     ) -> Result<bool> {
         let name = self.files[i].display().to_string();
         let mut inflater = MessageInflater::default();
@@ -300,11 +310,11 @@ impl BagSource {
                 false => None,
             };
             let path = scratch.as_ref().map_or(file.as_path(), |s| s.path());
-            return read_db3_as(path, file, &mut hand_on);
+            return read_db3_as(path, file, &mut read_to.last_row, &mut hand_on);
         }
         let (bytes, count) = self.open(i)?;
         let mut input = McapInput::new(name.clone(), bytes);
-        input.stop_at(*cut_at);
+        input.stop_at(read_to.cut_at);
         let (mut in_data, mut stopped) = (true, false);
         let cut = read_records_to_cut(&mut input, |rec, _| {
             if !in_data {
@@ -318,7 +328,7 @@ impl BagSource {
             Ok(flow)
         })?;
         // The bytes of a cut in a file compressed whole count in the decompressed MCAP file.
-        *cut_at = input.cut_at();
+        read_to.cut_at = input.cut_at();
         cuts.extend(cut.map(|c| match compressed_whole(&self.files[i]) {
             true => CutShort {
                 file: format!("{} (decompressed)", c.file),
@@ -377,17 +387,17 @@ impl RecordSource for BagSource {
 
     fn read_while(&mut self, f: &mut OnRecord<'_>) -> Result<Vec<CutShort>> {
         let (mut ids, mut base, mut cuts) = (IdMap::default(), 0, Vec::new());
-        let mut cut_at = std::mem::take(&mut self.cut_at);
-        cut_at.resize(self.files.len(), None);
+        let mut read_to = std::mem::take(&mut self.read_to);
+        read_to.resize(self.files.len(), ReadTo::default());
         let mut stopped = false;
-        for (i, file_cut) in cut_at.iter_mut().enumerate() {
-            stopped = self.read_file(i, &mut ids, base, f, &mut cuts, file_cut)?;
+        for (i, file_end) in read_to.iter_mut().enumerate() {
+            stopped = self.read_file(i, &mut ids, base, f, &mut cuts, file_end)?;
             if stopped {
                 break;
             }
             base += std::fs::metadata(&self.files[i]).map_or(0, |m| m.len());
         }
-        self.cut_at = cut_at;
+        self.read_to = read_to;
         if stopped {
             return Ok(cuts);
         }

@@ -252,12 +252,19 @@ fn declare(
 /// [`ControlFlow::Break`]; returns whether it did. Messages come in timestamp order (ties in
 /// the order they were written), each with its log and publish time set to the timestamp.
 pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
-    read_db3_as(path, path, f)
+    read_db3_as(path, path, &mut None, f)
 }
 
 /// [`read_db3`] of a copy of the file `name` at `path` (a decompressed scratch copy): errors
-/// and progress are of `name`.
-pub fn read_db3_as(path: &Path, name: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
+/// and progress are of `name`. Reads the rows of `messages` up to the id `last_row`; `None`
+/// sets it to the file's last row now, so that a later read given it reads the same rows,
+/// also of a file still being written (`track`'s two passes).
+pub fn read_db3_as(
+    path: &Path,
+    name: &Path,
+    last_row: &mut Option<i64>,
+    f: &mut OnDb3Record<'_>,
+) -> Result<bool> {
     // A write-ahead log beside the file (rosbag2's `resilient` storage preset, a recorder that
     // crashed or is still recording) holds its newest messages: read a copy of both.
     let mut wal = path.as_os_str().to_owned();
@@ -276,7 +283,17 @@ pub fn read_db3_as(path: &Path, name: &Path, f: &mut OnDb3Record<'_>) -> Result<
         return Ok(true);
     };
     let file_len = std::fs::metadata(name).map_or(0, |m| m.len());
-    if read_messages(&conn, &channels, file_len, f).with_context(|| format!("{shown}"))? {
+    let last = match *last_row {
+        Some(last) => last,
+        None => {
+            let max: Option<i64> = (conn
+                .query_row("SELECT max(id) FROM messages", [], |r| r.get(0)))
+            .with_context(|| format!("{shown}: reading the messages table"))?;
+            // An empty table: no row to read, now or later.
+            *last_row.insert(max.unwrap_or(i64::MIN))
+        }
+    };
+    if read_messages(&conn, &channels, last, file_len, f).with_context(|| format!("{shown}"))? {
         return Ok(true);
     }
     let end = Record::DataEnd(DataEnd {
@@ -285,19 +302,24 @@ pub fn read_db3_as(path: &Path, name: &Path, f: &mut OnDb3Record<'_>) -> Result<
     Ok(f(end, file_len)?.is_break())
 }
 
-/// Hands on every row of `messages`; returns whether `f` stopped the read.
+/// Hands on every row of `messages` up to the id `last`; returns whether `f` stopped the read.
 fn read_messages(
     conn: &Connection,
     channels: &HashMap<i64, u16>,
+    last: i64,
     file_len: u64,
     f: &mut OnDb3Record<'_>,
 ) -> Result<bool> {
-    let count: i64 = conn.query_row("SELECT count(*) FROM messages", [], |r| r.get(0))?;
+    let count: i64 = conn.query_row(
+        "SELECT count(*) FROM messages WHERE id <= ?1",
+        [last],
+        |r| r.get(0),
+    )?;
     let mut stmt = conn.prepare(
-        "SELECT id, topic_id, timestamp, length(data), data FROM messages \
+        "SELECT id, topic_id, timestamp, length(data), data FROM messages WHERE id <= ?1 \
          ORDER BY timestamp, id",
     )?;
-    let mut rows = stmt.query([])?;
+    let mut rows = stmt.query([last])?;
     let mut read = 0u64;
     while let Some(row) = rows.next().context("reading the messages table")? {
         let id: i64 = row.get(0)?;
@@ -453,6 +475,36 @@ mod tests {
             name.to_string_lossy().starts_with(&pid) && name.to_string_lossy().contains("b_0.db3")
         });
         assert_eq!(left.count(), 0, "a scratch file was left behind");
+    }
+
+    /// A file still being written: a second read given the first read's last row reads the
+    /// same rows, though rows were added in between.
+    #[test]
+    fn a_later_read_stops_at_the_first_reads_last_row() {
+        let path = db3(TWO_TOPICS);
+        let read = |last_row: &mut Option<i64>| {
+            let mut messages = Vec::new();
+            let stopped = read_db3_as(&path, &path, last_row, &mut |rec, _| {
+                if let Record::Message { header, .. } = rec {
+                    messages.push(header.log_time);
+                }
+                Ok(ControlFlow::Continue(()))
+            });
+            assert!(!stopped.unwrap());
+            messages
+        };
+        let mut last_row = None;
+        assert_eq!(read(&mut last_row), [10, 20, 20]);
+        assert_eq!(last_row, Some(3));
+        let conn = Connection::open(&path).unwrap();
+        conn.execute_batch("INSERT INTO messages VALUES (4, 3, 5, x'06');")
+            .unwrap();
+        assert_eq!(read(&mut last_row), [10, 20, 20], "the same rows");
+        assert_eq!(
+            read(&mut None),
+            [5, 10, 20, 20],
+            "a new read reads them all"
+        );
     }
 
     /// Topics become channels in id order, one schema per type (its stored definition, or no
