@@ -1,31 +1,54 @@
-//! MCAP files that end in the middle of a record: what a recorder leaves when it crashes, is
-//! killed or loses power. Their records up to the cut are whole and checked like any other, so
-//! the commands that read recordings as they were recorded (`track`, `info`) read them, and say
-//! what was lost; the commands that read `track`'s outputs refuse them, pointing at `track`.
+//! Recordings that did not finish: what a recorder leaves when it crashes, is killed or loses
+//! power. An MCAP file then ends in the middle of a record; a rosbag2 sqlite3 file (written, by
+//! rosbag2's default, with its journal in memory and without syncing) is left with pages its
+//! header counts but the file does not hold, or pages half written. What can be read of it is
+//! whole and checked like any other record, so the commands that read recordings as they were
+//! recorded (`track`, `info`) read it and say what was lost; the commands that read `track`'s
+//! outputs refuse it, pointing at `track`.
 //!
-//! What is lost is the unfinished record: in a chunked file, the chunk being written (a
-//! recorder's chunk holds about a second or less of a drive), and always the summary section.
+//! What is lost is the unfinished part: in a chunked MCAP file, the chunk being written (a
+//! recorder's chunk holds about a second or less of a drive) and the summary section; in a
+//! sqlite3 file, the rows after the first unreadable one.
 
-/// Where a file cut short stops being readable.
+/// A file found cut short, and where.
 #[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
 pub struct CutShort {
     /// The file, named as its input is.
     pub file: String,
-    /// Bytes from the start of the file that are whole records; reading stopped there.
-    pub complete_bytes: u64,
-    /// Bytes in the file.
-    pub file_bytes: u64,
-    /// Whether the cut falls after the end of the data section (in the summary section or the
-    /// footer), so that every message was read.
-    pub in_summary: bool,
+    /// Where it stops being readable.
+    #[serde(flatten)]
+    pub at: CutAt,
+}
+
+/// Where a file cut short stops being readable, by its storage.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+#[serde(tag = "storage", rename_all = "lowercase")]
+pub enum CutAt {
+    /// An MCAP file that ends in the middle of a record.
+    Mcap {
+        /// Bytes from the start of the file that are whole records; reading stopped there.
+        complete_bytes: u64,
+        /// Bytes in the file.
+        file_bytes: u64,
+        /// Whether the cut falls after the end of the data section (in the summary section or
+        /// the footer), so that every message was read.
+        in_summary: bool,
+    },
+    /// A sqlite3 file whose `messages` table cannot be read whole.
+    Sqlite3 {
+        /// Rows of `messages` read, in row order, before the first that could not be.
+        rows_read: u64,
+        /// The id of the last of them (`None`: no row was read).
+        last_row: Option<i64>,
+        /// The pages the file's header counts, when more than the file holds (the recorder
+        /// died before writing them all).
+        header_pages: Option<u64>,
+        /// The pages the file holds.
+        file_pages: u64,
+    },
 }
 
 impl CutShort {
-    /// Bytes after the last whole record: the unfinished record, not read.
-    pub fn lost_bytes(&self) -> u64 {
-        self.file_bytes.saturating_sub(self.complete_bytes)
-    }
-
     /// What a command that reads the file says: what it read, and what it could not.
     pub fn warning(&self) -> String {
         format!(
@@ -37,32 +60,59 @@ impl CutShort {
 
     /// The error of a command that reads only whole files (`track`'s outputs).
     pub fn error(&self) -> String {
+        let at = match self.at {
+            CutAt::Mcap { complete_bytes, .. } => format!("at byte {complete_bytes}"),
+            CutAt::Sqlite3 { .. } => "(its messages table cannot be read whole)".into(),
+        };
         format!(
-            "{}: not a readable MCAP file: it is cut short at byte {} (a recording that did not \
+            "{}: not a readable MCAP file: it is cut short {at} (a recording that did not \
              finish?); `probmot track` and `probmot info` read the records before the cut (a \
              warning says what was lost), and `mcap recover IN.mcap -o OUT.mcap` (the mcap CLI, \
              https://mcap.dev) rebuilds them as a whole file",
-            self.file, self.complete_bytes
+            self.file
         )
     }
 
     /// What was read of the file, and what was not.
     pub fn what_was_read(&self) -> String {
-        let lost = self.lost_bytes();
-        match (self.in_summary, lost) {
-            (true, _) => format!(
-                "every message was read, but its summary section is unfinished (the last {lost} \
-                 bytes)"
-            ),
-            (false, 0) => format!(
-                "its records were read up to byte {}, where it ends without its summary section",
-                self.complete_bytes
-            ),
-            (false, _) => format!(
-                "its records were read up to byte {}; the last {lost} bytes, an unfinished \
-                 record (the messages of the chunk being written), were not",
-                self.complete_bytes
-            ),
+        match self.at {
+            CutAt::Mcap {
+                complete_bytes,
+                file_bytes,
+                in_summary,
+            } => {
+                let lost = file_bytes.saturating_sub(complete_bytes);
+                match (in_summary, lost) {
+                    (true, _) => format!(
+                        "every message was read, but its summary section is unfinished (the \
+                         last {lost} bytes)"
+                    ),
+                    (false, 0) => format!(
+                        "its records were read up to byte {complete_bytes}, where it ends \
+                         without its summary section"
+                    ),
+                    (false, _) => format!(
+                        "its records were read up to byte {complete_bytes}; the last {lost} \
+                         bytes, an unfinished record (the messages of the chunk being written), \
+                         were not"
+                    ),
+                }
+            }
+            CutAt::Sqlite3 {
+                rows_read,
+                last_row,
+                header_pages,
+                file_pages,
+            } => {
+                let pages = header_pages.map_or(String::new(), |h| {
+                    format!("its header counts {h} pages and the file holds {file_pages}; ")
+                });
+                let last = last_row.map_or("none".into(), |r| format!("row {r}"));
+                format!(
+                    "{pages}{rows_read} messages were read, in row order up to {last}, and the \
+                     rows after the first unreadable one were not"
+                )
+            }
         }
     }
 }
@@ -72,18 +122,20 @@ mod tests {
     use super::*;
 
     fn cut(complete_bytes: u64, file_bytes: u64, in_summary: bool) -> CutShort {
-        CutShort {
-            file: "drive.mcap".into(),
+        let at = CutAt::Mcap {
             complete_bytes,
             file_bytes,
             in_summary,
+        };
+        CutShort {
+            file: "drive.mcap".into(),
+            at,
         }
     }
 
     #[test]
     fn the_warning_says_what_was_read_and_what_was_lost() {
         let mid = cut(1000, 1500, false);
-        assert_eq!(mid.lost_bytes(), 500);
         let w = mid.warning();
         assert!(w.starts_with("drive.mcap: the file is cut short"), "{w}");
         assert!(w.contains("up to byte 1000; the last 500 bytes"), "{w}");
@@ -99,5 +151,26 @@ mod tests {
             e.contains("cut short at byte 1000") && e.contains("probmot track"),
             "{e}"
         );
+        let db = CutShort {
+            file: "b_0.db3".into(),
+            at: CutAt::Sqlite3 {
+                rows_read: 7,
+                last_row: Some(9),
+                header_pages: Some(30),
+                file_pages: 20,
+            },
+        };
+        let w = db.warning();
+        assert!(
+            w.contains(
+                "header counts 30 pages and the file holds 20; 7 messages were read, in \
+                        row order up to row 9"
+            ),
+            "{w}"
+        );
+        let json = serde_json::to_value(&db).unwrap();
+        assert_eq!(json["storage"], "sqlite3");
+        assert_eq!(json["rows_read"], 7);
+        assert_eq!(serde_json::to_value(&mid).unwrap()["file_bytes"], 1500);
     }
 }

@@ -29,7 +29,7 @@ use mcap::records::{op, ChunkHeader, Record};
 use mcap::sans_io::linear_reader::{LinearReadEvent, LinearReader, LinearReaderOptions};
 
 use super::chunk_stream::{for_each_record, limit_hint, size_limit, CrcMismatch};
-pub use super::cut_short::CutShort;
+pub use super::cut_short::{CutAt, CutShort};
 use super::validate::Validator;
 
 /// Largest buffer given to the reader for one `read`. The reader asks for a whole record at once;
@@ -176,9 +176,11 @@ pub fn read_records_to_cut<R: Read>(
     while let Some(event) = reader.next_event() {
         let cut = |complete_bytes, stats: ReadStats| CutShort {
             file: path.display().to_string(),
-            complete_bytes,
-            file_bytes: stats.bytes_read,
-            in_summary,
+            at: CutAt::Mcap {
+                complete_bytes,
+                file_bytes: stats.bytes_read,
+                in_summary,
+            },
         };
         if let Err(mcap::McapError::UnexpectedEof) = event {
             // After a whole header record, the records before the cut are a recording.

@@ -310,7 +310,9 @@ impl BagSource {
                 false => None,
             };
             let path = scratch.as_ref().map_or(file.as_path(), |s| s.path());
-            return read_db3_as(path, file, &mut read_to.last_row, &mut hand_on);
+            let (stopped, cut) = read_db3_as(path, file, &mut read_to.last_row, &mut hand_on)?;
+            cuts.extend(cut);
+            return Ok(stopped);
         }
         let (bytes, count) = self.open(i)?;
         let mut input = McapInput::new(name.clone(), bytes);

@@ -24,13 +24,14 @@ use std::ops::ControlFlow;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use mcap::records::{Channel, DataEnd, Header, MessageHeader, Record, SchemaHeader};
-use rusqlite::types::ValueRef;
+use mcap::records::{Channel, DataEnd, Header, Record, SchemaHeader};
 use rusqlite::{Connection, OpenFlags};
 
+use super::db3_messages::read_messages;
 use super::scratch_file::ScratchFile;
+use crate::mcapio::cut_short::{CutAt, CutShort};
 
-use crate::mcapio::chunk_stream::{limit_hint, size_limit};
+use crate::mcapio::chunk_stream::size_limit;
 use crate::msgs::{ros2_tf, ros2_tracks};
 
 /// The callback of [`read_db3`]: each record, and the bytes of the file read so far (an
@@ -252,19 +253,21 @@ fn declare(
 /// [`ControlFlow::Break`]; returns whether it did. Messages come in timestamp order (ties in
 /// the order they were written), each with its log and publish time set to the timestamp.
 pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
-    read_db3_as(path, path, &mut None, f)
+    Ok(read_db3_as(path, path, &mut None, f)?.0)
 }
 
 /// [`read_db3`] of a copy of the file `name` at `path` (a decompressed scratch copy): errors
 /// and progress are of `name`. Reads the rows of `messages` up to the id `last_row`; `None`
 /// sets it to the file's last row now, so that a later read given it reads the same rows,
-/// also of a file still being written (`track`'s two passes).
+/// also of a file still being written (`track`'s two passes). Also returns where the file was
+/// found cut short: a crash left it damaged, and its messages were read as far as they could
+/// be (`super::db3_messages`).
 pub fn read_db3_as(
     path: &Path,
     name: &Path,
     last_row: &mut Option<i64>,
     f: &mut OnDb3Record<'_>,
-) -> Result<bool> {
+) -> Result<(bool, Option<CutShort>)> {
     // A write-ahead log beside the file (rosbag2's `resilient` storage preset, a recorder that
     // crashed or is still recording) holds its newest messages: read a copy of both.
     let mut wal = path.as_os_str().to_owned();
@@ -275,87 +278,60 @@ pub fn read_db3_as(
         _ => None,
     };
     let path = scratch.as_ref().map_or(path, |s| s.path());
+    // A header that counts more pages than the file holds (a writer killed while committing):
+    // SQLite refuses the file at once, and reads a copy whose header counts the file's pages.
+    let pages = page_counts(path);
+    let over = pages.and_then(|(counted, held)| counted.filter(|&c| c > held).map(|c| (c, held)));
+    let patched = match over {
+        Some((_, held)) => Some(ScratchFile::sqlite_with_page_count(path, held)?),
+        None => None,
+    };
+    let path = patched.as_ref().map_or(path, |s| s.path());
     let shown = name.display();
     let conn = open(path).with_context(|| format!("{shown}"))?;
     let topics = topics(&conn).with_context(|| format!("{shown}"))?;
     let defs = definitions(&conn).with_context(|| format!("{shown}"))?;
     let Some(channels) = declare(&topics, &defs, f)? else {
-        return Ok(true);
+        return Ok((true, None));
     };
     let file_len = std::fs::metadata(name).map_or(0, |m| m.len());
-    let last = match *last_row {
-        Some(last) => last,
-        None => {
-            let max: Option<i64> = (conn
-                .query_row("SELECT max(id) FROM messages", [], |r| r.get(0)))
-            .with_context(|| format!("{shown}: reading the messages table"))?;
-            // An empty table: no row to read, now or later.
-            *last_row.insert(max.unwrap_or(i64::MIN))
-        }
-    };
-    if read_messages(&conn, &channels, last, file_len, f).with_context(|| format!("{shown}"))? {
-        return Ok(true);
+    let read = read_messages(&conn, &channels, last_row, file_len, f)
+        .with_context(|| format!("{shown}"))?;
+    let cut = (read.damaged || over.is_some()).then(|| CutShort {
+        file: shown.to_string(),
+        at: CutAt::Sqlite3 {
+            rows_read: read.rows,
+            last_row: (read.rows > 0).then_some(read.last_row),
+            header_pages: over.map(|o| o.0),
+            file_pages: pages.map_or(0, |p| p.1),
+        },
+    });
+    if read.stopped {
+        return Ok((true, cut));
     }
     let end = Record::DataEnd(DataEnd {
         data_section_crc: 0,
     });
-    Ok(f(end, file_len)?.is_break())
+    Ok((f(end, file_len)?.is_break(), cut))
 }
 
-/// Hands on every row of `messages` up to the id `last`; returns whether `f` stopped the read.
-fn read_messages(
-    conn: &Connection,
-    channels: &HashMap<i64, u16>,
-    last: i64,
-    file_len: u64,
-    f: &mut OnDb3Record<'_>,
-) -> Result<bool> {
-    let count: i64 = conn.query_row(
-        "SELECT count(*) FROM messages WHERE id <= ?1",
-        [last],
-        |r| r.get(0),
-    )?;
-    let mut stmt = conn.prepare(
-        "SELECT id, topic_id, timestamp, length(data), data FROM messages WHERE id <= ?1 \
-         ORDER BY timestamp, id",
-    )?;
-    let mut rows = stmt.query([last])?;
-    let mut read = 0u64;
-    while let Some(row) = rows.next().context("reading the messages table")? {
-        let id: i64 = row.get(0)?;
-        let at = || format!("message {id} of the messages table");
-        let topic_id: i64 = row.get(1)?;
-        let timestamp: i64 = row.get(2).with_context(at)?;
-        let channel_id = *channels
-            .get(&topic_id)
-            .with_context(|| format!("{}: topic_id {topic_id} is not in the topics table", at()))?;
-        let log_time = u64::try_from(timestamp)
-            .map_err(|_| anyhow::anyhow!("{}: negative timestamp {timestamp}", at()))?;
-        let len: i64 = row.get(3).with_context(at)?;
-        if u64::try_from(len).unwrap_or(0) > size_limit() {
-            bail!("{}: {len} bytes long; {}", at(), limit_hint(len as u64));
-        }
-        let data = match row.get_ref(4).with_context(at)? {
-            ValueRef::Blob(b) | ValueRef::Text(b) => b,
-            other => bail!("{}: its data is {:?}, not bytes", at(), other.data_type()),
-        };
-        let header = MessageHeader {
-            channel_id,
-            sequence: 0,
-            log_time,
-            publish_time: log_time,
-        };
-        read += 1;
-        let bytes = file_len.saturating_mul(read) / count.max(1) as u64;
-        let rec = Record::Message {
-            header,
-            data: Cow::Borrowed(data),
-        };
-        if f(rec, bytes)?.is_break() {
-            return Ok(true);
-        }
+/// The pages the header of the SQLite file `path` counts (when SQLite trusts that count: it
+/// was written by the last writer to change the file) and the pages the file holds.
+fn page_counts(path: &Path) -> Option<(Option<u64>, u64)> {
+    use std::io::Read;
+    let mut h = [0u8; 100];
+    std::fs::File::open(path).ok()?.read_exact(&mut h).ok()?;
+    let page_size = match u16::from_be_bytes([h[16], h[17]]) {
+        1 => 65536,
+        n => u64::from(n),
+    };
+    if page_size < 512 {
+        return None;
     }
-    Ok(false)
+    let counted = u64::from(u32::from_be_bytes(h[28..32].try_into().ok()?));
+    let trusted = h[24..28] == h[92..96];
+    let held = std::fs::metadata(path).ok()?.len() / page_size;
+    Some((trusted.then_some(counted), held))
 }
 
 #[cfg(test)]
@@ -490,7 +466,7 @@ mod tests {
                 }
                 Ok(ControlFlow::Continue(()))
             });
-            assert!(!stopped.unwrap());
+            assert_eq!(stopped.unwrap(), (false, None));
             messages
         };
         let mut last_row = None;
@@ -505,6 +481,163 @@ mod tests {
             [5, 10, 20, 20],
             "a new read reads them all"
         );
+    }
+
+    /// What a recorder killed while committing leaves (rosbag2's default pragmas: journal in
+    /// memory, no sync): a header counting pages the file does not hold. SQLite refuses such a
+    /// file at once; its messages are read in row order as far as the pages go, handed on in
+    /// timestamp order, and the cut is reported.
+    #[test]
+    fn a_file_whose_last_pages_are_missing_is_read_as_far_as_it_goes() {
+        // 400 messages of 3000 bytes (about a page each), timestamps not in row order.
+        let rows: String = (1..=400)
+            .map(|i| {
+                format!(
+                    "INSERT INTO messages VALUES ({i}, 3, {}, randomblob(3000));",
+                    (i * 7919) % 400
+                )
+            })
+            .collect();
+        let path = db3(&format!(
+            "PRAGMA page_size = 4096; CREATE INDEX timestamp_idx ON messages (timestamp ASC);
+             INSERT INTO topics VALUES (3, '/a', 'pkg/msg/A', 'cdr', '');
+             {rows}"
+        ));
+        let whole = std::fs::read(&path).unwrap();
+        let read = |bytes: &[u8]| {
+            std::fs::write(&path, bytes).unwrap();
+            let mut stamps = Vec::new();
+            let (stopped, cut) = read_db3_as(&path, &path, &mut None, &mut |rec, _| {
+                if let Record::Message { header, .. } = rec {
+                    stamps.push(header.log_time);
+                }
+                Ok(ControlFlow::Continue(()))
+            })
+            .unwrap();
+            assert!(!stopped);
+            (stamps, cut)
+        };
+        let (all, cut) = read(&whole);
+        assert_eq!((all.len(), cut), (400, None));
+        // The last 40 pages never reached the file.
+        let (stamps, cut) = read(&whole[..whole.len() - 40 * 4096]);
+        let n = stamps.len();
+        assert!((300..400).contains(&n), "{n} messages read");
+        assert!(
+            stamps.windows(2).all(|w| w[0] <= w[1]),
+            "in timestamp order"
+        );
+        let expected: Vec<u64> = {
+            let mut e: Vec<u64> = (1..=n as u64).map(|i| (i * 7919) % 400).collect();
+            e.sort_unstable();
+            e
+        };
+        assert_eq!(
+            stamps, expected,
+            "the rows 1 to {n}, in row order up to the cut"
+        );
+        let Some(CutShort {
+            at:
+                CutAt::Sqlite3 {
+                    rows_read,
+                    last_row,
+                    header_pages,
+                    file_pages,
+                },
+            ..
+        }) = cut
+        else {
+            panic!("no cut reported: {cut:?}");
+        };
+        assert_eq!((rows_read, last_row), (n as u64, Some(n as i64)));
+        let pages = (whole.len() / 4096) as u64;
+        assert_eq!((header_pages, file_pages), (Some(pages), pages - 40));
+        // Nothing is left in the temporary directory.
+        let pid = format!(".probmot-{}-", std::process::id());
+        let left = (std::fs::read_dir(std::env::temp_dir()).unwrap())
+            .filter(|e| {
+                e.as_ref()
+                    .unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .starts_with(&pid)
+            })
+            .count();
+        assert_eq!(left, 0, "a scratch file was left behind");
+    }
+
+    /// The data of a row in the middle of the table spoiled (a pointer of its overflow pages):
+    /// each message that can be read is handed on once, in timestamp order, and the read says
+    /// where it stopped. SQLite reads the table by the timestamp index (as this build plans
+    /// it): the messages of stamps before the spoiled row's, then the rows before it in row
+    /// order that come later in time; sorting the table instead, the rows before it in row
+    /// order.
+    #[test]
+    fn a_table_spoiled_midway_is_read_on_in_row_order() {
+        let stamp = |i: u64| (i * 7919) % 400;
+        let rows: String = (1..=400)
+            .map(|i| {
+                format!(
+                    "INSERT INTO messages VALUES ({i}, 3, {}, randomblob(5000) || \
+                     CAST('MARKER-{i}-' AS BLOB) || randomblob(5000));",
+                    stamp(i)
+                )
+            })
+            .collect();
+        let path = db3(&format!(
+            "CREATE INDEX timestamp_idx ON messages (timestamp ASC);
+             INSERT INTO topics VALUES (3, '/a', 'pkg/msg/A', 'cdr', '');
+             {rows}"
+        ));
+        let by_index = {
+            let conn = Connection::open(&path).unwrap();
+            let mut stmt = (conn.prepare(
+                "EXPLAIN QUERY PLAN SELECT id, topic_id, timestamp, length(data), data FROM \
+                 messages WHERE id <= 1 ORDER BY timestamp, id",
+            ))
+            .unwrap();
+            let details = stmt.query_map([], |r| r.get::<_, String>(3)).unwrap();
+            let plan: String = details.map(|d| d.unwrap()).collect();
+            plan.contains("timestamp_idx")
+        };
+        let mut bytes = std::fs::read(&path).unwrap();
+        let marker = b"MARKER-200-";
+        let at = (bytes.windows(marker.len()))
+            .position(|w| w == marker)
+            .unwrap();
+        // The marker is in the first of the row's two overflow pages, which starts with the
+        // number of the next: now a page the file does not have.
+        let page = at / 4096 * 4096;
+        bytes[page..page + 4].copy_from_slice(&[0xff; 4]);
+        std::fs::write(&path, &bytes).unwrap();
+        let mut stamps = Vec::new();
+        let (_, cut) = read_db3_as(&path, &path, &mut None, &mut |rec, _| {
+            if let Record::Message { header, .. } = rec {
+                stamps.push(header.log_time);
+            }
+            Ok(ControlFlow::Continue(()))
+        })
+        .unwrap();
+        let mut expected: Vec<u64> = (1..=400u64)
+            .filter(|&i| i < 200 || by_index && stamp(i) < stamp(200))
+            .map(stamp)
+            .collect();
+        expected.sort_unstable();
+        assert_eq!(stamps, expected, "read by the index: {by_index}");
+        let Some(CutShort {
+            at:
+                CutAt::Sqlite3 {
+                    rows_read,
+                    last_row,
+                    header_pages,
+                    ..
+                },
+            ..
+        }) = cut
+        else {
+            panic!("no cut reported: {cut:?}");
+        };
+        assert_eq!((rows_read, last_row, header_pages), (199, Some(199), None));
     }
 
     /// Topics become channels in id order, one schema per type (its stored definition, or no

@@ -4,6 +4,7 @@ pub mod bag_metadata;
 pub mod bag_source;
 pub mod bag_track;
 pub mod db3_file;
+mod db3_messages;
 pub mod detections;
 pub mod ego;
 pub mod frame_schedule;

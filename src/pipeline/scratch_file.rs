@@ -115,6 +115,29 @@ impl ScratchFile {
         Ok(scratch)
     }
 
+    /// A copy of the SQLite file `db` whose header counts `pages` pages (the pages the file
+    /// holds, where a writer killed while committing left a header counting more, which SQLite
+    /// refuses at once).
+    pub fn sqlite_with_page_count(db: &Path, pages: u64) -> Result<ScratchFile> {
+        use std::io::{Seek, SeekFrom, Write};
+        let stem = (db.file_name().map(|n| n.to_string_lossy().into_owned())).unwrap_or_default();
+        let (scratch, mut out) = Self::create(db, &stem)?;
+        let mut input = File::open(db).with_context(|| format!("cannot open {}", db.display()))?;
+        let count = u32::try_from(pages).unwrap_or(u32::MAX).to_be_bytes();
+        (std::io::copy(&mut input, &mut out))
+            .and_then(|_| out.seek(SeekFrom::Start(28)))
+            .and_then(|_| out.write_all(&count))
+            .with_context(|| {
+                format!(
+                    "{}: copying it into the scratch file {} (a copy whose header SQLite reads; \
+                     TMPDIR chooses where)",
+                    db.display(),
+                    scratch.path.display()
+                )
+            })?;
+        Ok(scratch)
+    }
+
     /// Where the scratch file is.
     pub fn path(&self) -> &Path {
         &self.path
