@@ -20,7 +20,6 @@
 
 use std::borrow::Cow;
 use std::collections::{BTreeMap, HashMap};
-use std::ops::ControlFlow;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
@@ -34,9 +33,7 @@ use crate::mcapio::cut_short::{CutAt, CutShort};
 use crate::mcapio::chunk_stream::size_limit;
 use crate::msgs::{ros2_tf, ros2_tracks};
 
-/// The callback of [`read_db3`]: each record, and the bytes of the file read so far (an
-/// estimate from the messages read, for progress).
-pub type OnDb3Record<'f> = dyn FnMut(Record<'_>, u64) -> Result<ControlFlow<()>> + 'f;
+pub use super::db3_messages::OnDb3Record;
 
 /// Whether `path` is a regular file that starts as a SQLite database does (a `.db3` file named
 /// on its own, without its bag directory). Reads 16 bytes; anything but a regular file is not
@@ -250,7 +247,7 @@ fn declare(
 }
 
 /// Reads the sqlite3 storage file `path` as MCAP records, handing each to `f` until it says
-/// [`ControlFlow::Break`]; returns whether it did. Messages come in timestamp order (ties in
+/// [`std::ops::ControlFlow::Break`]; returns whether it did. Messages come in timestamp order (ties in
 /// the order they were written), each with its log and publish time set to the timestamp.
 pub fn read_db3(path: &Path, f: &mut OnDb3Record<'_>) -> Result<bool> {
     Ok(read_db3_as(path, path, &mut None, f)?.0)
@@ -337,6 +334,7 @@ fn page_counts(path: &Path) -> Option<(Option<u64>, u64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::ops::ControlFlow;
 
     /// A sqlite3 storage file made by `sql` (after the tables of schema version 3, which has
     /// no `message_definitions`).

@@ -12,14 +12,18 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::ops::ControlFlow;
 
 use anyhow::{bail, Context, Result};
 use mcap::records::{MessageHeader, Record};
 use rusqlite::types::ValueRef;
 use rusqlite::{Connection, ErrorCode, Row};
 
-use super::db3_file::OnDb3Record;
 use crate::mcapio::chunk_stream::{limit_hint, size_limit};
+
+/// The callback of [`super::db3_file::read_db3`]: each record, and the bytes of the file read so
+/// far (an estimate from the messages read, for progress).
+pub type OnDb3Record<'f> = dyn FnMut(Record<'_>, u64) -> Result<ControlFlow<()>> + 'f;
 
 /// How a read of the messages ended.
 pub(super) struct MessagesRead {
