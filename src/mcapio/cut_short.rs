@@ -34,9 +34,13 @@ pub enum CutAt {
         /// the footer), so that every message was read.
         in_summary: bool,
     },
-    /// A sqlite3 file whose `messages` table cannot be read whole.
+    /// A sqlite3 file a crash left damaged.
     Sqlite3 {
-        /// Rows of `messages` read, in row order, before the first that could not be.
+        /// Whether its `messages` table could be read whole all the same (only its header
+        /// counted pages the file does not hold).
+        table_whole: bool,
+        /// Rows of `messages` read (when not whole: in row order, before the first that could
+        /// not be).
         rows_read: u64,
         /// The id of the last of them (`None`: no row was read).
         last_row: Option<i64>,
@@ -99,6 +103,7 @@ impl CutShort {
                 }
             }
             CutAt::Sqlite3 {
+                table_whole,
                 rows_read,
                 last_row,
                 header_pages,
@@ -108,10 +113,13 @@ impl CutShort {
                     format!("its header counts {h} pages and the file holds {file_pages}; ")
                 });
                 let last = last_row.map_or("none".into(), |r| format!("row {r}"));
-                format!(
-                    "{pages}{rows_read} messages were read, in row order up to {last}, and the \
-                     rows after the first unreadable one were not"
-                )
+                match table_whole {
+                    true => format!("{pages}its {rows_read} messages were all read"),
+                    false => format!(
+                        "{pages}{rows_read} messages were read, in row order up to {last}, and \
+                         the rows after the first unreadable one were not"
+                    ),
+                }
             }
         }
     }
@@ -154,6 +162,7 @@ mod tests {
         let db = CutShort {
             file: "b_0.db3".into(),
             at: CutAt::Sqlite3 {
+                table_whole: false,
                 rows_read: 7,
                 last_row: Some(9),
                 header_pages: Some(30),

@@ -297,6 +297,7 @@ pub fn read_db3_as(
     let cut = (read.damaged || over.is_some()).then(|| CutShort {
         file: shown.to_string(),
         at: CutAt::Sqlite3 {
+            table_whole: !read.damaged,
             rows_read: read.rows,
             last_row: (read.rows > 0).then_some(read.last_row),
             header_pages: over.map(|o| o.0),
@@ -517,6 +518,20 @@ mod tests {
         };
         let (all, cut) = read(&whole);
         assert_eq!((all.len(), cut), (400, None));
+        // A header counting 10 pages more than the file holds, and nothing else amiss.
+        let mut over = whole.clone();
+        let pages = u32::from_be_bytes(over[28..32].try_into().unwrap());
+        over[28..32].copy_from_slice(&(pages + 10).to_be_bytes());
+        let (stamps, cut) = read(&over);
+        assert_eq!(stamps.len(), 400);
+        let w = cut.expect("the header's count is reported").warning();
+        assert!(
+            w.contains(&format!(
+                "counts {} pages and the file holds {pages}; its 400 messages were all read",
+                pages + 10
+            )),
+            "{w}"
+        );
         // The last 40 pages never reached the file.
         let (stamps, cut) = read(&whole[..whole.len() - 40 * 4096]);
         let n = stamps.len();
@@ -537,6 +552,7 @@ mod tests {
         let Some(CutShort {
             at:
                 CutAt::Sqlite3 {
+                    table_whole: false,
                     rows_read,
                     last_row,
                     header_pages,
@@ -625,6 +641,7 @@ mod tests {
         let Some(CutShort {
             at:
                 CutAt::Sqlite3 {
+                    table_whole: false,
                     rows_read,
                     last_row,
                     header_pages,
