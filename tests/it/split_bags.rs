@@ -467,3 +467,49 @@ fn splitting_a_bag_at_any_message_gives_the_same_tracks() {
         }
     }
 }
+
+/// A Humble recording that lost power: no `metadata.yaml`, and its sqlite3 file's last pages
+/// never written though its header counts them (rosbag2's default pragmas; SQLite alone refuses
+/// such a file). `track` reads it as far as its pages go, with a warning for each; the tracks
+/// are the whole recording's up to there.
+#[test]
+fn a_humble_recording_that_lost_power_tracks_as_far_as_its_pages_go() {
+    if !have_rosbags("a_humble_recording_that_lost_power_tracks_as_far_as_its_pages_go") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let whole = make_autoware_bag(d, "drive", &["--frames", "400"]);
+    let bag = d.join("humble");
+    let flags = ["--parts", "1", "--storage", "sqlite3", "--no-definitions"];
+    python("scripts/split_bag.py", &[&whole, &bag], &flags);
+    let all_out = d.join("all");
+    track(&bag, &all_out);
+    std::fs::remove_file(bag.join("metadata.yaml")).unwrap();
+    let file = bag.join("humble_0.db3");
+    let bytes = std::fs::read(&file).unwrap();
+    let pages = bytes.len() / 4096;
+    std::fs::write(&file, &bytes[..(pages - pages / 4) * 4096]).unwrap();
+    let out = d.join("out");
+    let run = probmot(&["track", s(&bag), "-o", s(&out), "--quiet"]);
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert_eq!(run.status.code(), Some(0), "{err}");
+    assert!(err.contains("humble: no metadata.yaml"), "{err}");
+    assert!(
+        err.contains("humble_0.db3: the file is cut short")
+            && err.contains(&format!("its header counts {pages} pages")),
+        "{err}"
+    );
+    let (cut, all) = (tracks_of(&out), tracks_of(&all_out));
+    assert!(
+        all.len() / 2 < cut.len() && cut.len() < all.len(),
+        "{} of {}",
+        cut.len(),
+        all.len()
+    );
+    assert!(cut[..] == all[..cut.len()], "the tracks up to the cut");
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
