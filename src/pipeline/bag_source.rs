@@ -329,8 +329,8 @@ impl BagSource {
             stopped = flow.is_break();
             Ok(flow)
         })?;
-        // The bytes of a cut in a file compressed whole count in the decompressed MCAP file.
         read_to.cut_at = input.cut_at();
+        // The bytes of a cut in a file compressed whole count in the decompressed MCAP file.
         cuts.extend(cut.map(|c| match compressed_whole(&self.files[i]) {
             true => CutShort {
                 file: format!("{} (decompressed)", c.file),
