@@ -482,6 +482,20 @@ mod tests {
         );
     }
 
+    /// The log times of the messages a whole read of `path` hands on, and the cut it reports.
+    fn stamps_and_cut(path: &Path) -> (Vec<u64>, Option<CutShort>) {
+        let mut stamps = Vec::new();
+        let (stopped, cut) = read_db3_as(path, path, &mut None, &mut |rec, _| {
+            if let Record::Message { header, .. } = rec {
+                stamps.push(header.log_time);
+            }
+            Ok(ControlFlow::Continue(()))
+        })
+        .unwrap();
+        assert!(!stopped);
+        (stamps, cut)
+    }
+
     /// What a recorder killed while committing leaves (rosbag2's default pragmas: journal in
     /// memory, no sync): a header counting pages the file does not hold. SQLite refuses such a
     /// file at once; its messages are read in row order as far as the pages go, handed on in
@@ -505,16 +519,7 @@ mod tests {
         let whole = std::fs::read(&path).unwrap();
         let read = |bytes: &[u8]| {
             std::fs::write(&path, bytes).unwrap();
-            let mut stamps = Vec::new();
-            let (stopped, cut) = read_db3_as(&path, &path, &mut None, &mut |rec, _| {
-                if let Record::Message { header, .. } = rec {
-                    stamps.push(header.log_time);
-                }
-                Ok(ControlFlow::Continue(()))
-            })
-            .unwrap();
-            assert!(!stopped);
-            (stamps, cut)
+            stamps_and_cut(&path)
         };
         let (all, cut) = read(&whole);
         assert_eq!((all.len(), cut), (400, None));
@@ -624,14 +629,7 @@ mod tests {
         let page = at / 4096 * 4096;
         bytes[page..page + 4].copy_from_slice(&[0xff; 4]);
         std::fs::write(&path, &bytes).unwrap();
-        let mut stamps = Vec::new();
-        let (_, cut) = read_db3_as(&path, &path, &mut None, &mut |rec, _| {
-            if let Record::Message { header, .. } = rec {
-                stamps.push(header.log_time);
-            }
-            Ok(ControlFlow::Continue(()))
-        })
-        .unwrap();
+        let (stamps, cut) = stamps_and_cut(&path);
         let mut expected: Vec<u64> = (1..=400u64)
             .filter(|&i| i < 200 || by_index && stamp(i) < stamp(200))
             .map(stamp)
