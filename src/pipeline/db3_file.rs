@@ -265,20 +265,24 @@ pub fn read_db3_as(
     last_row: &mut Option<i64>,
     f: &mut OnDb3Record<'_>,
 ) -> Result<(bool, Option<CutShort>)> {
-    // A write-ahead log beside the file (rosbag2's `resilient` storage preset, a recorder that
-    // crashed or is still recording) holds its newest messages: read a copy of both.
+    // A file in WAL mode (rosbag2's `resilient` storage preset), with the write-ahead log a
+    // recorder that crashed or is still recording leaves beside it (its newest messages):
+    // SQLite would write its log and index files beside the input, so a copy of both is read.
     let mut wal = path.as_os_str().to_owned();
     wal.push("-wal");
     let wal = std::path::PathBuf::from(wal);
-    let scratch = match std::fs::metadata(&wal) {
-        Ok(m) if m.is_file() && m.len() > 0 => Some(ScratchFile::sqlite_with_wal(path, &wal)?),
-        _ => None,
+    let has_log = std::fs::metadata(&wal).is_ok_and(|m| m.is_file() && m.len() > 0);
+    let scratch = match has_log || in_wal_mode(path) {
+        true => Some(ScratchFile::sqlite_with_wal(path, &wal)?),
+        false => None,
     };
     let path = scratch.as_ref().map_or(path, |s| s.path());
     // A header that counts more pages than the file holds (a writer killed while committing):
     // SQLite refuses the file at once, and reads a copy whose header counts the file's pages.
+    // (With a write-ahead log SQLite takes the size from the log.)
     let pages = page_counts(path);
-    let over = pages.and_then(|(counted, held)| counted.filter(|&c| c > held).map(|c| (c, held)));
+    let over = (pages.filter(|_| !has_log))
+        .and_then(|(counted, held)| counted.filter(|&c| c > held).map(|c| (c, held)));
     let patched = match over {
         Some((_, held)) => Some(ScratchFile::sqlite_with_page_count(path, held)?),
         None => None,
@@ -311,6 +315,14 @@ pub fn read_db3_as(
         data_section_crc: 0,
     });
     Ok((f(end, file_len)?.is_break(), cut))
+}
+
+/// Whether the SQLite file `path` is in WAL mode (its header's read and write versions are 2).
+fn in_wal_mode(path: &Path) -> bool {
+    use std::io::Read;
+    let mut h = [0u8; 20];
+    (std::fs::File::open(path).and_then(|mut f| f.read_exact(&mut h))).is_ok()
+        && (h[18] == 2 || h[19] == 2)
 }
 
 /// The pages the header of the SQLite file `path` counts (when SQLite trusts that count: it
@@ -651,6 +663,37 @@ mod tests {
             panic!("no cut reported: {cut:?}");
         };
         assert_eq!((rows_read, last_row, header_pages), (199, Some(199), None));
+    }
+
+    /// A file left in WAL mode by a recorder that closed it (no log beside it): read from a
+    /// copy too, since SQLite would make its log and index files beside the input.
+    #[test]
+    fn a_file_in_wal_mode_without_its_log_leaves_the_input_alone() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("b_0.db3");
+        let conn = Connection::open(&path).unwrap();
+        conn.execute_batch(&format!(
+            "PRAGMA journal_mode = WAL;
+             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+               timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             {TWO_TOPICS}"
+        ))
+        .unwrap();
+        drop(conn);
+        assert!(in_wal_mode(&path));
+        let names = || -> Vec<std::ffi::OsString> {
+            let mut n: Vec<_> = (std::fs::read_dir(dir.path()).unwrap())
+                .map(|e| e.unwrap().file_name())
+                .collect();
+            n.sort();
+            n
+        };
+        assert_eq!(names(), ["b_0.db3"]);
+        let (stamps, cut) = stamps_and_cut(&path);
+        assert_eq!((stamps, cut), (vec![10, 20, 20], None));
+        assert_eq!(names(), ["b_0.db3"], "files were made beside the input");
     }
 
     /// Topics become channels in id order, one schema per type (its stored definition, or no

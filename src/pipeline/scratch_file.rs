@@ -3,7 +3,8 @@
 //! write-ahead log (which SQLite reads only by writing beside it). Written in the temporary directory
 //! (`TMPDIR`, else `/tmp`), removed when dropped, and on an interrupt by
 //! [`remove_scratch_files`] (called by the binary's signal handler), so an interrupted run
-//! leaves none behind. At most one exists per bag being read: the file being read.
+//! leaves none behind. At most two exist per bag being read, both of the file being read (a
+//! decompressed or logged copy, and the copy of that whose header's page count is set right).
 
 use std::fs::File;
 use std::io::BufReader;
@@ -87,7 +88,7 @@ impl ScratchFile {
         Ok(scratch)
     }
 
-    /// A copy of the SQLite file `db` with its write-ahead log `wal` beside it (as `PATH-wal`),
+    /// A copy of the SQLite file `db` with its write-ahead log `wal` (when there is one) beside it (as `PATH-wal`),
     /// so that SQLite reads the log's transactions from the copy: reading them in place would
     /// write an index (`-shm`) beside the input, and fail in a directory it cannot write.
     pub fn sqlite_with_wal(db: &Path, wal: &Path) -> Result<ScratchFile> {
@@ -106,6 +107,9 @@ impl ScratchFile {
             })
         };
         copy(db, &mut out)?;
+        if !wal.exists() {
+            return Ok(scratch);
+        }
         let mut log = scratch.path.as_os_str().to_owned();
         log.push("-wal");
         let mut log = (std::fs::OpenOptions::new().write(true).create_new(true))

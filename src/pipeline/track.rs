@@ -284,11 +284,13 @@ fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     out: Output<S, F>,
     opts: &TrackOptions,
     progress: &dyn Fn(Progress<'_>),
-    plan: Option<Scan>,
+    mut plan: Option<Scan>,
     schedule: Schedule,
     base: u64,
 ) -> Result<(S, ControlFlow<Replan, TrackSummary>)> {
     let file = input.name().to_string();
+    // The cuts of a first pass, if this is the second: those are what the run warns of.
+    let scanned_cuts = (plan.as_mut()).map_or(Vec::new(), |p| std::mem::take(&mut p.cuts));
     let mut summary = TrackSummary {
         input: file.clone(),
         ..Default::default()
@@ -362,7 +364,7 @@ fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     };
     session.add_tracks_channels()?;
     let mut replan = None;
-    let cuts = input.read_while(&mut |rec, stats| {
+    let read_cuts = input.read_while(&mut |rec, stats| {
         let flow = session.on_record(rec, stats.bytes_read)?;
         replan = flow.break_value();
         Ok(flow.map_break(|_| ()))
@@ -370,6 +372,10 @@ fn run_pass<I: RecordSource, S: RecordSink, F: FnOnce(String) -> Result<S>>(
     if let Some(replan) = replan {
         return Ok((session.out, ControlFlow::Break(replan)));
     }
+    let cuts = match scanned_cuts.is_empty() {
+        true => read_cuts,
+        false => scanned_cuts,
+    };
     if let (Some(cut), true) = (cuts.first(), opts.strict) {
         bail!("{}; --strict refuses it", cut.warning());
     }

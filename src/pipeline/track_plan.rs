@@ -16,6 +16,7 @@ use super::progress::Progress;
 use super::stamp_check::{LogSpan, StampWindow};
 use super::track_options::TrackOptions;
 use super::track_records::{check_count, note_stamp, undecodable};
+use crate::mcapio::reader::CutShort;
 use crate::mcapio::recording::topic_list;
 use crate::mcapio::source::RecordSource;
 use crate::msgs;
@@ -50,6 +51,9 @@ impl PassPlan {
 /// Result of the first pass.
 #[derive(Default)]
 pub(super) struct Scan {
+    /// The files the first pass found cut short: what the run warns of (a later read stops
+    /// where this one did, and may not meet the damage, or not all of a grown file).
+    pub(super) cuts: Vec<CutShort>,
     pub(super) profile: String,
     pub(super) schema_ids: HashSet<u16>,
     /// `(name, encoding, data)` of every schema.
@@ -178,8 +182,7 @@ pub(super) fn scan<I: RecordSource>(
     let file = input.name().to_string();
     let mut s = Scan::default();
     let mut last_stamp: HashMap<u16, u64> = HashMap::new();
-    // A cut (a file cut short) is met again, and warned of, by the tracking pass.
-    let _cuts = input.read_while(&mut |rec, stats| {
+    s.cuts = input.read_while(&mut |rec, stats| {
         match rec {
             Record::Header(h) => s.profile = h.profile,
             Record::Schema { header, data } => s.on_schema(header, &data),

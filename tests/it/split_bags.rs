@@ -497,9 +497,16 @@ fn a_humble_recording_that_lost_power_tracks_as_far_as_its_pages_go() {
     assert!(err.contains("humble: no metadata.yaml"), "{err}");
     assert!(
         err.contains("humble_0.db3: the file is cut short")
-            && err.contains(&format!("its header counts {pages} pages")),
+            && err.contains(&format!("its header counts {pages} pages"))
+            && err.contains("the rows after the first unreadable one were not"),
         "{err}"
     );
+    // --strict refuses it (its tracking pass, which stops at the first pass's last row, meets
+    // no damage: the first pass's finding is what counts).
+    let strict = d.join("strict");
+    let run = probmot(&["track", s(&bag), "-o", s(&strict), "--strict"]);
+    assert_eq!(run.status.code(), Some(2), "{run:?}");
+    assert!(!strict.exists());
     let (cut, all) = (tracks_of(&out), tracks_of(&all_out));
     assert!(
         all.len() / 2 < cut.len() && cut.len() < all.len(),
