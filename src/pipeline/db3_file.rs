@@ -358,13 +358,7 @@ mod tests {
             .unwrap()
             .into_temp_path();
         let conn = Connection::open(&path).unwrap();
-        conn.execute_batch(
-            "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
-               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
-             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
-               timestamp INTEGER NOT NULL, data BLOB NOT NULL);",
-        )
-        .unwrap();
+        conn.execute_batch(TABLES).unwrap();
         conn.execute_batch(sql).unwrap();
         path
     }
@@ -403,6 +397,13 @@ mod tests {
         (seen, result)
     }
 
+    /// The tables of rosbag2's sqlite3 schema version 3 (no `message_definitions`).
+    const TABLES: &str =
+        "CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
+               timestamp INTEGER NOT NULL, data BLOB NOT NULL);";
+
     const TWO_TOPICS: &str = "
         INSERT INTO topics VALUES (7, '/b', 'pkg/msg/B', 'cdr', 'qos b');
         INSERT INTO topics VALUES (3, '/a', 'pkg/msg/A', 'cdr', 'qos a');
@@ -421,10 +422,7 @@ mod tests {
         // the log into it): Python's sqlite3 module and `os._exit`.
         let sql = format!(
             "PRAGMA journal_mode = WAL;
-             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
-               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
-             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
-               timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             {TABLES}
              {TWO_TOPICS}
              PRAGMA wal_checkpoint(TRUNCATE);
              INSERT INTO messages VALUES (4, 3, 30, x'05');"
@@ -674,10 +672,7 @@ mod tests {
         let conn = Connection::open(&path).unwrap();
         conn.execute_batch(&format!(
             "PRAGMA journal_mode = WAL;
-             CREATE TABLE topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
-               serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
-             CREATE TABLE messages(id INTEGER PRIMARY KEY, topic_id INTEGER NOT NULL,
-               timestamp INTEGER NOT NULL, data BLOB NOT NULL);
+             {TABLES}
              {TWO_TOPICS}"
         ))
         .unwrap();

@@ -270,14 +270,14 @@ pub fn bag_mcap(path: &Path) -> Result<Option<PathBuf>> {
     let dir = path.display();
     let what = match (bag.storage, bag.compression) {
         (Storage::Sqlite3, _) => Some("a bag with sqlite3 storage (.db3)"),
-        (_, BagCompression::FileZstd) => Some("a bag of compressed files (compression_mode file)"),
         _ if bag.files.iter().any(|f| compressed_whole(f)) => {
             Some("a bag of compressed files (compression_mode file)")
         }
         (_, BagCompression::MessageZstd) => {
             Some("a bag of compressed messages (compression_mode message)")
         }
-        (Storage::Mcap, BagCompression::None) => None,
+        // Files compressed whole are told by their names (`compressed_whole`), as they are read.
+        (Storage::Mcap, BagCompression::None | BagCompression::FileZstd) => None,
     };
     if let Some(what) = what {
         bail!(
